@@ -1,0 +1,252 @@
+"""Typed, frozen parameter sets, the paper's Table I preset, and TOML load/save.
+
+Every field carries its unit and allowed range in its metadata; ``validate`` (called
+from ``__post_init__``) raises :class:`ConfigError` naming the key, the value and the
+range. A TOML file overrides any subset of a preset::
+
+    [skin]
+    R_g = 12.0
+    R_w_flowing = 0.25   # K/W, replaces the convection model while the pump runs
+
+Tables: ``[skin] [sampling] [observer] [detector] [sensor] [pump]``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+INF = math.inf
+
+
+class ConfigError(ValueError):
+    """A configuration value or key is wrong; the message names which and where."""
+
+
+def _p(default: Any, unit: str, lo: float = -INF, hi: float = INF, *, lo_open: bool = False,
+       doc: str = "", optional: bool = False, choices: tuple[str, ...] = ()) -> Any:
+    """A parameter field with unit, range and doc in its metadata."""
+    meta = {"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open, "doc": doc,
+            "optional": optional, "choices": choices}
+    return field(default=default, metadata=meta)
+
+
+def _range_text(meta: dict[str, Any]) -> str:
+    if meta["choices"]:
+        return "one of " + ", ".join(repr(c) for c in meta["choices"])
+    lo, hi = meta["lo"], meta["hi"]
+    left = f"> {lo:g}" if meta["lo_open"] else f">= {lo:g}"
+    if hi == INF:
+        return left
+    return f"{left} and <= {hi:g}"
+
+
+class _Validated:
+    """Mixin: range-check every field of a frozen dataclass after construction."""
+
+    section: str = ""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            meta = f.metadata
+            if not meta:
+                continue
+            value = getattr(self, f.name)
+            key = f"{self.section}.{f.name}"
+            if value is None and meta["optional"]:
+                continue
+            if meta["choices"]:
+                if value not in meta["choices"]:
+                    raise ConfigError(f"{key} = {value!r} is not allowed: must be "
+                                      f"{_range_text(meta)}")
+                continue
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ConfigError(f"{key} = {value!r} is not a number ({meta['unit']})")
+            v = float(value)
+            lo, hi = meta["lo"], meta["hi"]
+            bad = (not math.isfinite(v) or v > hi or v < lo or (meta["lo_open"] and v <= lo))
+            if bad:
+                raise ConfigError(f"{key} = {value!r} is out of range: must be "
+                                  f"{_range_text(meta)} ({meta['unit']})")
+            object.__setattr__(self, f.name, v if isinstance(f.default, float) else value)
+
+
+@dataclass(frozen=True)
+class SkinParams(_Validated):
+    """The skin's thermal network (Fig. 3) and water-flow geometry (eqs. 1-2).
+
+    Defaults are Table I, taken as the identified values of the paper's prototype.
+    """
+
+    section = "skin"
+    C_w: float = _p(0.134, "J/K", 0, lo_open=True, doc="thermal capacitance of the water pipe")
+    C_g: float = _p(0.0124, "J/K", 0, lo_open=True, doc="thermal capacitance of the graphite sheet")
+    R_g: float = _p(10.0, "K/W", 0, lo_open=True, doc="thermal resistance pipe to sheet")
+    R_aw: float = _p(2100.0, "K/W", 0, lo_open=True, doc="thermal resistance pipe to air")
+    R_ag: float = _p(1.0, "K/W", 0, lo_open=True, doc="thermal resistance sheet to air")
+    A: float = _p(3.2e-3, "m^2", 0, lo_open=True, doc="heat-exchange area of the water tank (eq. 1)")
+    V: float = _p(3.2e-5, "m^3", 0, lo_open=True, doc="volume of the water tank (eq. 2)")
+    d: float = _p(3.0e-3, "m", 0, 0.1, lo_open=True, doc="characteristic pipe diameter")
+    L: float = _p(0.11, "m", 0, 10.0, lo_open=True, doc="length of the pipe and the tank")
+    R_w_flowing: float | None = _p(None, "K/W", 0, lo_open=True, optional=True,
+                                   doc="R_w while the pump runs; replaces the convection model")
+    R_w_stopped: float | None = _p(None, "K/W", 0, lo_open=True, optional=True,
+                                   doc="R_w while the pump is stopped; replaces the conduction model")
+    water: str = _p("coolprop", "", choices=("coolprop", "table1"),
+                    doc="water properties: CoolProp at T_ref, or Table I's printed values")
+    T_ref: float = _p(24.0, "degC", 0.5, 99.0, doc="water temperature for the properties")
+
+
+@dataclass(frozen=True)
+class SamplingParams(_Validated):
+    """Sampling of the loop."""
+
+    section = "sampling"
+    t_s: float = _p(1.0e-3, "s", 0, 1.0, lo_open=True, doc="sampling time (Table I)")
+
+
+@dataclass(frozen=True)
+class ObserverParams(_Validated):
+    """Thermal exchange observer (eq. 8) and its contact residual."""
+
+    section = "observer"
+    n_init: int = _p(200, "samples", 1, 10_000,
+                     doc="first samples averaged for the steady-state start")
+    tau_r: float = _p(0.05, "s", 0, 10.0, lo_open=True,
+                      doc="time constant of the contact residual's double low-pass")
+    max_gap_s: float = _p(2.0, "s", 0, 3600.0, lo_open=True,
+                          doc="longest NaN gap held over; longer gaps restart the observer")
+
+
+@dataclass(frozen=True)
+class DetectorParams(_Validated):
+    """Contact detector on the observer's residual."""
+
+    section = "detector"
+    k_on: float = _p(5.5, "sigma", 1.0, 100.0, doc="onset threshold in noise standard deviations")
+    k_off: float = _p(2.0, "sigma", 0.0, 100.0, doc="release threshold in noise standard deviations")
+    f_off: float = _p(0.35, "", 0.0, 1.0, doc="release once below this fraction of the peak")
+    t_on: float = _p(0.02, "s", 0.0, 5.0, doc="time above the onset threshold to confirm")
+    t_off: float = _p(0.05, "s", 0.0, 5.0, doc="time below the release threshold to confirm")
+    t_warmup: float = _p(2.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
+    t_refractory: float = _p(0.6, "s", 0.0, 60.0, doc="no onset and no learning after release")
+    tau_baseline: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,
+                             doc="time constant of the no-touch baseline")
+    tau_sigma: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,
+                          doc="time constant of the noise estimate")
+    sigma: float | None = _p(None, "W", 0, lo_open=True, optional=True,
+                             doc="fixed residual noise level; measured when absent")
+    max_contact_s: float = _p(300.0, "s", 0.1, 1e6, lo_open=True,
+                              doc="a contact longer than this is taken as a drift and ended")
+
+
+@dataclass(frozen=True)
+class SensorParams(_Validated):
+    """Sensors of the simulated skin."""
+
+    section = "sensor"
+    noise_T: float = _p(0.02, "K", 0.0, 10.0, doc="thermocouple noise (standard deviation)")
+    quantum_T: float = _p(0.0078125, "K", 0.0, 10.0,
+                          doc="thermocouple resolution (0 = none); 1/128 K as a MAX31856")
+    seed: int = _p(0, "", 0, 2**32 - 1, doc="random seed of the sensor noise")
+
+
+@dataclass(frozen=True)
+class PumpParams(_Validated):
+    """Water pump: runs at ``v_on`` and stops while ``T_w`` is above its command."""
+
+    section = "pump"
+    v_on: float = _p(0.141, "m/s", 0, 10.0, lo_open=True, doc="water velocity when running")
+    hysteresis: float = _p(0.0, "K", 0.0, 10.0,
+                           doc="band around the command; 0 gives the paper's chattering")
+
+
+@dataclass(frozen=True)
+class Config:
+    """All parameter sets of one run."""
+
+    skin: SkinParams = field(default_factory=SkinParams)
+    sampling: SamplingParams = field(default_factory=SamplingParams)
+    observer: ObserverParams = field(default_factory=ObserverParams)
+    detector: DetectorParams = field(default_factory=DetectorParams)
+    sensor: SensorParams = field(default_factory=SensorParams)
+    pump: PumpParams = field(default_factory=PumpParams)
+
+    def replace(self, **sections: dict[str, Any]) -> Config:
+        """A copy with some fields of some sections replaced: ``replace(skin={"R_g": 5})``."""
+        return _merge(self, sections, source="replace()")
+
+
+_SECTION_TYPES = {"skin": SkinParams, "sampling": SamplingParams, "observer": ObserverParams,
+                  "detector": DetectorParams, "sensor": SensorParams, "pump": PumpParams}
+
+PRESETS: dict[str, Config] = {
+    "paper": Config(),
+    # Table I, with the fluid properties as printed (k_c = 0.1 mW/mK, mu = 1.55 kg/ms, ...);
+    # they make R_w so large that the pump barely heats the pipe (see docs/model.md).
+    "paper-table-fluid": Config(skin=SkinParams(water="table1")),
+}
+
+
+def _merge(base: Config, data: dict[str, Any], source: str) -> Config:
+    sections = {}
+    for name, table in data.items():
+        if name not in _SECTION_TYPES:
+            raise ConfigError(f"unknown table [{name}] in {source} "
+                              f"(known: {', '.join(_SECTION_TYPES)})")
+        if not isinstance(table, dict):
+            raise ConfigError(f"[{name}] in {source} must be a table")
+        cls = _SECTION_TYPES[name]
+        known = {f.name for f in dataclasses.fields(cls)}
+        for key in table:
+            if key not in known:
+                raise ConfigError(f"unknown key '{name}.{key}' in {source} "
+                                  f"(known: {', '.join(sorted(known))})")
+        try:
+            sections[name] = dataclasses.replace(getattr(base, name), **table)
+        except ConfigError as e:
+            raise ConfigError(f"{e} in {source}") from None
+    return dataclasses.replace(base, **sections)
+
+
+def load_config(path: str | Path | None = None, preset: str = "paper") -> Config:
+    """The preset, overridden by the TOML file at ``path`` if given."""
+    if preset not in PRESETS:
+        raise ConfigError(f"unknown preset {preset!r} (known: {', '.join(PRESETS)})")
+    cfg = PRESETS[preset]
+    if path is None:
+        return cfg
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"config file {p} does not exist")
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise ConfigError(f"{p} is not valid TOML: {e}") from None
+    return _merge(cfg, data, source=str(p))
+
+
+def to_toml(cfg: Config) -> str:
+    """The whole config as TOML text (``None`` values are left out)."""
+    lines: list[str] = []
+    for name in _SECTION_TYPES:
+        section = getattr(cfg, name)
+        lines.append(f"[{name}]")
+        for f in dataclasses.fields(section):
+            value = getattr(section, f.name)
+            if value is None:
+                continue
+            text = f'"{value}"' if isinstance(value, str) else repr(value)
+            unit = f.metadata.get("unit", "")
+            lines.append(f"{f.name} = {text}" + (f"  # {unit}" if unit else ""))
+        lines.append("")
+    return "\n".join(lines)
+
+
+def save_config(cfg: Config, path: str | Path) -> None:
+    """Write ``cfg`` as TOML."""
+    Path(path).write_text(to_toml(cfg), encoding="utf-8")

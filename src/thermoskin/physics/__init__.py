@@ -1,0 +1,1 @@
+"""Physics of the skin: water, convection, the thermal network, the finger."""
