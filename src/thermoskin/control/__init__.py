@@ -1,0 +1,1 @@
+"""Controllers: pump logic (and, later, the MPC and the Peltier inner loop)."""

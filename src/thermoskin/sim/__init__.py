@@ -1,0 +1,1 @@
+"""The simulated skin: digital twin, sensors, fingers and named scenarios."""
