@@ -56,6 +56,7 @@ class ObserverOutput:
     dq_i_hat: Array
     r: Array
     gap: NDArray[np.bool_]
+    ready: NDArray[np.bool_]
 
 
 class ThermalExchangeObserver:
@@ -169,6 +170,7 @@ class ThermalExchangeObserver:
         valid = np.isfinite(T_w) & np.isfinite(T_p) & np.isfinite(v) & np.isfinite(T_a)
         out = {k: np.full(n, np.nan) for k in ("q_hat", "q_i_hat", "dq_i_hat", "r")}
         idx = np.flatnonzero(valid)
+        ready = np.zeros(n, dtype=bool)
         if len(idx):
             skipped = np.diff(idx) - 1
             starts = np.concatenate([[0], np.flatnonzero(skipped > self._max_gap) + 1, [len(idx)]])
@@ -177,13 +179,14 @@ class ThermalExchangeObserver:
                 seg = self._run_segment(T_w[rows], T_p[rows], v[rows], T_a[rows])
                 for k in out:
                     out[k][rows] = seg[k]
+                ready[rows[self.params.n_init - 1:]] = True
             # hold over gaps: forward-fill from the last valid sample
             last = np.maximum.accumulate(np.where(valid, np.arange(n), -1))
             has = last >= 0
             for k in out:
                 out[k][has] = out[k][last[has]]
         self.reset()
-        return ObserverOutput(gap=~valid, **out)
+        return ObserverOutput(gap=~valid, ready=ready & valid, **out)
 
     def _run_segment(self, T_w: Array, T_p: Array, v: Array, T_a: Array) -> dict[str, Array]:
         T_w_raw, T_a_raw = T_w, T_a

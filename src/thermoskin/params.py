@@ -134,6 +134,8 @@ class DetectorParams(_Validated):
     t_off: float = _p(0.05, "s", 0.0, 5.0, doc="time below the release threshold to confirm")
     t_warmup: float = _p(2.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
     t_refractory: float = _p(0.6, "s", 0.0, 60.0, doc="no onset and no learning after release")
+    t_settle: float = _p(5.0, "s", 0.0, 600.0,
+                         doc="after a release, time before the dq_i_hat baseline learns again")
     tau_baseline: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,
                              doc="time constant of the no-touch baseline")
     tau_sigma: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,
