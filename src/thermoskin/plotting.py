@@ -1,0 +1,174 @@
+"""Plots of a run: temperatures and estimated heat flow, with detected and true contacts.
+
+Drawn with matplotlib's object API on an Agg canvas (``matplotlib.figure.Figure``): no
+display, no pyplot global state, safe to call from scripts, tests and threads.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+Array = NDArray[np.float64]
+
+#: At most about this many points are drawn per line (min/max decimation above it).
+MAX_POINTS = 20_000
+
+_TEMPS = (
+    ("T_w", "T_w (pipe)", "tab:blue", "-"),
+    ("T_p", "T_p (Peltier/tank)", "tab:red", "-"),
+    ("T_g", "true T_g (sheet)", "tab:green", "-"),
+    ("T_w_cmd", "T_w command", "black", "--"),
+    ("T_a", "T_a (air)", "tab:gray", ":"),
+)
+_DETECTED = {"color": "tab:orange", "alpha": 0.18, "lw": 0}
+_TRUE = {"color": "tab:purple", "alpha": 0.7, "lw": 0}
+
+
+def decimate(t: ArrayLike, y: ArrayLike, max_points: int = MAX_POINTS) -> tuple[Array, Array]:
+    """Min/max decimation to at most about ``max_points`` points (NaN gaps are kept)."""
+    tt = np.asarray(t, dtype=np.float64)
+    yy = np.asarray(y, dtype=np.float64)
+    n = yy.size
+    if n <= max_points:
+        return tt, yy
+    b = math.ceil(n / max(max_points // 2, 1))  # samples per bucket, two points per bucket
+    nb = math.ceil(n / b)
+    pad = nb * b - n
+    lo = np.concatenate([np.where(np.isnan(yy), np.inf, yy), np.full(pad, np.inf)]).reshape(nb, b)
+    hi = np.concatenate([np.where(np.isnan(yy), -np.inf, yy), np.full(pad, -np.inf)]).reshape(nb, b)
+    base = np.arange(nb) * b
+    i_min = np.minimum(base + np.argmin(lo, axis=1), n - 1)
+    i_max = np.minimum(base + np.argmax(hi, axis=1), n - 1)
+    idx = np.sort(np.stack([i_min, i_max], axis=1), axis=1).ravel()
+    return tt[idx], yy[idx]
+
+
+def _runs(flag: ArrayLike) -> list[tuple[int, int]]:
+    """Index ranges ``[start, stop)`` where ``flag > 0.5``."""
+    f = np.nan_to_num(np.asarray(flag, dtype=np.float64)) > 0.5
+    d = np.diff(np.concatenate([[0], f.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
+
+
+def _event_span(ev: Any, t_end: float) -> tuple[float, float] | None:
+    """``(onset, release)`` of an event object (or mapping); open release -> end of the run."""
+
+    def get(name: str) -> Any:
+        return ev.get(name) if isinstance(ev, Mapping) else getattr(ev, name, None)
+
+    onset, release = get("onset"), get("release")
+    if onset is None or not np.isfinite(onset):
+        return None
+    if release is None or not np.isfinite(release):
+        release = t_end
+    return float(onset), float(release)
+
+
+def plot_run(
+    columns: Mapping[str, ArrayLike],
+    events: Sequence[Any],
+    path: str | os.PathLike[str],
+    title: str = "",
+    max_points: int = MAX_POINTS,
+) -> Path:
+    """Write a PNG of a run: temperatures (top) and heat flow (bottom) over time.
+
+    Top: ``T_w`` and, if present, ``T_p``, ``T_g`` (true), ``T_w_cmd``, ``T_a`` (°C).
+    Bottom: ``q_i_hat`` (W) on the left axis; on a twin right axis the change from the
+    no-touch baseline ``dq_i_hat`` and the true ``q_i`` when present (both are touch-sized,
+    a few hundredths of a watt, while ``q_i_hat`` sits near a few watts). Detected
+    contacts (``events``: objects or mappings with ``onset``/``release`` in s) are shaded
+    in both panels; true contacts (``contact_true``) are a thin band at the top of each
+    panel. Returns the path.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    if "t" not in columns:
+        raise ValueError("plot_run: the columns need a time column 't'")
+    t = np.asarray(columns["t"], dtype=np.float64)
+    cols = {k: np.asarray(v, dtype=np.float64) for k, v in columns.items()}
+    for k, v in cols.items():
+        if v.shape != t.shape:
+            raise ValueError(f"plot_run: column {k!r} has shape {v.shape}, 't' has {t.shape}")
+    t_end = float(t[-1]) if t.size else 0.0
+
+    fig = Figure(figsize=(11, 7), dpi=110, layout="constrained")
+    ax_t, ax_q = fig.subplots(2, 1, sharex=True)
+
+    def line(
+        ax: Any, name: str, label: str, color: str, style: str = "-", lw: float = 1.0, alpha: float = 1.0
+    ) -> Any:
+        tx, yx = decimate(t, cols[name], max_points)
+        return ax.plot(tx, yx, style, color=color, lw=lw, alpha=alpha, label=label)[0]
+
+    # top: temperatures
+    handles_t = [line(ax_t, k, lab, c, s) for k, lab, c, s in _TEMPS if k in cols]
+    ax_t.set_ylabel("temperature (°C)")
+    if not handles_t:
+        ax_t.text(0.5, 0.5, "no temperature columns", ha="center", va="center", transform=ax_t.transAxes)
+
+    # bottom: heat flow
+    handles_q = []
+    if "q_i_hat" in cols:
+        handles_q.append(line(ax_q, "q_i_hat", "q_i_hat (estimate, left)", "tab:blue", lw=0.8, alpha=0.8))
+    ax_q.set_ylabel("estimated heat flow q_i_hat (W)")
+    twin_names = [k for k in ("dq_i_hat", "q_i") if k in cols]
+    if twin_names:
+        ax_r = ax_q.twinx() if "q_i_hat" in cols else ax_q
+        if "dq_i_hat" in cols:
+            handles_q.append(
+                line(
+                    ax_r, "dq_i_hat", "dq_i_hat (change from no-touch baseline)", "tab:red", lw=0.8, alpha=0.7
+                )
+            )
+        if "q_i" in cols:
+            handles_q.append(line(ax_r, "q_i", "true q_i", "black", "-", lw=1.6))
+        labels = {"dq_i_hat": "dq_i_hat", "q_i": "true q_i"}
+        ax_r.set_ylabel(", ".join(labels[k] for k in twin_names) + " (W)")
+    if not handles_q:
+        ax_q.text(0.5, 0.5, "no heat-flow columns", ha="center", va="center", transform=ax_q.transAxes)
+
+    # contacts
+    spans = [s for s in (_event_span(ev, t_end) for ev in events) if s is not None]
+    true_runs = _runs(cols["contact_true"]) if "contact_true" in cols else []
+    for ax in (ax_t, ax_q):
+        for a, b in spans:
+            ax.axvspan(a, b, **_DETECTED)
+        for i0, i1 in true_runs:
+            ax.axvspan(t[i0], t[min(i1, t.size - 1)], ymin=0.965, ymax=1.0, **_TRUE)
+    extra = []
+    if spans:
+        extra.append(Patch(label=f"detected contact ({len(spans)})", **_DETECTED))
+    if "contact_true" in cols:
+        extra.append(Patch(label=f"true contact ({len(true_runs)})", **_TRUE))
+
+    for ax, hs in ((ax_t, handles_t + extra), (ax_q, handles_q + extra)):
+        if hs:  # one row above the panel: never hides data
+            ax.legend(
+                handles=hs,
+                loc="lower left",
+                bbox_to_anchor=(0.0, 1.0),
+                ncols=min(len(hs), 4),
+                fontsize=8,
+                frameon=False,
+                borderaxespad=0.2,
+            )
+    for ax in (ax_t, ax_q):
+        ax.grid(True, alpha=0.3)
+    ax_q.set_xlabel("time (s)")
+    if t.size:
+        ax_q.set_xlim(float(t[0]), t_end)
+    fig.suptitle(title or "thermoskin run")
+
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, format="png")
+    return out
