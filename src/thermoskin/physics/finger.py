@@ -1,0 +1,164 @@
+"""Finger contact: a fingertip as a contact conductance to a body at its skin temperature.
+
+A touch adds to the sheet node of the network (MODEL.md, ``physics.network``)::
+
+    q_i = G_c (T_f - T_g),   G_c = n_fingers G_finger
+
+``T_f`` is the fingertip skin temperature (°C) and ``G_finger`` (W/K) the contact
+conductance of one fingertip. Pressing and releasing are linear ramps of
+:data:`RAMP_S` seconds inside the touch, so that ``G_c > 0`` exactly on
+``(t_on, t_on + duration)``::
+
+    G_c(t) = n G_finger clip(min(t - t_on, t_on + duration - t) / RAMP_S, 0, 1)
+
+Overlapping touches add their conductances; the body temperature seen by the sheet is
+then the conductance-weighted mean ``T_f = sum(G_j T_j) / sum(G_j)`` (two conductances
+in parallel to the same node).
+
+Where the numbers of :data:`PERSONS` come from (the paper, Sec. VI, names three persons,
+``man1``, ``woman1``, ``woman2``, aged 27-28, and gives no thermal data for them):
+
+- ``T_body``: fingertip skin temperature of a person at rest indoors is about 32-35 °C
+  in the thermophysiology literature (fingertips run cooler than the core and vary
+  between persons; women's hands are on average slightly cooler). The values are
+  assumptions inside that range, not measurements.
+- ``G_finger``: MODEL.md's order of magnitude, about 0.05 W/K for one fingertip (a
+  contact area of roughly 1 cm² and a contact coefficient of a few hundred W/(m² K)).
+  The per-person spread of about ±10 % stands for the "variations depending on
+  persons" of Fig. 18. Again assumptions, not measurements.
+
+``Touch.position`` is kept for a later spatial model (Fig. 19); the lumped two-node
+network ignores it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+RAMP_S = 0.03
+"""Duration of the linear press and release ramps of the contact conductance, s."""
+
+T_F_IDLE = 0.0
+"""Body temperature returned when nothing touches (``G_c = 0``, so it has no effect)."""
+
+
+@dataclass(frozen=True)
+class Person:
+    """A toucher: fingertip skin temperature ``T_body`` (°C), one fingertip's ``G_finger`` (W/K)."""
+
+    name: str
+    T_body: float
+    G_finger: float
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.G_finger < 10.0:
+            raise ValueError(f"Person {self.name!r}: G_finger = {self.G_finger} W/K must be in (0, 10)")
+        if not 0.0 <= self.T_body <= 50.0:
+            raise ValueError(f"Person {self.name!r}: T_body = {self.T_body} °C must be in [0, 50]")
+
+
+PERSONS: dict[str, Person] = {
+    "man1": Person("man1", T_body=34.0, G_finger=0.055),
+    "woman1": Person("woman1", T_body=33.0, G_finger=0.045),
+    "woman2": Person("woman2", T_body=32.5, G_finger=0.050),
+}
+"""The three persons of Sec. VI (values: see the module docstring)."""
+
+
+@dataclass(frozen=True)
+class Touch:
+    """One touch: ``n_fingers`` fingers of ``person`` on the skin from ``t_on`` for ``duration`` s.
+
+    ``T_body`` (°C) overrides the person's fingertip temperature for this touch;
+    ``position`` is reserved for a spatial model (0 = at the thermocouple).
+    """
+
+    t_on: float
+    duration: float
+    n_fingers: int
+    person: str = "man1"
+    position: float = 0.0
+    T_body: float | None = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.n_fingers, bool) or self.n_fingers not in (1, 2, 3):
+            raise ValueError(f"Touch at t_on = {self.t_on}: n_fingers = {self.n_fingers!r} must be 1, 2 or 3")
+        if not (math.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"Touch at t_on = {self.t_on}: duration = {self.duration} s must be > 0")
+        if not math.isfinite(self.t_on):
+            raise ValueError(f"Touch: t_on = {self.t_on} s must be finite")
+
+    @property
+    def t_off(self) -> float:
+        """End of the contact, s."""
+        return self.t_on + self.duration
+
+
+def _person(touch: Touch, persons: Mapping[str, Person]) -> Person:
+    try:
+        return persons[touch.person]
+    except KeyError:
+        raise KeyError(f"Touch at t_on = {touch.t_on}: unknown person {touch.person!r} "
+                       f"(known: {', '.join(persons)})") from None
+
+
+def touch_conductance(touch: Touch, t: float, persons: Mapping[str, Person] = PERSONS) -> float:
+    """``G_c`` of one touch at time ``t``, W/K (ramped, zero outside ``(t_on, t_off)``)."""
+    f = min(t - touch.t_on, touch.t_on + touch.duration - t) / RAMP_S
+    if f <= 0.0:
+        return 0.0
+    return touch.n_fingers * _person(touch, persons).G_finger * (f if f < 1.0 else 1.0)
+
+
+def contact_at(touches: Sequence[Touch], t: float,
+               persons: Mapping[str, Person] = PERSONS) -> tuple[float, float, int]:
+    """``(G_c, T_f, n_fingers)`` at time ``t`` for a list of touches.
+
+    ``G_c = sum_j G_j(t)`` (W/K), ``T_f = sum_j G_j T_j / G_c`` (°C; :data:`T_F_IDLE`
+    when ``G_c = 0``), ``n_fingers`` the fingers of the touches with ``G_j > 0``.
+    """
+    G = 0.0
+    GT = 0.0
+    n = 0
+    for touch in touches:
+        g = touch_conductance(touch, t, persons)
+        if g > 0.0:
+            T_body = touch.T_body if touch.T_body is not None else persons[touch.person].T_body
+            G += g
+            GT += g * T_body
+            n += touch.n_fingers
+    if G <= 0.0:
+        return 0.0, T_F_IDLE, 0
+    return G, GT / G, n
+
+
+def contact_profile(touches: Sequence[Touch], t: NDArray[np.float64],
+                    persons: Mapping[str, Person] = PERSONS
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """Vectorised :func:`contact_at` over a time grid: arrays ``(G_c, T_f, n_fingers)``."""
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1:
+        raise ValueError(f"contact_profile needs a 1-D time grid, got shape {t.shape}")
+    ordered = bool(np.all(np.diff(t) >= 0))
+    G = np.zeros_like(t)
+    GT = np.zeros_like(t)
+    n = np.zeros(t.shape, dtype=np.int64)
+    for touch in touches:
+        p = _person(touch, persons)
+        T_body = touch.T_body if touch.T_body is not None else p.T_body
+        lo, hi = np.searchsorted(t, [touch.t_on, touch.t_off], side="right") if ordered else (0, t.size)
+        seg = t[lo:hi]
+        f = np.minimum(seg - touch.t_on, touch.t_on + touch.duration - seg) / RAMP_S
+        g = touch.n_fingers * p.G_finger * np.clip(f, 0.0, 1.0)
+        G[lo:hi] += g
+        GT[lo:hi] += g * T_body
+        n[lo:hi] += np.where(g > 0.0, touch.n_fingers, 0)
+    T_f = np.full_like(t, T_F_IDLE)
+    on = G > 0.0
+    T_f[on] = GT[on] / G[on]
+    return G, T_f, n
