@@ -96,8 +96,8 @@ class SkinParams(_Validated):
                                    doc="R_w while the pump runs; replaces the convection model")
     R_w_stopped: float | None = _p(None, "K/W", 0, lo_open=True, optional=True,
                                    doc="R_w while the pump is stopped; replaces the conduction model")
-    water: str = _p("coolprop", "", choices=("coolprop", "table1"),
-                    doc="water properties: CoolProp at T_ref, or Table I's printed values")
+    water: str = _p("iapws", "", choices=("iapws", "table1"),
+                    doc="water properties: IAPWS formulations at T_ref, or Table I's printed values")
     T_ref: float = _p(24.0, "degC", 0.5, 99.0, doc="water temperature for the properties")
 
 
