@@ -90,7 +90,8 @@ def observe(input_csv: Path, output_csv: Path, config_path: Path | None) -> None
     output's ``gap`` column.
     """
     from thermoskin.logio import read_log, sample_time, write_log
-    from thermoskin.pipeline import INPUT_COLUMNS, observe as run_observe
+    from thermoskin.pipeline import INPUT_COLUMNS
+    from thermoskin.pipeline import observe as run_observe
 
     cfg = _config(config_path)
     log = read_log(input_csv, required=INPUT_COLUMNS)
@@ -103,3 +104,122 @@ def observe(input_csv: Path, output_csv: Path, config_path: Path | None) -> None
     console.print(events_table(res.events))
     console.print(f"{len(log['t'])} samples at {1 / t_s:.0f} Hz, {len(res.events)} contacts, "
                   f"{n_gap} NaN samples held over; wrote {output_csv}")
+
+
+def _scenario(name: str, duration: float | None) -> Any:
+    from thermoskin.sim.scenarios import SCENARIOS
+
+    if name not in SCENARIOS:
+        raise UserError(f"unknown scenario {name!r} (known: {', '.join(SCENARIOS)})")
+    sc = SCENARIOS[name]
+    if duration is not None:
+        if not duration > 0:
+            raise UserError(f"--duration {duration} must be > 0 s")
+        sc = sc.with_duration(duration)
+    return sc
+
+
+def _progress_bar(description: str) -> Any:
+    from rich.progress import BarColumn, Progress, TaskProgressColumn, TimeRemainingColumn
+
+    return Progress("[progress.description]{task.description}", BarColumn(),
+                    TaskProgressColumn(), TimeRemainingColumn(), console=err_console,
+                    transient=True, disable=not err_console.is_terminal)
+
+
+SCENARIO_OPT = click.option("--scenario", default="fingers", show_default=True,
+                            help="Named scenario (see `thermoskin scenarios`).")
+DURATION_OPT = click.option("--duration", type=float, default=None,
+                            help="Seconds to simulate (default: the scenario's).")
+
+
+@main.command()
+def scenarios() -> None:
+    """List the named simulation scenarios."""
+    from thermoskin.sim.scenarios import SCENARIOS
+
+    table = Table(title="Scenarios")
+    for col in ("name", "duration s", "touches", "pump", "description"):
+        table.add_column(col)
+    for sc in SCENARIOS.values():
+        table.add_row(sc.name, f"{sc.duration:g}", str(len(sc.touches)), sc.pump, sc.description)
+    console.print(table)
+
+
+@main.command()
+@SCENARIO_OPT
+@DURATION_OPT
+@CONFIG_OPT
+@click.option("-o", "--output", "output_csv", type=click.Path(path_type=Path), required=True,
+              help="Log CSV (measured columns and the simulator's truth q_i, T_g).")
+@_user_errors
+def simulate(scenario: str, duration: float | None, config_path: Path | None,
+             output_csv: Path) -> None:
+    """Simulate the skin under a named scenario and write its log."""
+    from thermoskin.logio import write_log
+    from thermoskin.sim.run import simulate as run_sim
+
+    cfg = _config(config_path)
+    sc = _scenario(scenario, duration)
+    with _progress_bar(f"simulating {sc.name}") as bar:
+        task = bar.add_task(f"simulating {sc.name}", total=1.0)
+        log = run_sim(sc, cfg, progress=lambda f: bar.update(task, completed=f))
+    write_log(output_csv, log)
+    console.print(f"simulated {sc.duration:g} s of '{sc.name}' ({len(sc.touches)} touches, "
+                  f"{len(log['t'])} samples); wrote {output_csv}")
+
+
+@main.command()
+@SCENARIO_OPT
+@DURATION_OPT
+@CONFIG_OPT
+@click.option("--log", "log_path", type=click.Path(path_type=Path), default=Path("run.csv"),
+              show_default=True, help="Where to save the log.")
+@click.option("--plot", "plot_path", type=click.Path(path_type=Path), default=Path("run.png"),
+              show_default=True, help="Where to save the plot.")
+@_user_errors
+def run(scenario: str, duration: float | None, config_path: Path | None, log_path: Path,
+        plot_path: Path) -> None:
+    """Run the skin: simulate a scenario, estimate and detect touches live, save log and plot."""
+    from thermoskin.logio import write_log
+    from thermoskin.plotting import plot_run
+    from thermoskin.runtime.stream import stream
+    from thermoskin.sim.run import simulate as run_sim
+
+    cfg = _config(config_path)
+    sc = _scenario(scenario, duration)
+    console.print(f"[bold]thermoskin run[/]: scenario '{sc.name}' ({sc.description}), "
+                  f"{sc.duration:g} s at {1 / cfg.sampling.t_s:.0f} Hz")
+    with _progress_bar("running") as bar:
+        task = bar.add_task("simulating skin", total=1.0)
+        log = run_sim(sc, cfg, progress=lambda f: bar.update(task, completed=f))
+        bar.update(task, description="observer + detector", completed=0.0)
+
+        def started(t: float) -> None:
+            bar.console.print(f"  t = {t:7.3f} s  contact detected")
+
+        def ended(e: ContactEvent) -> None:
+            bar.console.print(f"  t = {e.release:7.3f} s  released after {e.duration:.2f} s, "
+                              f"peak dq {e.peak_dq * 1e3:.1f} mW, mean {e.mean_dq * 1e3:.1f} mW")
+
+        res = stream(log, cfg, on_start=started, on_event=ended,
+                     progress=lambda f: bar.update(task, completed=f))
+    out = dict(log)
+    out.update(res.columns)
+    write_log(log_path, out)
+    plot_run(out, res.events, plot_path, title=f"thermoskin run: {sc.name}")
+    console.print(events_table(res.events))
+    _summary(sc, log, res.events)
+    console.print(f"wrote {log_path} and {plot_path}")
+
+
+def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent]) -> None:
+    """Detected vs scripted touches: hits, misses, false alarms, latency."""
+    from thermoskin.evaluation import match_events
+
+    m = match_events(sc.touches, events)
+    lat = m.latencies
+    lat_txt = (f"onset latency median {np.median(lat) * 1e3:.0f} ms, max {np.max(lat) * 1e3:.0f} ms"
+               if len(lat) else "no latency (nothing detected)")
+    console.print(f"[bold]summary[/]: {len(sc.touches)} touches scripted, {m.hits} detected, "
+                  f"{m.misses} missed, {m.false_alarms} false alarms; {lat_txt}")

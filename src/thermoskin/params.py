@@ -114,7 +114,7 @@ class ObserverParams(_Validated):
     """Thermal exchange observer (eq. 8) and its contact residual."""
 
     section = "observer"
-    n_init: int = _p(200, "samples", 1, 10_000,
+    n_init: int = _p(1000, "samples", 1, 10_000,
                      doc="first samples averaged for the steady-state start")
     tau_r: float = _p(0.05, "s", 0, 10.0, lo_open=True,
                       doc="time constant of the contact residual's double low-pass")
