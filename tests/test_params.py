@@ -53,7 +53,7 @@ def test_presets_hold_table_i(preset: str) -> None:
 
 
 def test_preset_water_sources() -> None:
-    assert PRESETS["paper"].skin.water == "coolprop"
+    assert PRESETS["paper"].skin.water == "iapws"
     assert PRESETS["paper-table-fluid"].skin.water == "table1"
     assert load_config() == PRESETS["paper"]
     assert load_config(preset="paper-table-fluid") == PRESETS["paper-table-fluid"]
@@ -148,7 +148,7 @@ def test_bad_choice_message() -> None:
         SkinParams(water="seawater")
     msg = str(e.value)
     assert "skin.water" in msg and "seawater" in msg
-    assert "coolprop" in msg and "table1" in msg
+    assert "iapws" in msg and "table1" in msg
 
 
 @pytest.mark.parametrize("bad", ["abc", True, [1.0]])

@@ -1,8 +1,9 @@
-"""Water properties: CoolProp against textbook values; Table I's printed values."""
+"""Water properties: the package's IAPWS values against textbook values and CoolProp; Table I."""
 
 from __future__ import annotations
 
 import pytest
+from CoolProp.CoolProp import PropsSI
 
 from thermoskin.physics.water import TABLE1_WATER, properties_for, water_properties
 
@@ -16,7 +17,7 @@ TEXTBOOK = {
 
 
 @pytest.mark.parametrize("T", sorted(TEXTBOOK))
-def test_coolprop_matches_textbook(T: float) -> None:
+def test_matches_textbook(T: float) -> None:
     rho, cp, k, mu, pr = TEXTBOOK[T]
     w = water_properties(T)
     assert w.rho == pytest.approx(rho, rel=1e-3)
@@ -24,6 +25,18 @@ def test_coolprop_matches_textbook(T: float) -> None:
     assert w.k_c == pytest.approx(k, rel=1.5e-2)
     assert w.mu == pytest.approx(mu, rel=2e-2)
     assert w.Pr == pytest.approx(pr, rel=3e-2)
+
+
+@pytest.mark.parametrize("T", [1.0, 5.0, 20.0, 24.0, 30.0, 60.0, 95.0])
+def test_matches_coolprop(T: float) -> None:
+    """CoolProp (IAPWS-95 and the IAPWS transport formulations) as an independent library."""
+    Tk, P = T + 273.15, 101_325.0
+    w = water_properties(T)
+    assert w.rho == pytest.approx(PropsSI("D", "T", Tk, "P", P, "Water"), rel=1e-6)
+    assert w.c_p == pytest.approx(PropsSI("C", "T", Tk, "P", P, "Water"), rel=1e-6)
+    assert w.mu == pytest.approx(PropsSI("V", "T", Tk, "P", P, "Water"), rel=1e-4)
+    assert w.k_c == pytest.approx(PropsSI("L", "T", Tk, "P", P, "Water"), rel=1e-4)
+    assert w.Pr == pytest.approx(PropsSI("Prandtl", "T", Tk, "P", P, "Water"), rel=2e-4)
 
 
 @pytest.mark.parametrize("T", [5.0, 24.0, 60.0])
@@ -64,9 +77,9 @@ def test_table1_as_printed() -> None:
 def test_properties_for() -> None:
     assert properties_for("table1", 24.0) == TABLE1_WATER
     assert properties_for("table1", 80.0) == TABLE1_WATER
-    w = properties_for("coolprop", 20.0)
+    w = properties_for("iapws", 20.0)
     assert w.rho == pytest.approx(998.2, rel=1e-3)
     # rounding to 1 mK for the cache does not move the values measurably
-    assert properties_for("coolprop", 24.0001).mu == pytest.approx(water_properties(24.0).mu, rel=1e-5)
+    assert properties_for("iapws", 24.0001).mu == pytest.approx(water_properties(24.0).mu, rel=1e-5)
     with pytest.raises(ValueError):
         properties_for("seawater", 24.0)
