@@ -379,7 +379,7 @@ def test_gaps_are_flagged_held_and_recovered() -> None:
     T_w[short] = np.nan
     T_w[long_] = np.nan
     T_p[held_transient] = np.nan
-    out = _observer(name).run(T_w, T_p, log.v, log.T_a)
+    out = _observer(name, n_init=200).run(T_w, T_p, log.v, log.T_a)
     nan_rows = np.isnan(T_w) | np.isnan(T_p)
     np.testing.assert_array_equal(out.gap, nan_rows)
     assert not out.ready[nan_rows].any()

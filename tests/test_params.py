@@ -160,8 +160,6 @@ def test_non_numeric_names_key_and_value(bad: object) -> None:
     assert repr(bad) in msg
 
 
-@pytest.mark.xfail(strict=True, reason="params.py: the 'not a number' message gives the unit "
-                   "but not the allowed range, unlike the out-of-range message")
 def test_non_numeric_names_range() -> None:
     with pytest.raises(ConfigError) as e:
         SkinParams(C_w="abc")  # type: ignore[arg-type]
@@ -174,13 +172,15 @@ def test_non_numeric_in_toml(tmp_path: Path) -> None:
     assert "skin.R_g" in str(e.value) and "ten" in str(e.value)
 
 
-@pytest.mark.xfail(strict=True, reason="params.py: integer fields (n_init, seed) accept "
-                   "non-integer floats such as 2.5 and keep them as floats")
 @pytest.mark.parametrize("make", [lambda: ObserverParams(n_init=2.5),  # type: ignore[arg-type]
                                   lambda: SensorParams(seed=1.5)])  # type: ignore[arg-type]
 def test_integer_fields_reject_fractions(make: Callable[[], object]) -> None:
-    with pytest.raises(ConfigError):
+    with pytest.raises(ConfigError, match="whole number"):
         make()
+
+
+def test_integer_fields_stay_int() -> None:
+    assert type(ObserverParams(n_init=300.0).n_init) is int  # type: ignore[arg-type]
 
 
 def test_optional_R_w_fields() -> None:

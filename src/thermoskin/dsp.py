@@ -3,7 +3,9 @@
 ``Iir`` discretises ``num(s)/den(s)`` with the bilinear (Tustin) transform
 (``scipy.signal.bilinear``) and runs it in transposed direct form II, the form
 ``scipy.signal.lfilter`` uses, so that the per-sample ``step`` and the array path
-``run`` share one state layout and agree to rounding.
+``run`` share one state layout and agree to rounding. The filter runs on the deviation
+from the value it was reset at (``x - x0``, output ``dc x0 +``), so that large absolute
+temperatures do not cost digits.
 """
 
 from __future__ import annotations
@@ -18,8 +20,8 @@ Array = NDArray[np.float64]
 class Iir:
     """A proper SISO filter ``num(s)/den(s)`` discretised at ``t_s`` (Tustin)."""
 
-    __slots__ = ("_a1", "_a2", "_a3", "_b0", "_b1", "_b2", "_b3",
-                 "a", "b", "dc", "order", "step", "z", "zi_unit")
+    __slots__ = ("_a1", "_a2", "_a3", "_b0", "_b1", "_b2", "_b3", "_step", "_x0", "_y0",
+                 "a", "b", "dc", "order", "z", "zi_unit")
 
     def __init__(self, num: Array, den: Array, t_s: float) -> None:
         num = np.atleast_1d(np.asarray(num, dtype=float))
@@ -36,7 +38,8 @@ class Iir:
         self.dc = float(num[-1] / den[-1]) if den[-1] != 0 else float("inf")
         self.zi_unit: Array = lfilter_zi(b, a) if n > 0 else np.zeros(0)
         self.z: list[float] = [0.0] * n
-        self.step = {0: self._step0, 1: self._step1, 2: self._step2, 3: self._step3}[n]
+        self._x0 = self._y0 = 0.0
+        self._step = {0: self._step0, 1: self._step1, 2: self._step2, 3: self._step3}[n]
         self._coeffs()
 
     def _coeffs(self) -> None:
@@ -48,7 +51,13 @@ class Iir:
 
     def reset(self, x0: float) -> None:
         """Steady state for a constant input ``x0`` (output ``dc * x0``)."""
-        self.z = (self.zi_unit * x0).tolist()
+        self.z = [0.0] * self.order
+        self._x0 = x0
+        self._y0 = self.dc * x0 if self.order else self._b0 * x0
+
+    def step(self, x: float) -> float:
+        """One sample."""
+        return self._y0 + self._step(x - self._x0)
 
     def _step0(self, x: float) -> float:
         return self._b0 * x
@@ -76,8 +85,9 @@ class Iir:
 
     def run(self, x: Array, x0: float) -> Array:
         """Filter a whole array, starting in steady state for ``x0``; leaves ``z`` at the end."""
+        self.reset(x0)
         if self.order == 0:
             return self._b0 * np.asarray(x, dtype=float)
-        y, zf = lfilter(self.b, self.a, x, zi=self.zi_unit * x0)
+        y, zf = lfilter(self.b, self.a, np.asarray(x, dtype=float) - x0, zi=np.zeros(self.order))
         self.z = zf.tolist()
-        return y
+        return y + self._y0

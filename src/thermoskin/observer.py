@@ -34,6 +34,7 @@ observer from the next valid sample.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -174,7 +175,7 @@ class ThermalExchangeObserver:
         if len(idx):
             skipped = np.diff(idx) - 1
             starts = np.concatenate([[0], np.flatnonzero(skipped > self._max_gap) + 1, [len(idx)]])
-            for s0, s1 in zip(starts[:-1], starts[1:], strict=True):
+            for s0, s1 in itertools.pairwise(starts.tolist()):
                 rows = idx[s0:s1]
                 seg = self._run_segment(T_w[rows], T_p[rows], v[rows], T_a[rows])
                 for k in out:

@@ -65,14 +65,19 @@ class _Validated:
                                       f"{_range_text(meta)}")
                 continue
             if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ConfigError(f"{key} = {value!r} is not a number ({meta['unit']})")
+                raise ConfigError(f"{key} = {value!r} is not a number: must be "
+                                  f"{_range_text(meta)} ({meta['unit']})")
             v = float(value)
+            is_int = isinstance(f.default, int) and not isinstance(f.default, bool)
+            if is_int and not v.is_integer():
+                raise ConfigError(f"{key} = {value!r} is not a whole number: must be "
+                                  f"{_range_text(meta)} ({meta['unit']})")
             lo, hi = meta["lo"], meta["hi"]
             bad = (not math.isfinite(v) or v > hi or v < lo or (meta["lo_open"] and v <= lo))
             if bad:
                 raise ConfigError(f"{key} = {value!r} is out of range: must be "
                                   f"{_range_text(meta)} ({meta['unit']})")
-            object.__setattr__(self, f.name, v if isinstance(f.default, float) else value)
+            object.__setattr__(self, f.name, int(v) if is_int else v)
 
 
 @dataclass(frozen=True)
