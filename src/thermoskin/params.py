@@ -8,7 +8,7 @@ range. A TOML file overrides any subset of a preset::
     R_g = 12.0
     R_w_flowing = 0.25   # K/W, replaces the convection model while the pump runs
 
-Tables: ``[skin] [sampling] [observer] [detector] [sensor] [pump]``.
+Tables: ``[skin] [sampling] [observer] [detector] [sensor] [pump] [peltier] [control]``.
 """
 
 from __future__ import annotations
@@ -173,6 +173,45 @@ class PumpParams(_Validated):
 
 
 @dataclass(frozen=True)
+class PeltierParams(_Validated):
+    """Peltier modules heating or cooling the water tank, with heat sink and fan.
+
+    Defaults: two common 40 x 40 mm modules (TEC1-12706 class: 127 couples, about 6 A,
+    15 V), as in the paper's setup (Sec. VI-A); the tank of Table I (``V = 3.2e-5 m^3``).
+    """
+
+    section = "peltier"
+    n_modules: int = _p(2, "", 1, 16, doc="modules in parallel on the tank")
+    S_m: float = _p(0.053, "V/K", 0, 1.0, lo_open=True, doc="module Seebeck coefficient")
+    R_m: float = _p(2.0, "ohm", 0, 100.0, lo_open=True, doc="module electrical resistance")
+    K_m: float = _p(0.45, "W/K", 0, 100.0, lo_open=True, doc="module thermal conductance")
+    I_max: float = _p(6.0, "A", 0, 100.0, lo_open=True, doc="drive current at |drive| = 1")
+    C_tank: float = _p(150.0, "J/K", 0, lo_open=True, doc="tank water and plate")
+    R_tank_air: float = _p(8.0, "K/W", 0, lo_open=True, doc="tank to air")
+    C_sink: float = _p(80.0, "J/K", 0, lo_open=True, doc="heat sink")
+    R_sink: float = _p(0.25, "K/W", 0, lo_open=True, doc="heat sink to air, fan running")
+
+
+@dataclass(frozen=True)
+class ControlParams(_Validated):
+    """Temperature control (Sec. V): MPC of eqs. 9-11, inner loop on the Peltier drive."""
+
+    section = "control"
+    H: int = _p(100, "samples", 1, 2000, doc="prediction horizon (Table I)")
+    W1: float = _p(1.0, "1/K^2", 0.0, 1e6, doc="weight of the tracking error (eq. 9)")
+    W2: float = _p(0.03, "1/K^2", 0.0, 1e6, doc="weight of the input term (eq. 9)")
+    cost: str = _p("rate", "", choices=("rate", "deviation", "absolute"),
+                   doc="eq. 9's input term: rate of T_p (default), deviation from the "
+                       "steady-state input, or the absolute T_p as printed")
+    T_p_min: float = _p(7.0, "degC", -20.0, 80.0, doc="lower bound of T_p_cmd (Table I)")
+    T_p_max: float = _p(37.0, "degC", -20.0, 80.0, doc="upper bound of T_p_cmd (Table I)")
+    Kp: float = _p(0.1, "1/K", 0.0, 100.0, doc="inner loop proportional gain (Table I)")
+    Ki: float = _p(0.03, "1/(K s)", 0.0, 100.0, doc="inner loop integral gain (Table I)")
+    drive_min: float = _p(-1.0, "", -1.0, 0.0, doc="lowest drive (full cooling)")
+    drive_max: float = _p(1.0, "", 0.0, 1.0, doc="highest drive (full heating)")
+
+
+@dataclass(frozen=True)
 class Config:
     """All parameter sets of one run."""
 
@@ -182,6 +221,13 @@ class Config:
     detector: DetectorParams = field(default_factory=DetectorParams)
     sensor: SensorParams = field(default_factory=SensorParams)
     pump: PumpParams = field(default_factory=PumpParams)
+    peltier: PeltierParams = field(default_factory=PeltierParams)
+    control: ControlParams = field(default_factory=ControlParams)
+
+    def __post_init__(self) -> None:
+        if self.control.T_p_min >= self.control.T_p_max:
+            raise ConfigError(f"control.T_p_min = {self.control.T_p_min} must be below "
+                              f"control.T_p_max = {self.control.T_p_max}")
 
     def replace(self, **sections: dict[str, Any]) -> Config:
         """A copy with some fields of some sections replaced: ``replace(skin={"R_g": 5})``."""
@@ -189,7 +235,8 @@ class Config:
 
 
 _SECTION_TYPES = {"skin": SkinParams, "sampling": SamplingParams, "observer": ObserverParams,
-                  "detector": DetectorParams, "sensor": SensorParams, "pump": PumpParams}
+                  "detector": DetectorParams, "sensor": SensorParams, "pump": PumpParams,
+                  "peltier": PeltierParams, "control": ControlParams}
 
 PRESETS: dict[str, Config] = {
     "paper": Config(),
