@@ -8,8 +8,10 @@ zero whatever the pump and the set-point do, so a touch is a step of ``r`` in no
   (median and median absolute deviation, robust to a stray spike), then exponential
   averages (``tau_baseline``, ``tau_sigma``) updated only while idle, so
   a long touch is never swallowed; ``sigma`` may be fixed by config instead.
-- Onset: ``r - b > k_on sigma`` held for ``t_on``. The event's ``onset`` is back-dated to
-  the last sample at which ``r - b`` was below ``k_off sigma``.
+- Onset: a one-sided CUSUM (Page's test) on the standardised residual,
+  ``g <- max(0, g + (r - b - k_drift sigma) t_s)``, fires when ``g > h_on sigma``: a large
+  step is caught in a few ms, a small one after it has accrued the same evidence. The
+  event's ``onset`` is back-dated to the last sample at which ``g`` was zero.
 - Release: ``r - b < max(k_off sigma, f_off * peak)`` held for ``t_off``.
 - After a release, ``t_refractory`` with no onset and no learning; the slow estimate
   ``dq_i_hat`` keeps decaying for several ``R_g C_w``, so its baseline waits ``t_settle``.
@@ -55,7 +57,6 @@ class ContactDetector:
         p = self.params = params or DetectorParams()
         self.t_s = t_s
         self._n_warm = max(2, round(p.t_warmup / t_s))
-        self._n_on = max(1, round(p.t_on / t_s))
         self._n_off = max(1, round(p.t_off / t_s))
         self._n_ref = round(p.t_refractory / t_s)
         self._n_settle = round(p.t_settle / t_s)
@@ -78,6 +79,7 @@ class ContactDetector:
         self.sigma = fixed if fixed is not None else math.inf
         self._var = self.sigma**2
         self._run = 0
+        self._g = 0.0
         self._t_quiet = 0.0
         self._since = 0
         self._since_release = 1 << 62
@@ -112,16 +114,16 @@ class ContactDetector:
                 self.mode = IDLE
             self._learn_dq(dq)
             return 0
-        # idle
-        if s < p.k_off * sig:
+        # idle: CUSUM for a rise of r above its baseline
+        g = self._g + (s - p.k_drift * sig) * self.t_s
+        if g <= 0.0:
+            g = 0.0
             self._t_quiet = t
-        if s > p.k_on * sig:
-            self._run += 1
-            if self._run >= self._n_on:
-                self._start(t, s, dq)
-                return 1
-        else:
-            self._run = 0
+        self._g = g
+        if g > p.h_on * sig:
+            self._start(t, s, dq)
+            return 1
+        if g == 0.0:  # no evidence of a touch: learn the baseline and the noise
             self.b += self._a_b * s
             if p.sigma is None:  # clipped, so that a rising edge cannot inflate sigma
                 s2 = min(s * s, 9.0 * self._var)
@@ -148,6 +150,7 @@ class ContactDetector:
         self.started = True
         self._onset = self._t_quiet
         self._detected = t
+        self._g = 0.0
         self._run = 0
         self._since = 0
         self._peak_r = s

@@ -132,10 +132,12 @@ class DetectorParams(_Validated):
     """Contact detector on the observer's residual."""
 
     section = "detector"
-    k_on: float = _p(5.5, "sigma", 1.0, 100.0, doc="onset threshold in noise standard deviations")
+    k_drift: float = _p(3.0, "sigma", 0.0, 100.0,
+                        doc="CUSUM drift allowance: evidence accrues while r - b exceeds it")
+    h_on: float = _p(0.15, "sigma s", 0.0, 100.0, lo_open=True,
+                     doc="CUSUM threshold: onset once the accrued evidence exceeds it")
     k_off: float = _p(2.0, "sigma", 0.0, 100.0, doc="release threshold in noise standard deviations")
     f_off: float = _p(0.35, "", 0.0, 1.0, doc="release once below this fraction of the peak")
-    t_on: float = _p(0.02, "s", 0.0, 5.0, doc="time above the onset threshold to confirm")
     t_off: float = _p(0.05, "s", 0.0, 5.0, doc="time below the release threshold to confirm")
     t_warmup: float = _p(2.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
     t_refractory: float = _p(0.6, "s", 0.0, 60.0, doc="no onset and no learning after release")
