@@ -1,0 +1,267 @@
+"""Model predictive control of the pipe temperature ``T_w`` (Sec. V, eqs. 9-11).
+
+Prediction model (eq. 10, with the sampling time ``t_s`` restored on the loss term, see
+MODEL.md)::
+
+    T_w(k+1) = (1 - t_s/(R_w C_w)) T_w(k) + t_s/(R_w C_w) T_p(k) - t_s q_loss(k)/C_w     (10)
+
+Loss readings (``loss=``):
+
+* ``"paper"``: ``q_loss = q_aw = (T_w - T_a)/R_aw``, eq. 10 as printed.
+* ``"network"`` (default): ``q_loss = (T_w - T_a)/R_aw + (T_w - T_a)/(R_g + R_ag)``, which
+  adds the steady loss from the pipe through the graphite sheet to air (Fig. 3, the sheet
+  node at its steady state). Eq. 10 ignores this path; with Table I it is about 190 times
+  ``q_aw`` (``R_g + R_ag = 11 K/W`` against ``R_aw = 2100 K/W``), so a model without it
+  settles ``T_w`` below its command whenever the cost has no integral action, and its
+  steady-state input ``T_p_ss`` (``cost="deviation"``) is wrong by ``R_w (T_w - T_a)/11``.
+
+Either way the model is affine, ``T_w(k+1) = a T_w(k) + b T_p(k) + c T_a`` with::
+
+    b = t_s/(R_w C_w),   G = 1/R_aw [+ 1/(R_g + R_ag)],   a = 1 - b - t_s G/C_w,   c = t_s G/C_w
+
+``R_w`` is the flowing value ``R_w(v_on)`` (convection model or ``skin.R_w_flowing``).
+
+Cost (eq. 9) over the horizon ``H``, reference held constant, ``u = (T_p(k) .. T_p(k+H-1))``::
+
+    J = W1 sum_{i=1..H} (T_w(k+i|k) - T_w_cmd)^2 + W2 sum_{i=0..H-1} rho_i(u)^2          (9)
+
+with the input term ``rho_i`` chosen by ``ControlParams.cost``:
+
+* ``"absolute"``: ``rho_i = T_p(k+i)``, eq. 9 as printed. It pulls ``T_p`` towards 0 °C,
+  so ``T_w`` settles below its command (0.71 K at 24 °C, T_a = 20 °C, Table I): kept to show it.
+* ``"rate"`` (default): ``rho_i = T_p(k+i) - T_p(k+i-1)`` with ``T_p(k-1)`` the previous
+  command. It "suppresses rapid change of the input" as the text says; no offset.
+* ``"deviation"``: ``rho_i = T_p(k+i) - T_p_ss``, the steady-state input that holds
+  ``T_w = T_w_cmd`` in the model: ``T_p_ss = ((1 - a) T_w_cmd - c T_a)/b``; no offset.
+
+Constraints (eq. 11): ``T_p_min <= T_p(k+i) <= T_p_max``.
+
+Condensed QP. Stacking the predictions, ``x = Phi T_w(k) + Gam u + s T_a`` with
+``Phi_i = a^i``, ``Gam_ij = a^(i-1-j) b`` (``j < i``), ``s_i = c (1 + a + ... + a^(i-1))``,
+and writing the input term as ``rho = D u - d``, ``J/2 = 0.5 u'Pu + q'u + const`` with::
+
+    P = W1 Gam'Gam + W2 D'D,     q = W1 Gam'(Phi T_w + s T_a - 1 T_w_cmd) - W2 D'd
+
+``P`` and the bounds never change; ``q`` is linear in ``theta = (T_w, T_a, T_w_cmd, T_p_prev)``,
+so ``q = F theta`` with ``F`` (H x 4) precomputed. Each sample costs one small mat-vec, an
+``update(f=q)`` of a persistent ``daqp.Model`` (set up once: ``P`` factored once, the
+active set of the previous sample reused as warm start) and one ``solve``. The output is the
+first element, ``T_p_cmd = u_0``.
+
+Pump stopped. While ``T_w`` is above its command the pump stops (``v = 0``) and ``T_p`` no
+longer reaches the pipe: the MPC has no authority. ``on_stop="solve"`` (default) keeps
+solving with the flowing ``R_w`` as if the pump ran: ``T_w`` just above the command then
+asks for a slightly colder tank, so ``T_p`` is where it needs to be when the pump restarts
+and the warm start stays current. ``on_stop="hold"`` skips the solve and repeats the
+previous command (the tank keeps its temperature while the pipe cools by natural loss).
+
+Failures. A NaN input repeats the previous command. If daqp reports a failure
+(exit flag <= 0) the command is the unconstrained optimum's first element, clipped to the
+bounds (``u = -P^-1 q``, precomputed as a gain on ``theta``), and ``n_fallback`` counts it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import daqp
+import numpy as np
+
+from thermoskin.params import ControlParams, SkinParams
+from thermoskin.physics.convection import R_w as R_w_of_v
+
+LOSSES = ("network", "paper")
+ON_STOP = ("solve", "hold")
+
+
+def model_coefficients(skin: SkinParams, R_w: float, t_s: float, loss: str = "network"
+                       ) -> tuple[float, float, float]:
+    """``(a, b, c)`` of eq. 10 as ``T_w(k+1) = a T_w(k) + b T_p(k) + c T_a``.
+
+    ``b = t_s/(R_w C_w)``, ``G = 1/R_aw`` (+ ``1/(R_g + R_ag)`` for ``loss="network"``),
+    ``a = 1 - b - t_s G / C_w``, ``c = t_s G / C_w``.
+    """
+    if loss not in LOSSES:
+        raise ValueError(f"loss = {loss!r} must be one of {LOSSES}")
+    G = 1.0 / skin.R_aw
+    if loss == "network":
+        G += 1.0 / (skin.R_g + skin.R_ag)
+    b = t_s / (R_w * skin.C_w)
+    c = t_s * G / skin.C_w
+    return 1.0 - b - c, b, c
+
+
+def prediction_matrices(a: float, b: float, c: float, H: int
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(Phi, Gam, s)`` of the stacked prediction ``x = Phi T_w(k) + Gam u + s T_a``.
+
+    ``x_i = T_w(k+i)``, ``i = 1..H`` (row ``i-1``); ``u_j = T_p(k+j)``, ``j = 0..H-1``:
+    ``Phi_i = a^i``, ``Gam[i-1, j] = a^(i-1-j) b`` for ``j <= i-1``, ``s_i = c sum_{m<i} a^m``.
+    """
+    powers = a ** np.arange(H + 1, dtype=float)          # a^0 .. a^H
+    Phi = powers[1:].copy()
+    idx = np.arange(H)
+    lag = idx[:, None] - idx[None, :]                      # (i-1) - j
+    Gam = np.where(lag >= 0, b * powers[np.clip(lag, 0, H)], 0.0)
+    s = c * np.cumsum(powers[:H])
+    return Phi, Gam, s
+
+
+class Mpc:
+    """The MPC of eqs. 9-11 on a persistent, warm-started daqp workspace.
+
+    ``step(T_w, T_a, T_w_cmd)`` returns ``T_p_cmd``, the first of the ``H`` optimal inputs.
+    After each step: ``status`` (daqp exit flag, 1 = optimal; 0 for a held or fallback
+    sample), ``iterations``, ``solve_time`` (daqp's own, s), ``u`` (the last full input
+    sequence), ``n_solves``, ``n_fallback``, ``n_held``.
+    """
+
+    def __init__(self, skin: SkinParams, control: ControlParams, t_s: float = 1.0e-3, *,
+                 R_w: float | None = None, v_on: float = 0.141, loss: str = "network",
+                 cost: str | None = None, on_stop: str = "solve") -> None:
+        if not (t_s > 0 and math.isfinite(t_s)):
+            raise ValueError(f"Mpc: t_s = {t_s} s must be > 0")
+        if control.T_p_min >= control.T_p_max:
+            raise ValueError(f"Mpc: T_p_min = {control.T_p_min} must be below T_p_max = "
+                             f"{control.T_p_max}")
+        if on_stop not in ON_STOP:
+            raise ValueError(f"Mpc: on_stop = {on_stop!r} must be one of {ON_STOP}")
+        cost = control.cost if cost is None else cost
+        if cost not in ("rate", "deviation", "absolute"):
+            raise ValueError(f"Mpc: cost = {cost!r} must be 'rate', 'deviation' or 'absolute'")
+        self.skin = skin
+        self.control = control
+        self.t_s = float(t_s)
+        self.loss = loss
+        self.cost = cost
+        self.on_stop = on_stop
+        self.R_w = float(R_w) if R_w is not None else R_w_of_v(v_on, skin)
+        if not (self.R_w > 0 and math.isfinite(self.R_w)):
+            raise ValueError(f"Mpc: R_w = {self.R_w} K/W must be > 0")
+        H = int(control.H)
+        self.H = H
+        self.a, self.b, self.c = model_coefficients(skin, self.R_w, self.t_s, loss)
+        self.T_p_min = float(control.T_p_min)
+        self.T_p_max = float(control.T_p_max)
+        self.P, self.F = self._condense()
+        # unconstrained optimum u = -P^-1 F theta, for the fallback
+        self._K_unc = -np.linalg.solve(self.P, self.F)
+        self._theta = np.zeros(4)
+        self._q = np.zeros(H)
+        self._lb = np.full(H, self.T_p_min)
+        self._ub = np.full(H, self.T_p_max)
+        self._model = daqp.Model()
+        flag, _ = self._model.setup(self.P, self._q, np.zeros((0, H)), self._ub, self._lb)
+        if flag < 0:
+            raise RuntimeError(f"Mpc: daqp setup failed (exit flag {flag})")
+        self.T_p_prev = 0.5 * (self.T_p_min + self.T_p_max)
+        self.u = np.full(H, self.T_p_prev)
+        self.status = 0
+        self.iterations = 0
+        self.solve_time = 0.0
+        self.n_solves = 0
+        self.n_fallback = 0
+        self.n_held = 0
+        self.reset()
+
+    def _condense(self) -> tuple[np.ndarray, np.ndarray]:
+        """``P`` (H x H) and ``F`` (H x 4) with ``q = F (T_w, T_a, T_w_cmd, T_p_prev)``."""
+        H, W1, W2 = self.H, float(self.control.W1), float(self.control.W2)
+        Phi, Gam, s = prediction_matrices(self.a, self.b, self.c, H)
+        ones = np.ones(H)
+        # input term rho = D u - (d_Tw_cmd T_w_cmd + d_Ta T_a + d_prev T_p_prev)
+        D = np.eye(H)
+        d = np.zeros((H, 4))
+        if self.cost == "rate":
+            D -= np.eye(H, k=-1)
+            d[0, 3] = 1.0                                   # rho_0 = u_0 - T_p_prev
+        elif self.cost == "deviation":
+            # T_p_ss = ((1 - a) T_w_cmd - c T_a) / b
+            d[:, 2] = (1.0 - self.a) / self.b
+            d[:, 1] = -self.c / self.b
+        P = W1 * Gam.T @ Gam + W2 * D.T @ D
+        P = 0.5 * (P + P.T)
+        E = np.zeros((H, 4))                                # free response minus reference
+        E[:, 0] = Phi
+        E[:, 1] = s
+        E[:, 2] = -ones
+        F = W1 * Gam.T @ E - W2 * D.T @ d
+        return P, F
+
+    def T_p_ss(self, T_w_cmd: float, T_a: float) -> float:
+        """Steady-state input of the model holding ``T_w = T_w_cmd``: ``((1-a) T_w_cmd - c T_a)/b``."""
+        return ((1.0 - self.a) * T_w_cmd - self.c * T_a) / self.b
+
+    def reset(self, T_p_prev: float | None = None) -> None:
+        """Forget the past: previous command ``T_p_prev`` (default mid-range), cold warm start."""
+        if T_p_prev is None:
+            T_p_prev = 0.5 * (self.T_p_min + self.T_p_max)
+        self.T_p_prev = min(max(float(T_p_prev), self.T_p_min), self.T_p_max)
+        self.u = np.full(self.H, self.T_p_prev)
+        self.status = 0
+        self.iterations = 0
+        self.solve_time = 0.0
+        self.n_solves = self.n_fallback = self.n_held = 0
+        # drop the active set of earlier solves
+        self._model.update(sense=np.zeros(self.H, dtype=np.int32))
+
+    def q(self, T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float | None = None) -> np.ndarray:
+        """The QP's linear term for a state (a copy; ``step`` uses an internal buffer)."""
+        prev = self.T_p_prev if T_p_prev is None else T_p_prev
+        return self.F @ np.array([T_w, T_a, T_w_cmd, prev], dtype=float)
+
+    def solve(self, T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float | None = None
+              ) -> np.ndarray:
+        """Solve the QP for one state and return the whole optimal ``u`` (does not advance).
+
+        Updates the warm start and the solve attributes like ``step``.
+        """
+        th = self._theta
+        th[0] = T_w
+        th[1] = T_a
+        th[2] = T_w_cmd
+        th[3] = self.T_p_prev if T_p_prev is None else T_p_prev
+        np.dot(self.F, th, out=self._q)
+        model = self._model
+        model.update(f=self._q)
+        x, _, flag, info = model.solve()
+        self.n_solves += 1
+        self.status = flag
+        self.iterations = info["iterations"]
+        self.solve_time = info["solve_time"]
+        if flag <= 0 or not math.isfinite(x[0]):
+            self.n_fallback += 1
+            x = np.clip(self._K_unc @ th, self.T_p_min, self.T_p_max)
+            model.update(sense=np.zeros(self.H, dtype=np.int32))
+        self.u = x
+        return x
+
+    def step(self, T_w: float, T_a: float, T_w_cmd: float, pump_on: bool = True) -> float:
+        """One sample: ``T_p_cmd`` for the inner loop, within ``[T_p_min, T_p_max]`` (eq. 11)."""
+        if (not pump_on and self.on_stop == "hold") or not (
+                math.isfinite(T_w) and math.isfinite(T_a) and math.isfinite(T_w_cmd)):
+            self.n_held += 1
+            self.status = 0
+            self.iterations = 0
+            return self.T_p_prev
+        x = self.solve(T_w, T_a, T_w_cmd)
+        u0 = float(x[0])
+        # daqp meets the bounds to its primal tolerance (1e-6): make eq. 11 exact
+        u0 = min(max(u0, self.T_p_min), self.T_p_max)
+        self.T_p_prev = u0
+        return u0
+
+
+def closed_loop_steady_state(mpc: Mpc, T_w_cmd: float, T_a: float) -> float:
+    """Closed-loop steady state of ``T_w`` for an MPC on its own model (unconstrained).
+
+    With ``T_p_cmd = k . theta`` (first row of ``-P^-1 F``) and the model
+    ``T_w = a T_w + b T_p_cmd + c T_a``, ``T_p_prev = T_p_cmd``: solve the two linear
+    equations. For ``cost="absolute"`` this shows the offset; for the others it is ``T_w_cmd``.
+    """
+    k = mpc._K_unc[0]
+    # T_p = k0 T_w + k1 T_a + k2 r + k3 T_p  ->  T_p = (k0 T_w + k1 T_a + k2 r)/(1 - k3)
+    # T_w (1 - a) = b T_p + c T_a
+    A = np.array([[1.0 - mpc.a, -mpc.b], [-k[0], 1.0 - k[3]]])
+    rhs = np.array([mpc.c * T_a, k[1] * T_a + k[2] * T_w_cmd])
+    return float(np.linalg.solve(A, rhs)[0])
