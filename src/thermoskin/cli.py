@@ -22,8 +22,8 @@ from thermoskin.detector import ContactEvent
 from thermoskin.params import Config, ConfigError, load_config
 
 F = TypeVar("F", bound=Callable[..., Any])
-console = Console(highlight=False)
-err_console = Console(stderr=True, highlight=False)
+console = Console(highlight=False, soft_wrap=True)
+err_console = Console(stderr=True, highlight=False, soft_wrap=True)
 
 
 class UserError(Exception):
@@ -40,10 +40,11 @@ def _user_errors(fn: F) -> F:
         try:
             return fn(*args, **kwargs)
         except (ConfigError, LogError, UserError) as e:
-            err_console.print(f"thermoskin: error: {e}", markup=False)
+            msg = " ".join(str(e).split())  # one line, whatever the message held
+            click.echo(f"thermoskin: error: {msg}", err=True)
             sys.exit(2)
         except KeyboardInterrupt:
-            err_console.print("thermoskin: interrupted", markup=False)
+            click.echo("thermoskin: interrupted", err=True)
             sys.exit(130)
 
     return wrapper  # type: ignore[return-value]
@@ -223,3 +224,6 @@ def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent]) -> None:
                if len(lat) else "no latency (nothing detected)")
     console.print(f"[bold]summary[/]: {len(sc.touches)} touches scripted, {m.hits} detected, "
                   f"{m.misses} missed, {m.false_alarms} false alarms; {lat_txt}")
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,141 @@
+"""The command line: contract columns, and one-line errors with exit code 2."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from thermoskin.cli import main
+from thermoskin.logio import read_log, write_log
+from thermoskin.params import load_config
+from thermoskin.sim.run import simulate
+from thermoskin.sim.scenarios import SCENARIOS
+
+
+@pytest.fixture(scope="module")
+def sim_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    p = tmp_path_factory.mktemp("cli") / "sim.csv"
+    write_log(p, simulate(SCENARIOS["one-finger"].with_duration(20.0), load_config()))
+    return p
+
+
+def invoke(*args: str) -> tuple[int, str, str]:
+    res = CliRunner().invoke(main, list(args))
+    return res.exit_code, res.stdout, res.stderr
+
+
+def test_observe_writes_the_contract_columns(sim_log: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out.csv"
+    code, stdout, _ = invoke("observe", str(sim_log), "-o", str(out))
+    assert code == 0
+    inp = read_log(sim_log)
+    res = read_log(out)
+    assert list(res)[:len(inp)] == list(inp)  # every input column, in order
+    assert {"q_i_hat", "contact"} <= set(res)
+    assert len(res["t"]) == len(inp["t"])
+    for k in inp:
+        np.testing.assert_allclose(res[k], inp[k], rtol=1e-5, atol=1e-6)
+    assert set(np.unique(res["contact"])) == {0.0, 1.0}
+    assert "Detected contacts" in stdout
+
+
+def test_observe_survives_a_nan_burst(sim_log: Path, tmp_path: Path) -> None:
+    log = read_log(sim_log)
+    log["T_w"][6000:6100] = np.nan
+    bad = tmp_path / "nan.csv"
+    write_log(bad, log)
+    out = tmp_path / "out.csv"
+    code, stdout, _ = invoke("observe", str(bad), "-o", str(out))
+    assert code == 0
+    res = read_log(out, nan_columns=("T_w",))
+    assert np.isfinite(res["q_i_hat"][1000:]).all()
+    assert res["gap"][6000:6100].all() and not res["gap"][6100:].any()
+    assert "100 NaN samples held over" in stdout
+
+
+def _write(tmp_path: Path, name: str, text: str) -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+GOOD_ROWS = "".join(f"{k * 0.001:.3f},24.0,24.3,0.141,20.0\n" for k in range(50))
+
+
+@pytest.mark.parametrize(("make", "needle"), [
+    (lambda d: d / "nope.csv", "not found"),
+    (lambda d: _write(d, "empty.csv", ""), "empty"),
+    (lambda d: _write(d, "miss.csv", "t,T_w,T_p,v\n0,24,24,0.1\n0.001,24,24,0.1\n"), "T_a"),
+    (lambda d: _write(d, "txt.csv", "t,T_w,T_p,v,T_a\n" + GOOD_ROWS + "0.050,hot,24,0.1,20\n"),
+     "line 52"),
+    (lambda d: _write(d, "back.csv", "t,T_w,T_p,v,T_a\n0.0,24,24,0.1,20\n0.002,24,24,0.1,20\n"
+                      "0.001,24,24,0.1,20\n"), "increasing"),
+    (lambda d: _write(d, "jump.csv", "t,T_w,T_p,v,T_a\n" + GOOD_ROWS + "0.070,24,24,0.1,20\n"),
+     "non-uniform"),
+])
+def test_observe_bad_input_one_line_exit_2(tmp_path: Path, make, needle: str) -> None:  # type: ignore[no-untyped-def]
+    code, _, err = invoke("observe", str(make(tmp_path)), "-o", str(tmp_path / "o.csv"))
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("thermoskin: error:"), err
+    assert needle in lines[0]
+    assert not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize(("toml", "needle"), [
+    ("[skin]\nCw = 1.0\n", "skin.Cw"),
+    ("[skin]\nR_g = -3\n", "skin.R_g = -3"),
+    ("[detector]\nh_on = 0\n", "detector.h_on"),
+    ("[nonsense]\nx = 1\n", "[nonsense]"),
+    ("[skin\n", "not valid TOML"),
+])
+def test_bad_config_one_line_exit_2(sim_log: Path, tmp_path: Path, toml: str, needle: str) -> None:
+    cfg = _write(tmp_path, "c.toml", toml)
+    code, _, err = invoke("observe", str(sim_log), "-o", str(tmp_path / "o.csv"),
+                          "--config", str(cfg))
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and needle in err
+
+
+def test_config_override_changes_the_estimate(sim_log: Path, tmp_path: Path) -> None:
+    cfg = _write(tmp_path, "c.toml", "[skin]\nR_ag = 2.0\n")
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert invoke("observe", str(sim_log), "-o", str(a))[0] == 0
+    assert invoke("observe", str(sim_log), "-o", str(b), "--config", str(cfg))[0] == 0
+    qa, qb = read_log(a)["q_i_hat"], read_log(b)["q_i_hat"]
+    # the q_ag correction (T_w - T_a)/R_ag halves: about 2 W lower (T_w - T_a = 4 K)
+    assert np.median(qa - qb) == pytest.approx(2.0, abs=0.3)
+
+
+def test_simulate_and_unknown_scenario(tmp_path: Path) -> None:
+    out = tmp_path / "s.csv"
+    code, _, _ = invoke("simulate", "--scenario", "none", "--duration", "2", "-o", str(out))
+    assert code == 0
+    log = read_log(out)
+    assert {"t", "T_w", "T_p", "v", "T_a", "q_i", "T_g"} <= set(log)
+    assert len(log["t"]) == 2000
+    code, _, err = invoke("simulate", "--scenario", "bogus", "-o", str(out))
+    assert code == 2 and "unknown scenario 'bogus'" in err
+
+
+def test_run_writes_log_and_plot(tmp_path: Path) -> None:
+    log, png = tmp_path / "run.csv", tmp_path / "run.png"
+    code, stdout, _ = invoke("run", "--scenario", "one-finger", "--duration", "17",
+                             "--log", str(log), "--plot", str(png))
+    assert code == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    cols = read_log(log)
+    assert {"q_i_hat", "contact", "q_i", "T_g"} <= set(cols)
+    assert "2 touches scripted, 2 detected, 0 missed, 0 false alarms" in stdout
+
+
+def test_real_entry_point_no_traceback(tmp_path: Path) -> None:
+    p = subprocess.run([sys.executable, "-m", "thermoskin.cli", "observe", str(tmp_path / "x.csv"),
+                        "-o", str(tmp_path / "y.csv")], capture_output=True, text=True)
+    assert p.returncode == 2
+    assert "Traceback" not in p.stderr and p.stderr.count("\n") == 1
