@@ -1,0 +1,68 @@
+"""Per-sample cost of the 1 kHz estimation path: observer.step + detector.step.
+
+Times each sample with perf_counter_ns over a simulated log (pump switching, touches),
+and the vectorised path over the same log for the ratio. Prints one JSON object as its
+last line: p50_us, p99_us, max_us per sample, and the vectorised speed.
+
+    python benchmarks/observer_step.py [--seconds 60] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import time
+
+import numpy as np
+
+from thermoskin.detector import ContactDetector
+from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.params import load_config
+from thermoskin.pipeline import observe
+from thermoskin.sim.run import simulate
+from thermoskin.sim.scenarios import SCENARIOS
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds (1 kHz)")
+    ap.add_argument("--json", action="store_true", help="only the JSON line")
+    a = ap.parse_args()
+    cfg = load_config()
+    log = simulate(SCENARIOS["fingers"].with_duration(a.seconds), cfg)
+    t, T_w, T_p, v, T_a = (log[k].tolist() for k in ("t", "T_w", "T_p", "v", "T_a"))
+    n = len(t)
+    obs = ThermalExchangeObserver(cfg.skin, cfg.observer, cfg.sampling.t_s)
+    det = ContactDetector(cfg.detector, cfg.sampling.t_s)
+    dt = np.empty(n, dtype=np.int64)
+    clock = time.perf_counter_ns
+    gc.disable()
+    for k in range(n):
+        t0 = clock()
+        obs.step(T_w[k], T_p[k], v[k], T_a[k])
+        det.step(t[k], obs.r, obs.dq_i_hat, obs.gap or not obs.ready)
+        dt[k] = clock() - t0
+    gc.enable()
+    us = dt[cfg.observer.n_init:] / 1e3
+    t0 = time.perf_counter()
+    observe(log, cfg)
+    batch_s = time.perf_counter() - t0
+    res = {
+        "samples": n,
+        "p50_us": round(float(np.percentile(us, 50)), 2),
+        "p99_us": round(float(np.percentile(us, 99)), 2),
+        "max_us": round(float(us.max()), 1),
+        "mean_us": round(float(us.mean()), 2),
+        "vectorised_us_per_sample": round(batch_s / n * 1e6, 3),
+        "step_over_vectorised": round(float(us.mean()) / (batch_s / n * 1e6), 1),
+    }
+    if not a.json:
+        print(f"observer+detector step over {n} samples: p50 {res['p50_us']} us, "
+              f"p99 {res['p99_us']} us, max {res['max_us']} us; vectorised "
+              f"{res['vectorised_us_per_sample']} us/sample")
+    print(json.dumps(res))
+
+
+if __name__ == "__main__":
+    main()
