@@ -1,0 +1,513 @@
+"""The device emulator: the simulated skin behind a pseudo-terminal speaking the link protocol.
+
+``thermoskin device-emulator --link PATH [--scenario NAME] [--fault KIND@SECONDS]`` (or
+``python -m thermoskin.devices.emulator``) opens a pty pair, makes ``PATH`` a symbolic
+link to the slave side (a stale link is replaced, the link is removed on exit) and waits
+for a HELLO. Its clock starts at the first HELLO; from then on, every ``t_s`` (1 ms, paced
+by the wall clock with absolute deadlines) it
+
+1. measures: thermocouple readings of ``T_w, T_p, T_a`` are taken every ``tc_period``
+   (default 0.1 s, a MAX31856-class board); in between the last reading is repeated with
+   its fresh bit clear and its update counter unchanged;
+2. sends a SAMPLE (and a FAULT when a fault it can detect appears);
+3. advances the skin (:class:`~thermoskin.sim.skin.SimulatedSkin`, exact ZOH) and the
+   tank one step with the last COMMAND (drive, pump velocity), the scenario's touches
+   (:func:`~thermoskin.physics.finger.contact_at`, repeating every ``scenario.duration``)
+   and the scenario's ``T_a``.
+
+The tank: :class:`thermoskin.physics.peltier.PeltierTank` when that module exists,
+otherwise :class:`FirstOrderTank`::
+
+    C_tank dT_p/dt = drive P_max - (T_p - T_a)/R_tank_air - q_out,   q_out = (T_p - T_w)/R_w(v)
+
+started at ``scenario.T_p(0)``.
+
+Until the first COMMAND after a HELLO, and while no COMMAND came for ``command_timeout``
+s (the watchdog), the device holds drive 0 and the pump off. SAFE latches the same
+until the next HELLO.
+
+Faults, ``KIND@SECONDS`` since the host connected:
+
+- ``tc-open``: ``T_w`` reads NaN with ``ST_OPEN_W`` set; one FAULT(F_TC_OPEN) is sent.
+- ``nan-burst``: every channel reads NaN from then on (no flag: the host must notice).
+- ``overtemp``: ``T_p`` reads :data:`OVERTEMP_C` (beyond the 7-37 °C bound).
+- ``serial-drop``: the device stops sending and stops listening (a cut cable).
+- ``tc-stuck``: ``T_w`` freezes at its last reading while still flagged fresh.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import os
+import select
+import signal
+import sys
+import threading
+import time
+import tty
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from thermoskin.devices import protocol as proto
+from thermoskin.params import Config, PeltierParams
+from thermoskin.physics.finger import contact_at
+from thermoskin.sim.scenarios import DEFAULT_SCENARIO, SCENARIOS, Scenario, get_scenario
+from thermoskin.sim.skin import Sensors, SimulatedSkin
+
+FAULT_KINDS = ("tc-open", "nan-burst", "overtemp", "serial-drop", "tc-stuck")
+OVERTEMP_C = 45.0
+"""``T_p`` reading under the ``overtemp`` fault, °C."""
+DEVICE_ID = 0x7E57_0001
+"""Device id the emulator reports in HELLO_ACK."""
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    """A fault ``kind`` injected ``t`` seconds after the host connected."""
+
+    kind: str
+    t: float
+
+    @classmethod
+    def parse(cls, text: str) -> FaultSpec:
+        """``"tc-open@12.5"`` -> ``FaultSpec("tc-open", 12.5)``; ValueError naming the problem."""
+        kind, sep, when = text.partition("@")
+        kind = kind.strip()
+        if not sep or kind not in FAULT_KINDS:
+            raise ValueError(f"fault {text!r}: must be KIND@SECONDS with KIND one of "
+                             f"{', '.join(FAULT_KINDS)}")
+        try:
+            t = float(when)
+        except ValueError:
+            raise ValueError(f"fault {text!r}: {when!r} is not a number of seconds") from None
+        if not (math.isfinite(t) and t >= 0):
+            raise ValueError(f"fault {text!r}: the time must be >= 0 s")
+        return cls(kind, t)
+
+
+class FirstOrderTank:
+    """The tank as one heat capacity (the stand-in for a Peltier model), integrated exactly::
+
+        C dT_p/dt = drive P_max - (T_p - T_a)/R - q_out
+
+    ``C = C_tank``, ``R = R_tank_air``; ``P_max = n (S_m I_max T_0 - I_max^2 R_m / 2)`` with
+    ``T_0 = 298.15 K``: the modules' heat pumped at zero temperature difference and full
+    current, taken as symmetric for heating and cooling.
+    """
+
+    def __init__(self, params: PeltierParams, t_s: float) -> None:
+        self.C = params.C_tank
+        self.R = params.R_tank_air
+        I = params.I_max  # noqa: E741
+        self.P_max = params.n_modules * (params.S_m * I * 298.15 - 0.5 * I * I * params.R_m)
+        self.t_s = float(t_s)
+        self._a = math.exp(-self.t_s / (self.R * self.C))
+        self.T_p = 20.0
+
+    def reset(self, T_p: float, T_sink: float | None = None, T_a: float = 20.0) -> None:
+        self.T_p = float(T_p)
+
+    def step(self, drive: float, T_a: float, q_out: float = 0.0) -> float:
+        T_eq = T_a + self.R * (drive * self.P_max - q_out)
+        self.T_p = T_eq + (self.T_p - T_eq) * self._a
+        return self.T_p
+
+
+def make_tank(cfg: Config, t_s: float) -> object:
+    """``PeltierTank(cfg.peltier, t_s)`` if ``physics.peltier`` exists, else :class:`FirstOrderTank`."""
+    try:
+        from thermoskin.physics.peltier import PeltierTank  # type: ignore[import-not-found]
+    except ImportError:
+        return FirstOrderTank(cfg.peltier, t_s)
+    return PeltierTank(cfg.peltier, t_s)
+
+
+class DeviceCore:
+    """What the device does, without I/O or wall clock: messages in, one step per ``t_s``."""
+
+    def __init__(self, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec] = (),
+                 tc_period: float = 0.1, command_timeout: float = 0.5, device_id: int = DEVICE_ID) -> None:
+        self.cfg = cfg
+        self.t_s = cfg.sampling.t_s
+        self.scenario = scenario
+        self.faults = sorted(faults, key=lambda f: f.t)
+        self.n_tc = max(1, round(tc_period / self.t_s))
+        self.tc_period = self.n_tc * self.t_s
+        self.command_timeout = float(command_timeout)
+        self.device_id = device_id
+        self.skin = SimulatedSkin(cfg)
+        self.sensors = Sensors(cfg.sensor)
+        self.tank = make_tank(cfg, self.t_s)
+        self.connected = False
+        self.k = 0
+        self.seq = 0
+        self._reset_physics()
+
+    def _reset_physics(self) -> None:
+        sc = self.scenario
+        T_p0 = float(sc.T_p(0.0))
+        self.tank.reset(T_p0, None, sc.T_a)  # type: ignore[attr-defined]
+        self.skin.reset_equilibrium(T_p0, self.cfg.pump.v_on, sc.T_a)
+        self.sensors.reset()
+        self.drive = 0.0
+        self.v = 0.0
+        self.cmd_drive = 0.0
+        self.cmd_v = 0.0
+        self.cmd_seq = 0
+        self.k_cmd = -1
+        self.safe_latched = False
+        self.active: set[str] = set()
+        self.readings = [math.nan, math.nan, math.nan]
+        self.counters = [0, 0, 0]
+        self._overrun = False
+
+    # -- messages --------------------------------------------------------------------------
+    def _next_seq(self) -> int:
+        self.seq = (self.seq + 1) % proto.SEQ_MOD
+        return self.seq
+
+    def on_message(self, msg: proto.Message) -> list[proto.Message]:
+        """Apply one host message; return the replies."""
+        t = msg.TYPE
+        if t == proto.T_COMMAND:
+            if self.connected and not self.safe_latched:
+                d = msg.drive  # type: ignore[union-attr]
+                v = msg.v  # type: ignore[union-attr]
+                self.cmd_drive = min(1.0, max(-1.0, d)) if d == d else 0.0
+                self.cmd_v = min(10.0, v) if v == v and v > 0.0 else 0.0
+                self.cmd_seq = msg.seq
+                self.k_cmd = self.k
+            return []
+        if t == proto.T_SAFE:
+            self.safe_latched = True
+            return []
+        if t == proto.T_HELLO:
+            ok = msg.version == proto.PROTOCOL_VERSION  # type: ignore[union-attr]
+            ack = proto.HelloAck(self._next_seq(), proto.PROTOCOL_VERSION,
+                             proto.STATUS_OK if ok else proto.STATUS_BAD_VERSION, self.device_id,
+                             round(self.t_s * 1e6), round(self.tc_period * 1e6))
+            if ok:
+                self.safe_latched = False
+                self.k_cmd = -1
+                self.cmd_drive = self.cmd_v = 0.0
+                self.connected = True
+            return [ack]
+        return []
+
+    @property
+    def t(self) -> float:
+        """Device time, s since the host first connected."""
+        return self.k * self.t_s
+
+    def fault_active(self, kind: str) -> bool:
+        return kind in self.active
+
+    def mark_overrun(self) -> None:
+        self._overrun = True
+
+    # -- one sample ------------------------------------------------------------------------
+    def step(self) -> list[proto.Message]:
+        """Measure, report (SAMPLE and new FAULTs), then advance the physics by ``t_s``."""
+        t = self.k * self.t_s
+        out: list[proto.Message] = []
+        for f in self.faults:
+            if f.t <= t + 1e-12 and f.kind not in self.active:
+                self.active.add(f.kind)
+                if f.kind == "tc-open":
+                    out.append(proto.Fault(0, proto.F_TC_OPEN, 0, math.nan))
+        active = self.active
+        fresh = 0
+        if self.k % self.n_tc == 0:
+            sens = self.sensors
+            T_w = sens.measure_one("T_w", self.skin.T_w)
+            T_p = sens.measure_one("T_p", self.tank.T_p)  # type: ignore[attr-defined]
+            T_a = sens.measure_one("T_a", self.scenario.T_a)
+            if active:
+                if "tc-stuck" in active:
+                    T_w = self.readings[0]
+                if "tc-open" in active:
+                    T_w = math.nan
+                if "overtemp" in active:
+                    T_p = sens.quantise(OVERTEMP_C + (T_p - self.tank.T_p))  # type: ignore[attr-defined]
+                if "nan-burst" in active:
+                    T_w = T_p = T_a = math.nan
+            self.readings = [T_w, T_p, T_a]
+            c = self.counters
+            c[0] = (c[0] + 1) & 0xFFFF
+            c[1] = (c[1] + 1) & 0xFFFF
+            c[2] = (c[2] + 1) & 0xFFFF
+            fresh = proto.CH_W | proto.CH_P | proto.CH_A
+
+        # commands in force over the next step
+        status = 0
+        if self.safe_latched:
+            status |= proto.ST_SAFE
+            drive = v = 0.0
+        elif self.k_cmd < 0:
+            status |= proto.ST_NO_COMMAND
+            drive = v = 0.0
+        elif (self.k - self.k_cmd) * self.t_s > self.command_timeout:
+            status |= proto.ST_WATCHDOG
+            drive = v = 0.0
+        else:
+            drive, v = self.cmd_drive, self.cmd_v
+        if "tc-open" in active:
+            status |= proto.ST_OPEN_W
+        if self._overrun:
+            status |= proto.ST_OVERRUN
+            self._overrun = False
+        self.drive, self.v = drive, v
+        r = self.readings
+        for i, m in enumerate(out):
+            out[i] = proto.Fault(self._next_seq(), m.code, m.channel, m.value)  # type: ignore[union-attr]
+        out.append(proto.SampleMsg(self._next_seq(), round(t * 1e6), r[0], r[1], r[2], fresh, status,
+                               (self.counters[0], self.counters[1], self.counters[2]), v, drive,
+                               self.cmd_seq))
+
+        # physics over [t, t + t_s)
+        sc = self.scenario
+        G_c, T_f, _ = contact_at(sc.touches, t % sc.duration)
+        skin = self.skin
+        T_p_true = self.tank.T_p  # type: ignore[attr-defined]
+        q_out = (T_p_true - skin.T_w) / skin.R_w(v)
+        self.tank.step(drive, sc.T_a, q_out)  # type: ignore[attr-defined]
+        skin.step(T_p_true, v, sc.T_a, G_c, T_f)
+        self.k += 1
+        return out
+
+
+class PtyEmulator:
+    """:class:`DeviceCore` behind a pseudo-terminal, paced at ``t_s`` by the wall clock.
+
+    ``run()`` blocks until :meth:`stop` (or SIGINT/SIGTERM through :func:`main`). Timing
+    statistics (lateness of each sample against its absolute deadline) are kept in
+    :attr:`lateness` (the last 100 000 samples, s).
+    """
+
+    MAX_OUT = 64 * 1024
+    MAX_LAG = 0.05
+    """Behind its deadlines by more than this (s), the emulator re-anchors its pacing."""
+
+    def __init__(self, link: str | os.PathLike[str], core: DeviceCore) -> None:
+        self.link = Path(link)
+        self.core = core
+        self.decoder = proto.Decoder()
+        self._stop = threading.Event()
+        self.ready = threading.Event()
+        """Set once the link exists."""
+        self.connected = threading.Event()
+        """Set at the first HELLO."""
+        self.overruns = 0
+        self.dropped_frames = 0
+        self.lateness = np.zeros(100_000)
+        self.n_late = 0
+        self._out = bytearray()
+        self._master = -1
+        self._slave = -1
+        self.slave_name = ""
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    # -- link ------------------------------------------------------------------------------
+    def open_link(self) -> None:
+        """Open the pty pair (raw mode) and point the link at its slave side."""
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        os.set_blocking(self._master, False)
+        self.slave_name = os.ttyname(self._slave)
+        link = self.link
+        if link.exists() and not link.is_symlink():
+            raise FileExistsError(f"{link} exists and is not a symbolic link; not replacing it")
+        tmp = link.with_name(f".{link.name}.{os.getpid()}.tmp")
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        os.symlink(self.slave_name, tmp)
+        os.replace(tmp, link)  # atomically replaces a stale link
+        self.ready.set()
+
+    def close_link(self) -> None:
+        """Remove the link (if it is still ours) and close the pty."""
+        with contextlib.suppress(OSError):
+            if self.link.is_symlink() and os.readlink(self.link) == self.slave_name:
+                self.link.unlink()
+        for fd in (self._master, self._slave):
+            if fd >= 0:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        self._master = self._slave = -1
+
+    # -- I/O -------------------------------------------------------------------------------
+    def _read(self) -> None:
+        try:
+            data = os.read(self._master, 65536)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            return
+        if not data:
+            return
+        core = self.core
+        silent = "serial-drop" in core.active
+        for msg in self.decoder.feed(data):
+            if silent:
+                continue
+            if msg.TYPE == proto.T_HELLO:
+                self._out.clear()
+                if not self.connected.is_set():
+                    self._t0 = time.monotonic()
+                    self.connected.set()
+            for reply in core.on_message(msg):
+                self._send(reply)
+        self._flush()
+
+    def _send(self, msg: proto.Message) -> None:
+        frame = proto.encode(msg)
+        if len(self._out) + len(frame) > self.MAX_OUT:
+            self.dropped_frames += 1
+            return
+        self._out += frame
+
+    def _flush(self) -> None:
+        if not self._out:
+            return
+        try:
+            n = os.write(self._master, self._out)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            self._out.clear()
+            return
+        del self._out[:n]
+
+    # -- loop ------------------------------------------------------------------------------
+    def run(self) -> None:
+        """Create the link, wait for the host, run until stopped; the link is removed on exit."""
+        self.open_link()
+        try:
+            self.serve()
+        finally:
+            self.close_link()
+
+    def serve(self) -> None:
+        """Wait for the first HELLO, then run the paced sample loop until :meth:`stop`."""
+        core = self.core
+        t_s = core.t_s
+        master = self._master
+        stop = self._stop
+        while not stop.is_set() and not self.connected.is_set():
+            r, _, _ = select.select([master], [], [], 0.05)
+            if r:
+                self._read()
+        if stop.is_set():
+            return
+        t0 = self._t0
+        k = 0
+        lat = self.lateness
+        n_lat = lat.size
+        while not stop.is_set():
+            deadline = t0 + k * t_s
+            while True:
+                now = time.monotonic()
+                left = deadline - now
+                if left <= 0.0:
+                    break
+                r, _, _ = select.select([master], [], [], left)
+                if r:
+                    self._read()
+            late = now - deadline
+            if late > self.MAX_LAG:
+                self.overruns += 1
+                core.mark_overrun()
+                t0 += late
+            lat[self.n_late % n_lat] = late
+            self.n_late += 1
+            msgs = core.step()
+            if "serial-drop" not in core.active:
+                for m in msgs:
+                    self._send(m)
+                self._flush()
+            k += 1
+            self._read()
+
+    def timing(self) -> dict[str, float]:
+        """Lateness of the samples against their deadlines: mean, p50, p99, max (µs), and counts."""
+        n = min(self.n_late, self.lateness.size)
+        if n == 0:
+            return {"samples": 0}
+        x = self.lateness[:n] * 1e6
+        return {"samples": float(self.n_late), "mean_us": float(x.mean()),
+                "p50_us": float(np.percentile(x, 50)), "p99_us": float(np.percentile(x, 99)),
+                "max_us": float(x.max()), "overruns": float(self.overruns),
+                "dropped_frames": float(self.dropped_frames)}
+
+
+def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = (),
+         tc_period: float = 0.1, cfg: Config | None = None, verbose: bool = True) -> int:
+    """Run the emulator until SIGINT/SIGTERM; 0 on a clean stop, 2 on bad arguments or link."""
+    try:
+        sc = get_scenario(scenario)
+        specs = [FaultSpec.parse(f) for f in faults]
+        if not (tc_period > 0 and math.isfinite(tc_period)):
+            raise ValueError(f"tc_period = {tc_period} s must be > 0")
+    except (KeyError, ValueError) as e:
+        print(f"device-emulator: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
+        return 2
+    core = DeviceCore(cfg or Config(), sc, specs, tc_period=tc_period)
+    emu = PtyEmulator(link, core)
+    old: dict[int, object] = {}
+
+    def _stop(signum: int, frame: object) -> None:
+        emu.stop()
+
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            old[sig] = signal.signal(sig, _stop)
+    try:
+        try:
+            emu.open_link()
+        except OSError as e:
+            print(f"device-emulator: cannot create the link {link}: {e}", file=sys.stderr)
+            return 2
+        if verbose:
+            print(f"device-emulator: {link} -> {emu.slave_name} (scenario {sc.name}, "
+                  f"thermocouples every {core.tc_period * 1e3:g} ms"
+                  + (f", faults {', '.join(faults)}" if faults else "") + "); waiting for the host",
+                  file=sys.stderr, flush=True)
+        try:
+            emu.serve()
+        finally:
+            emu.close_link()
+        if verbose:
+            tm = emu.timing()
+            if tm.get("samples"):
+                print("device-emulator: stopped after {samples:.0f} samples; lateness mean {mean_us:.0f} µs, "
+                      "p99 {p99_us:.0f} µs, max {max_us:.0f} µs; {overruns:.0f} overruns, "
+                      "{dropped_frames:.0f} frames dropped".format(**tm), file=sys.stderr)
+            else:
+                print("device-emulator: stopped (no host connected)", file=sys.stderr)
+        return 0
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)  # type: ignore[arg-type]
+
+
+def _cli(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m thermoskin.devices.emulator",
+                                 description="simulated skin behind a pseudo-terminal")
+    ap.add_argument("--link", required=True, help="symbolic link to create for the pty")
+    ap.add_argument("--scenario", default=DEFAULT_SCENARIO, help=f"one of {', '.join(SCENARIOS)}")
+    ap.add_argument("--fault", action="append", default=[], metavar="KIND@SECONDS",
+                    help=f"inject a fault; KIND one of {', '.join(FAULT_KINDS)}")
+    ap.add_argument("--tc-period", type=float, default=0.1, help="thermocouple update period, s")
+    a = ap.parse_args(argv)
+    return main(a.link, a.scenario, a.fault, a.tc_period)
+
+
+if __name__ == "__main__":
+    sys.exit(_cli())

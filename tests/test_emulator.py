@@ -1,0 +1,282 @@
+"""The device emulator over a real pseudo-terminal, seen from the serial host side."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+import serial
+
+from thermoskin.devices import protocol as proto
+from thermoskin.devices.base import ChannelTracker, Device, DeviceError, Sample
+from thermoskin.devices.emulator import DeviceCore, FaultSpec, FirstOrderTank, PtyEmulator, main
+from thermoskin.devices.serial_device import SerialDevice
+from thermoskin.params import Config
+from thermoskin.sim.scenarios import SCENARIOS
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+
+Start = Callable[..., tuple[PtyEmulator, Path]]
+
+
+@pytest.fixture
+def start_emulator(tmp_path: Path) -> Iterator[Start]:
+    """Start emulators in threads; stop them and check that their links are gone."""
+    running: list[tuple[PtyEmulator, threading.Thread]] = []
+
+    def start(faults: tuple[str, ...] = (), tc_period: float = 0.1, scenario: str = "fingers",
+              command_timeout: float = 0.5, name: str = "skin") -> tuple[PtyEmulator, Path]:
+        core = DeviceCore(Config(), SCENARIOS[scenario], [FaultSpec.parse(f) for f in faults],
+                          tc_period=tc_period, command_timeout=command_timeout)
+        link = tmp_path / name
+        emu = PtyEmulator(link, core)
+        th = threading.Thread(target=emu.run, daemon=True)
+        th.start()
+        assert emu.ready.wait(5.0)
+        running.append((emu, th))
+        return emu, link
+
+    yield start
+    for emu, th in running:
+        emu.stop()
+        th.join(5.0)
+        assert not th.is_alive()
+        assert not emu.link.is_symlink(), "the link must be removed on exit"
+
+
+def collect(dev: SerialDevice, seconds: float, command: tuple[float, float] | None = None,
+            stop_on_loss: bool = False) -> list[Sample]:
+    out: list[Sample] = []
+    t_end = time.monotonic() + seconds
+    while time.monotonic() < t_end:
+        s = dev.read_sample(0.01)
+        if s is None:
+            if stop_on_loss and dev.link_lost:
+                break
+            continue
+        out.append(s)
+        if command is not None:
+            dev.write_command(*command)
+    return out
+
+
+def test_end_to_end_handshake_samples_commands(start_emulator: Start) -> None:
+    emu, link = start_emulator()
+    dev = SerialDevice(str(link))
+    assert isinstance(dev, Device)
+    dev.open()
+    try:
+        assert dev.ack is not None and dev.ack.version == proto.PROTOCOL_VERSION
+        assert dev.device_id == emu.core.device_id
+        assert dev.tc_period == pytest.approx(0.1)
+        before = collect(dev, 0.3)
+        assert before and all(s.v == 0.0 and s.status & proto.ST_NO_COMMAND for s in before)
+        got = collect(dev, 1.0, command=(0.3, 0.141))
+    finally:
+        dev.close()
+    samples = before + got
+    # about 1.3 s of 1 kHz samples, contiguous device clock and sequence numbers
+    assert 1000 <= len(samples) <= 1400
+    seqs = [s.seq for s in samples]
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+    t = [s.t for s in samples]
+    assert t[0] == 0.0
+    assert all(abs(b - a - 1e-3) < 1e-9 for a, b in itertools.pairwise(t))
+    assert dev.decoder.stats.corrupted == 0
+    # thermocouple boards at 10 Hz: fresh on every 100th sample, repeated values between
+    fresh = [s for s in samples if s.fresh]
+    assert [round(s.t, 3) for s in fresh] == [round(0.1 * i, 3) for i in range(len(fresh))]
+    assert all(s.fresh == proto.CH_W | proto.CH_P | proto.CH_A for s in fresh)
+    for a, b in itertools.pairwise(samples):
+        if not b.fresh:
+            assert (b.T_w, b.T_p, b.T_a) == (a.T_w, a.T_p, a.T_a)
+    assert not any(s.stale or s.stuck for s in samples)
+    # the pump command reached the device: applied v reported, and in the emulator's state
+    last = got[-1]
+    assert last.v == pytest.approx(0.141, rel=1e-6) and last.drive == pytest.approx(0.3, rel=1e-6)
+    assert emu.core.v == pytest.approx(0.141, rel=1e-6)
+    assert last.status & (proto.ST_NO_COMMAND | proto.ST_SAFE | proto.ST_WATCHDOG) == 0
+    # heating drive: the tank (T_p) warms
+    assert fresh[-1].T_p > fresh[len(before) // 100].T_p + 0.05
+    # close() sent SAFE
+    time.sleep(0.05)
+    assert emu.core.safe_latched and emu.core.v == 0.0 and emu.core.drive == 0.0
+
+
+def test_watchdog_safe_and_rehandshake(start_emulator: Start) -> None:
+    _emu, link = start_emulator(command_timeout=0.2)
+    with SerialDevice(str(link)) as dev:
+        collect(dev, 0.2, command=(0.0, 0.141))
+        quiet = collect(dev, 0.4)  # no commands: the watchdog stops the pump
+        assert quiet[0].v > 0
+        assert quiet[-1].v == 0.0 and quiet[-1].status & proto.ST_WATCHDOG
+        resumed = collect(dev, 0.1, command=(0.0, 0.141))
+        assert resumed[-1].v > 0 and not resumed[-1].status & proto.ST_WATCHDOG
+        dev.safe()
+        latched = collect(dev, 0.2, command=(0.5, 0.141))  # commands are ignored once SAFE
+        assert latched[-1].status & proto.ST_SAFE and latched[-1].v == 0.0
+        t_before = latched[-1].t
+        dev.open()  # a new HELLO clears the latch; the device clock keeps running
+        again = collect(dev, 0.1, command=(0.0, 0.141))
+        assert again[0].t > t_before and again[-1].v > 0 and not again[-1].status & proto.ST_SAFE
+
+
+@pytest.mark.parametrize("kind", ["tc-open", "nan-burst", "overtemp", "serial-drop", "tc-stuck"])
+def test_fault_observed_by_host(start_emulator: Start, kind: str) -> None:
+    t_f = 0.3
+    _emu, link = start_emulator(faults=(f"{kind}@{t_f}",), tc_period=0.05)
+    dev = SerialDevice(str(link), link_timeout=0.05, stuck_after=5)
+    dev.open()
+    try:
+        samples = collect(dev, 1.2 if kind != "serial-drop" else 0.8, command=(0.0, 0.141),
+                          stop_on_loss=kind == "serial-drop")
+        lost_at = time.monotonic() if kind == "serial-drop" else math.nan
+    finally:
+        dev.close()
+    before = [s for s in samples if s.t < t_f - 1e-9]
+    assert len(before) >= 250
+    assert all(math.isfinite(s.T_w) and math.isfinite(s.T_p) and s.T_p < 40 for s in before)
+    assert not any(s.stuck or s.status & proto.ST_OPEN_W for s in before)
+    after = [s for s in samples if s.t >= t_f - 1e-9]
+    if kind == "serial-drop":
+        assert after == [] and dev.link_lost
+        assert samples[-1].t == pytest.approx(t_f - 1e-3)
+        assert lost_at - samples[-1].t_recv < 0.3  # detected within about link_timeout
+        return
+    first = after[0]
+    assert first.t == pytest.approx(t_f) and first.fresh  # 0.3 s is a thermocouple update
+    if kind == "tc-open":
+        assert math.isnan(first.T_w) and first.status & proto.ST_OPEN_W
+        assert [f.code for _, f in dev.faults] == [proto.F_TC_OPEN]
+    elif kind == "nan-burst":
+        assert all(math.isnan(x) for s in after for x in (s.T_w, s.T_p, s.T_a))
+    elif kind == "overtemp":
+        assert all(s.T_p > 44.0 for s in after) and all(math.isfinite(s.T_w) for s in after)
+    elif kind == "tc-stuck":
+        assert {s.T_w for s in after} == {before[-1].T_w}
+        assert all(s.fresh & proto.CH_W for s in after if s.fresh)
+        stuck = [s for s in after if s.stuck & proto.CH_W]
+        # 5 equal fresh readings, the last good one (0.25 s) included: 3 updates after the onset
+        assert stuck and stuck[0].t == pytest.approx(t_f + 3 * 0.05)
+        assert not any(s.stuck & (proto.CH_P | proto.CH_A) for s in samples)
+
+
+def test_bad_version_refused(start_emulator: Start) -> None:
+    _, link = start_emulator()
+    with serial.serial_for_url(str(link), timeout=0.5) as ser:
+        ser.reset_input_buffer()
+        ser.write(b"\x00" + proto.encode(proto.Hello(0, 99, 1000)))
+        dec = proto.Decoder()
+        acks: list[proto.Message] = []
+        t_end = time.monotonic() + 2.0
+        while not acks and time.monotonic() < t_end:
+            acks = [m for m in dec.feed(ser.read(64)) if m.TYPE == proto.T_HELLO_ACK]
+    assert acks and acks[0].status == proto.STATUS_BAD_VERSION  # type: ignore[union-attr]
+
+
+def test_no_device_times_out(tmp_path: Path) -> None:
+    with pytest.raises(DeviceError, match="cannot open"):
+        SerialDevice(str(tmp_path / "nothing")).open()
+    master, slave = os.openpty()
+    try:  # a silent pty: no HELLO_ACK
+        dev = SerialDevice(os.ttyname(slave), handshake_timeout=0.3)
+        with pytest.raises(DeviceError, match="no HELLO_ACK"):
+            dev.open()
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_stale_link_replaced_and_file_refused(tmp_path: Path) -> None:
+    link = tmp_path / "dev"
+    link.symlink_to("/dev/pts/does-not-exist")
+    emu = PtyEmulator(link, DeviceCore(Config(), SCENARIOS["none"]))
+    emu.open_link()
+    try:
+        assert os.readlink(link) == emu.slave_name
+    finally:
+        emu.close_link()
+    assert not link.is_symlink()
+    link.write_text("not a link")
+    assert main(str(link), "none", verbose=False) == 2
+    assert link.read_text() == "not a link"
+
+
+def test_main_rejects_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(str(tmp_path / "l"), "no-such-scenario") == 2
+    assert "unknown scenario" in capsys.readouterr().err
+    assert main(str(tmp_path / "l"), "none", ["melt@3"]) == 2
+    assert "KIND@SECONDS" in capsys.readouterr().err
+    assert main(str(tmp_path / "l"), "none", ["overtemp@soon"]) == 2
+    assert not (tmp_path / "l").exists()
+
+
+def test_core_thermocouple_period_and_faults() -> None:
+    """Without I/O: fresh flags, counters, repeated values, fault onsets to the sample."""
+    core = DeviceCore(Config(), SCENARIOS["one-finger"],
+                      [FaultSpec("tc-stuck", 0.25), FaultSpec("overtemp", 0.5)], tc_period=0.1)
+    core.on_message(proto.Hello(0))
+    core.on_message(proto.Command(1, 0.0, 0.141))
+    tracker = ChannelTracker(stale_after=0.15, stuck_after=3)
+    msgs = [m for _ in range(800) for m in core.step()]
+    samples = [m for m in msgs if isinstance(m, proto.SampleMsg)]
+    assert len(samples) == 800 and [m.t_us for m in samples[:3]] == [0, 1000, 2000]
+    fresh = [m for m in samples if m.fresh]
+    assert [m.t_us for m in fresh] == [100_000 * i for i in range(8)]
+    assert [m.counters[0] for m in fresh] == list(range(1, 9))
+    flags = [tracker.update(m.t_us * 1e-6, (m.T_w, m.T_p, m.T_a), m.counters, m.fresh) for m in samples]
+    assert [f[0] != 0 for f in flags] == [m.fresh != 0 for m in samples]
+    assert not any(f[1] for f in flags)
+    stuck_t = [m.t_us for m, f in zip(samples, flags, strict=True) if f[2]]
+    assert stuck_t[0] == 400_000  # frozen at the 0.2 s reading: the 3rd equal one is at 0.4 s
+    assert all(m.T_p > 44 for m in fresh if m.t_us >= 500_000)
+    assert all(m.T_p < 30 for m in fresh if m.t_us < 500_000)
+
+
+def test_tracker_marks_stale_channel() -> None:
+    tr = ChannelTracker(stale_after=0.2)
+    assert tr.update(0.0, (1.0, 2.0, 3.0), (1, 1, 1), 0) == (0b111, 0, 0)
+    assert tr.update(0.1, (1.0, 2.0, 3.0), (1, 2, 2), 0) == (0b110, 0, 0)
+    assert tr.update(0.25, (1.0, 2.0, 3.0), (1, 2, 2), 0) == (0, 0b001, 0)
+
+
+def test_first_order_tank_step_response() -> None:
+    p = Config().peltier
+    tank = FirstOrderTank(p, 1e-3)
+    tank.reset(20.0, None, 20.0)
+    for _ in range(1000):
+        tank.step(0.1, 20.0)
+    rise = tank.T_p - 20.0
+    expected = 0.1 * tank.P_max * p.R_tank_air * (1 - math.exp(-1.0 / (p.R_tank_air * p.C_tank)))
+    assert rise == pytest.approx(expected, rel=1e-9)
+
+
+def test_cli_process_links_and_stops_on_sigterm(tmp_path: Path) -> None:
+    link = tmp_path / "skin"
+    proc = subprocess.Popen([sys.executable, "-m", "thermoskin.devices.emulator", "--link", str(link),
+                             "--scenario", "none", "--tc-period", "0.001"],
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        t_end = time.monotonic() + 30.0
+        while not link.is_symlink() and time.monotonic() < t_end and proc.poll() is None:
+            time.sleep(0.02)
+        assert link.is_symlink()
+        with SerialDevice(str(link)) as dev:
+            got = collect(dev, 0.5, command=(0.0, 0.141))
+        assert len(got) > 300
+        assert all(s.fresh == 0b111 for s in got)  # a 1 kHz thermocouple board
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=10)
+    assert proc.returncode == 0, err
+    assert "stopped after" in err and "lateness" in err
+    assert not link.is_symlink()
