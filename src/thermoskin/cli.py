@@ -170,31 +170,55 @@ def simulate(scenario: str, duration: float | None, config_path: Path | None,
                   f"{len(log['t'])} samples); wrote {output_csv}")
 
 
+#: Seconds the closed loop gets to bring the skin from ambient to its command before the
+#: scenario's touches begin.
+SETTLE_S = 10.0
+
+
 @main.command()
 @SCENARIO_OPT
 @DURATION_OPT
+@click.option("--setpoint", type=float, default=None,
+              help="Water-temperature command T_w_cmd, degC (default: the scenario's).")
 @CONFIG_OPT
 @click.option("--log", "log_path", type=click.Path(path_type=Path), default=Path("run.csv"),
               show_default=True, help="Where to save the log.")
 @click.option("--plot", "plot_path", type=click.Path(path_type=Path), default=Path("run.png"),
               show_default=True, help="Where to save the plot.")
 @_user_errors
-def run(scenario: str, duration: float | None, config_path: Path | None, log_path: Path,
-        plot_path: Path) -> None:
-    """Run the skin: simulate a scenario, estimate and detect touches live, save log and plot."""
+def run(scenario: str, duration: float | None, setpoint: float | None,
+        config_path: Path | None, log_path: Path, plot_path: Path) -> None:
+    """Run the whole skin in closed loop on the simulated skin.
+
+    From ambient, the MPC and the inner loop bring T_w to its command while the observer
+    and the detector run every sample; the scenario's touches start after a settling time.
+    Use --scenario none for no touch.
+    """
     from thermoskin.logio import write_log
     from thermoskin.plotting import plot_run
-    from thermoskin.runtime.stream import stream
-    from thermoskin.sim.run import simulate as run_sim
+    from thermoskin.runtime.closed_loop import run_closed_loop
 
     cfg = _config(config_path)
-    sc = _scenario(scenario, duration)
-    console.print(f"[bold]thermoskin run[/]: scenario '{sc.name}' ({sc.description}), "
+    sc = _scenario(scenario, None)
+    if not sc.setpoints:
+        sc = sc.shifted(SETTLE_S)
+    if setpoint is not None:
+        lo, hi = cfg.control.T_p_min, cfg.control.T_p_max
+        if not lo <= setpoint <= hi:
+            raise UserError(f"--setpoint {setpoint} is out of range: T_w_cmd must be within "
+                            f"the T_p_cmd bounds [{lo:g}, {hi:g}] degC")
+        sc = sc.with_setpoint(setpoint)
+    if duration is not None:
+        if not duration > 0:
+            raise UserError(f"--duration {duration} must be > 0 s")
+        sc = sc.with_duration(duration)
+    cmd_txt = (", ".join(f"{c:g} degC from {t0:g} s" for t0, c in sc.setpoints)
+               if sc.setpoints else f"{sc.T_w_cmd:g} degC")
+    console.print(f"[bold]thermoskin run[/]: closed loop on the simulated skin, scenario "
+                  f"'{sc.name}' ({len(sc.touches)} touches), T_w_cmd {cmd_txt}, "
                   f"{sc.duration:g} s at {1 / cfg.sampling.t_s:.0f} Hz")
     with _progress_bar("running") as bar:
-        task = bar.add_task("simulating skin", total=1.0)
-        log = run_sim(sc, cfg, progress=lambda f: bar.update(task, completed=f))
-        bar.update(task, description="observer + detector", completed=0.0)
+        task = bar.add_task("closed loop", total=1.0)
 
         def started(t: float) -> None:
             bar.console.print(f"  t = {t:7.3f} s  contact detected")
@@ -203,21 +227,27 @@ def run(scenario: str, duration: float | None, config_path: Path | None, log_pat
             bar.console.print(f"  t = {e.release:7.3f} s  released after {e.duration:.2f} s, "
                               f"peak dq {e.peak_dq * 1e3:.1f} mW, mean {e.mean_dq * 1e3:.1f} mW")
 
-        res = stream(log, cfg, on_start=started, on_event=ended,
-                     progress=lambda f: bar.update(task, completed=f))
-    out = dict(log)
-    out.update(res.columns)
+        res = run_closed_loop(sc, cfg, on_start=started, on_event=ended,
+                              progress=lambda f: bar.update(task, completed=f))
+    out = res.columns
     write_log(log_path, out)
-    plot_run(out, res.events, plot_path, title=f"thermoskin run: {sc.name}")
-    console.print(events_table(res.events))
-    _summary(sc, log, res.events)
-    console.print(f"wrote {log_path} and {plot_path}")
+    plot_run(out, res.events, plot_path, title=f"thermoskin run: {sc.name}, closed loop")
+    if res.events:
+        console.print(events_table(res.events))
+    _summary(sc, out, res.events)
+    console.print(f"{sc.duration:g} s simulated in {res.wall_s:.1f} s "
+                  f"({res.realtime_factor:.1f}x real time); wrote {log_path} and {plot_path}")
 
 
 def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent]) -> None:
-    """Detected vs scripted touches: hits, misses, false alarms, latency."""
-    from thermoskin.evaluation import match_events
+    """Tracking over the last minute (or half) of each command; touches vs detections."""
+    from thermoskin.evaluation import match_events, tracking_errors
 
+    for seg in tracking_errors(log, sc):
+        console.print(f"[bold]tracking[/] T_w_cmd {seg.T_w_cmd:g} degC: mean |error| "
+                      f"{seg.mean_abs_error:.3f} K, mean error {seg.mean_error:+.3f} K over "
+                      f"{seg.t0:.1f}-{seg.t1:.1f} s; T_p_cmd within [{seg.T_p_cmd_min:.2f}, "
+                      f"{seg.T_p_cmd_max:.2f}] degC")
     m = match_events(sc.touches, events)
     lat = m.latencies
     lat_txt = (f"onset latency median {np.median(lat) * 1e3:.0f} ms, max {np.max(lat) * 1e3:.0f} ms"

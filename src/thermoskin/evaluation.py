@@ -45,3 +45,36 @@ def match_events(touches: Sequence[Touch], events: Sequence[ContactEvent],
     spurious = [e for i, e in enumerate(events) if i not in used]
     return Match(hits=len(lat), misses=len(missed), false_alarms=len(spurious),
                  latencies=np.asarray(lat), missed=missed, spurious=spurious)
+
+
+@dataclass
+class Tracking:
+    """Tracking of one command over ``[t0, t1)`` (s): errors of ``T_w`` (measured), K."""
+
+    T_w_cmd: float
+    t0: float
+    t1: float
+    mean_abs_error: float
+    mean_error: float
+    T_p_cmd_min: float
+    T_p_cmd_max: float
+
+
+def tracking_errors(log: dict[str, NDArray[np.float64]], scenario: object,
+                    window: float = 60.0) -> list[Tracking]:
+    """Per command segment of ``log["T_w_cmd"]``: errors over its last ``window`` s (or half)."""
+    t, cmd, T_w = log["t"], log["T_w_cmd"], log["T_w"]
+    edges = np.flatnonzero(np.diff(cmd) != 0) + 1
+    bounds = [0, *edges.tolist(), len(t)]
+    out = []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        t_end = t[b - 1]
+        t_start = max(t[a] + 0.5 * (t_end - t[a]), t_end - window)
+        w = slice(int(np.searchsorted(t, t_start)), b)
+        e = T_w[w] - cmd[w]
+        e = e[np.isfinite(e)]
+        T_pc = log["T_p_cmd"][a:b] if "T_p_cmd" in log else np.full(1, np.nan)
+        out.append(Tracking(T_w_cmd=float(cmd[a]), t0=float(t_start), t1=float(t_end),
+                            mean_abs_error=float(np.mean(np.abs(e))), mean_error=float(np.mean(e)),
+                            T_p_cmd_min=float(np.min(T_pc)), T_p_cmd_max=float(np.max(T_pc))))
+    return out

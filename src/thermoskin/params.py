@@ -172,6 +172,8 @@ class PumpParams(_Validated):
     v_on: float = _p(0.141, "m/s", 0, 10.0, lo_open=True, doc="water velocity when running")
     hysteresis: float = _p(0.0, "K", 0.0, 10.0,
                            doc="band around the command; 0 gives the paper's chattering")
+    min_dwell: float = _p(0.05, "s", 0.0, 60.0,
+                          doc="shortest time the pump holds a state (a real pump's inertia)")
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,8 @@ class Scenario:
     T_p_offset: float = 0.3
     T_p_drift: float = 0.0
     T_p_period: float = 60.0
+    setpoints: tuple[tuple[float, float], ...] = ()
+    """Command schedule ``((t_start, T_w_cmd), ...)`` for the closed loop; empty: ``T_w_cmd``."""
 
     def __post_init__(self) -> None:
         if self.pump not in PUMP_MODES:
@@ -54,6 +56,25 @@ class Scenario:
         tt = np.asarray(t, dtype=float)
         out = self.T_w_cmd + self.T_p_offset + self.T_p_drift * np.sin(2.0 * np.pi * tt / self.T_p_period)
         return float(out) if out.ndim == 0 else out
+
+    def T_w_cmd_at(self, t: float) -> float:
+        """The water-temperature command at ``t`` (s), °C."""
+        cmd = self.T_w_cmd
+        for t0, c in self.setpoints:
+            if t >= t0:
+                cmd = c
+        return cmd
+
+    def shifted(self, dt: float) -> Scenario:
+        """The same touches and command changes ``dt`` s later, the run ``dt`` s longer."""
+        touches = tuple(dataclasses.replace(tc, t_on=tc.t_on + dt) for tc in self.touches)
+        setpoints = tuple((t0 + dt, c) for t0, c in self.setpoints)
+        return dataclasses.replace(self, duration=self.duration + dt, touches=touches,
+                                   setpoints=setpoints)
+
+    def with_setpoint(self, T_w_cmd: float) -> Scenario:
+        """The same scenario held at one command."""
+        return dataclasses.replace(self, T_w_cmd=float(T_w_cmd), setpoints=())
 
     def with_duration(self, duration: float) -> Scenario:
         """The same scenario over ``duration`` s (touches starting later are dropped)."""
@@ -130,6 +151,9 @@ SCENARIOS: dict[str, Scenario] = {
                           [1, 1, 2, 2, 3, 3], ["man1"] * 6),
         pump="on"),
     "none": Scenario("none", "no touch: noise and pump chattering only", duration=60.0),
+    "setpoints": Scenario(
+        "setpoints", "commands 24, 26, 28 degC, 120 s each, no touch (Fig. 8)", duration=360.0,
+        setpoints=((0.0, 24.0), (120.0, 26.0), (240.0, 28.0))),
     "realistic": random_scenario(2024, 120.0, name="realistic"),
 }
 """The named scenarios; ``fingers`` is the default."""

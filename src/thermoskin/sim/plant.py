@@ -1,0 +1,66 @@
+"""The simulated skin as a device: skin network, Peltier tank, sensors and scripted touches.
+
+``measure()`` returns the thermocouple readings at the current sample; ``apply(drive, v)``
+holds the Peltier drive and the pump command over one ``t_s`` and advances the physics
+(zero-order hold). The tank gives the skin's water ``T_p`` and loses ``q_p`` to it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from thermoskin.params import Config
+from thermoskin.physics.convection import FlowResistance
+from thermoskin.physics.finger import contact_profile
+from thermoskin.physics.peltier import PeltierTank
+from thermoskin.sim.scenarios import Scenario
+from thermoskin.sim.skin import Sensors, SimulatedSkin
+
+
+class SimulatedPlant:
+    """One scenario on the simulated skin, sample by sample."""
+
+    def __init__(self, cfg: Config, scenario: Scenario, n: int | None = None) -> None:
+        t_s = cfg.sampling.t_s
+        self.cfg = cfg
+        self.scenario = scenario
+        self.t_s = t_s
+        self.n = n if n is not None else max(1, math.floor(scenario.duration / t_s + 1e-9))
+        t = np.arange(self.n) * t_s
+        G_c, T_f, n_f = contact_profile(scenario.touches, t)
+        self.G_c, self.T_f = G_c.tolist(), T_f.tolist()
+        self.n_fingers = n_f
+        self.skin = SimulatedSkin(cfg)
+        self.tank = PeltierTank(cfg.peltier, t_s,
+                                (cfg.control.drive_min, cfg.control.drive_max))
+        self.R_w = FlowResistance(cfg.skin)
+        self.sensors = Sensors(cfg.sensor)
+        self.T_a = float(scenario.T_a)
+        # thermocouple noise drawn in advance (plain lists: no allocation per sample)
+        self._noise = {ch: self.sensors.noise(ch, self.n).tolist() for ch in Sensors.CHANNELS}
+        self.k = 0
+        self.reset()
+
+    def reset(self) -> None:
+        """Everything at ambient: the tank, the sink, the pipe and the sheet."""
+        T_a = self.T_a
+        self.k = 0
+        self.tank.reset(T_a, T_a, T_a)
+        self.skin.reset(T_a, T_a=T_a, G_c=self.G_c[0], T_f=self.T_f[0])
+
+    def measure(self) -> tuple[float, float, float]:
+        """``(T_w, T_p, T_a)`` as the thermocouples read them now (°C)."""
+        k, q, nz = self.k, self.sensors.quantise, self._noise
+        return (q(self.skin.T_w + nz["T_w"][k]), q(self.tank.T_p + nz["T_p"][k]),
+                q(self.T_a + nz["T_a"][k]))
+
+    def apply(self, drive: float, v: float) -> None:
+        """Hold ``drive`` and ``v`` over one sample and advance."""
+        k = self.k
+        skin, tank = self.skin, self.tank
+        q_p = (tank.T_p - skin.T_w) / self.R_w(v)
+        skin.step(tank.T_p, v, self.T_a, self.G_c[k], self.T_f[k])
+        tank.step(drive, self.T_a, q_p)
+        self.k = k + 1
