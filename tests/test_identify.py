@@ -1,0 +1,111 @@
+"""ARX identification: recovery of a synthetic ARX system, orders, the Peltier log, errors, TOML."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from thermoskin.identify import ArxModel, IdentifyError, identify, load_model, save_model
+from thermoskin.logio import write_log
+from thermoskin.params import Config
+from thermoskin.sim.excitation import simulate_excitation
+
+A_TRUE = np.array([-1.5, 0.7])
+B_TRUE = np.array([0.4, 0.25])
+C_TRUE = 0.3
+
+
+def synthetic(n: int = 4000, noise: float = 0.02, seed: int = 0):
+    """y = B/A u + (c + e)/A with nk = 2, simulated with scipy.signal.lfilter."""
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.choice([-1.0, 0.0, 1.0], n // 5), 5)
+    e = noise * rng.standard_normal(n)
+    num = np.r_[0.0, 0.0, B_TRUE]
+    den = np.r_[1.0, A_TRUE]
+    y = lfilter(num, den, u) + lfilter([1.0], den, C_TRUE + e)
+    return {"t": np.arange(n) * 1.0, "T_p": y, "drive": u}
+
+
+def test_recovers_synthetic_arx():
+    m = identify(synthetic(), t_model=1.0, refine=False, nk_max=3)
+    assert (m.na, m.nb, m.nk) == (2, 2, 2)
+    assert m.a == pytest.approx(A_TRUE, abs=0.01)
+    assert m.b == pytest.approx(B_TRUE, abs=0.01)
+    assert m.c == pytest.approx(C_TRUE, abs=0.02)
+    assert m.steady_state_gain() == pytest.approx(B_TRUE.sum() / (1 + A_TRUE.sum()), rel=0.03)
+    assert m.nrmse > 0.95
+
+
+def test_aic_also_finds_orders():
+    m = identify(synthetic(seed=3), t_model=1.0, refine=False, criterion="aic", na_max=3, nb_max=3)
+    assert (m.na, m.nb, m.nk) == (2, 2, 2)
+
+
+def test_simulate_matches_lfilter():
+    m = ArxModel(na=2, nb=2, nk=2, a=A_TRUE, b=B_TRUE, c=C_TRUE, t_s=1.0)
+    u = np.sin(np.arange(200) / 7.0)
+    y_ref = lfilter(np.r_[0.0, 0.0, B_TRUE], np.r_[1.0, A_TRUE], u) + lfilter([1.0], np.r_[1, A_TRUE],
+                                                                              np.full(200, C_TRUE))
+    y = m.simulate(u, 0.0, u0=0.0)
+    assert y == pytest.approx(y_ref, abs=1e-12)
+    y_ss = m.steady_state(0.5)
+    assert m.simulate(np.full(50, 0.5), y_ss)[-1] == pytest.approx(y_ss, abs=1e-12)
+
+
+@pytest.fixture(scope="module")
+def peltier_log():
+    return simulate_excitation(Config(), duration=600.0, seed=0)
+
+
+def test_peltier_log(peltier_log):
+    m = identify(peltier_log)
+    print(f"Peltier ARX: t_s={m.t_s:g} s orders={(m.na, m.nb, m.nk)} NRMSE={m.nrmse:.3f}")
+    assert 0.1 <= m.t_s <= 1.0 + 1e-9
+    assert m.nrmse > 0.9
+    assert 100 < m.steady_state_gain() < 250  # true local gain near 190 K per unit drive
+    assert np.all(np.abs(m.poles) < 1.0)
+
+
+def test_toml_roundtrip(tmp_path, peltier_log):
+    m = identify(peltier_log, t_model=1.0)
+    p = save_model(m, tmp_path / "m.toml")
+    m2 = load_model(p)
+    assert (m2.na, m2.nb, m2.nk, m2.t_s) == (m.na, m.nb, m.nk, m.t_s)
+    assert m2.a == pytest.approx(m.a, rel=0, abs=0)
+    assert m2.b == pytest.approx(m.b, rel=0, abs=0)
+    assert m2.nrmse == m.nrmse
+    with pytest.raises(IdentifyError, match="not found"):
+        load_model(tmp_path / "none.toml")
+    (tmp_path / "bad.toml").write_text("[arx]\nna = 1\n")
+    with pytest.raises(IdentifyError, match="lacks"):
+        load_model(tmp_path / "bad.toml")
+
+
+def test_identify_from_csv(tmp_path):
+    d = synthetic(n=600)
+    write_log(tmp_path / "x.csv", d, float_format="%.10g")
+    m = identify(tmp_path / "x.csv", t_model=1.0)
+    assert m.na >= 1
+    with pytest.raises(IdentifyError, match="missing required column"):
+        write_log(tmp_path / "y.csv", {"t": d["t"], "T_p": d["T_p"]})
+        identify(tmp_path / "y.csv")
+
+
+def test_errors():
+    d = synthetic(n=600)
+    with pytest.raises(IdentifyError, match="lacks column") as e:
+        identify({"t": d["t"], "T_p": d["T_p"]})
+    assert "\n" not in str(e.value)
+    with pytest.raises(IdentifyError, match="no excitation"):
+        identify({**d, "drive": np.zeros(600)}, t_model=1.0)
+    bad = d["T_p"].copy()
+    bad[100] = np.nan
+    with pytest.raises(IdentifyError, match="NaN"):
+        identify({**d, "T_p": bad}, t_model=1.0)
+    with pytest.raises(IdentifyError, match="too short"):
+        identify({k: v[:50] for k, v in d.items()}, t_model=1.0)
+    with pytest.raises(IdentifyError, match="T_a is constant"):
+        identify({**d, "T_a": np.full(600, 20.0)}, t_model=1.0, with_T_a=True)
+    with pytest.raises(IdentifyError, match="criterion"):
+        identify(d, criterion="xyz")
