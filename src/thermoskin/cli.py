@@ -255,5 +255,26 @@ def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent]) -> None:
     console.print(f"[bold]summary[/]: {len(sc.touches)} touches scripted, {m.hits} detected, "
                   f"{m.misses} missed, {m.false_alarms} false alarms; {lat_txt}")
 
+
+@main.command()
+@click.option("--out", "out_dir", type=click.Path(path_type=Path), default=Path("reproduction"),
+              show_default=True, help="Folder for the figures, summary.json and report.md.")
+@click.option("--only", default=None,
+              help="Comma-separated figures to reproduce, e.g. fig8,fig15 (default: all).")
+@_user_errors
+def reproduce(out_dir: Path, only: str | None) -> None:
+    """Reproduce the paper's Figs. 8 and 12-19 on the simulated skin, with a report."""
+    from thermoskin.experiments.reproduce import FIGURES, reproduce as run_reproduce
+
+    figs = None
+    if only is not None:
+        figs = [f.strip() for f in only.split(",") if f.strip()]
+        unknown = [f for f in figs if f not in FIGURES]
+        if unknown or not figs:
+            raise UserError(f"--only {only!r}: unknown figure(s) {', '.join(unknown) or '(none)'}"
+                            f" (known: {', '.join(FIGURES)})")
+    run_reproduce(out_dir, figs, console=console, progress=_progress_bar)
+
+
 if __name__ == "__main__":
     main()

@@ -40,12 +40,15 @@ class LoopResult:
         return self.scenario.duration / self.wall_s if self.wall_s > 0 else math.inf
 
 
-def run_closed_loop(scenario: Scenario, cfg: Config, *,
+def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "network",
                     on_start: Callable[[float], None] | None = None,
                     on_event: Callable[[ContactEvent], None] | None = None,
                     progress: Callable[[float], None] | None = None) -> LoopResult:
-    """Run ``scenario`` (its touches at their times) in closed loop from ambient."""
-    plant = SimulatedPlant(cfg, scenario)
+    """Run ``scenario`` (its touches at their times) in closed loop from ambient.
+
+    ``skin_model``: ``"network"`` (two-node, as the observer assumes) or ``"spatial"``.
+    """
+    plant = SimulatedPlant(cfg, scenario, skin_model=skin_model)
     ctrl = SkinController(cfg)
     ctrl.reset(scenario.T_a)
     n, t_s = plant.n, cfg.sampling.t_s

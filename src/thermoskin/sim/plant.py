@@ -3,6 +3,10 @@
 ``measure()`` returns the thermocouple readings at the current sample; ``apply(drive, v)``
 holds the Peltier drive and the pump command over one ``t_s`` and advances the physics
 (zero-order hold). The tank gives the skin's water ``T_p`` and loses ``q_p`` to it.
+
+``skin_model="network"`` is the two-node network of Fig. 3 (what the observer assumes);
+``"spatial"`` is the cell model along the pipe (``physics.spatial``), where each touch acts at
+its ``position`` (0 = at the thermocouple, 1 = the far end).
 """
 
 from __future__ import annotations
@@ -22,7 +26,8 @@ from thermoskin.sim.skin import Sensors, SimulatedSkin
 class SimulatedPlant:
     """One scenario on the simulated skin, sample by sample."""
 
-    def __init__(self, cfg: Config, scenario: Scenario, n: int | None = None) -> None:
+    def __init__(self, cfg: Config, scenario: Scenario, n: int | None = None,
+                 skin_model: str = "network") -> None:
         t_s = cfg.sampling.t_s
         self.cfg = cfg
         self.scenario = scenario
@@ -32,7 +37,20 @@ class SimulatedPlant:
         G_c, T_f, n_f = contact_profile(scenario.touches, t)
         self.G_c, self.T_f = G_c.tolist(), T_f.tolist()
         self.n_fingers = n_f
-        self.skin = SimulatedSkin(cfg)
+        self.position = [0.0] * self.n
+        if skin_model == "spatial":
+            from thermoskin.sim.spatial_skin import SpatialSkin
+
+            pos = np.zeros(self.n)
+            for tc in scenario.touches:
+                pos[(t >= tc.t_on) & (t < tc.t_off)] = tc.position
+            self.position = pos.tolist()
+            self.skin: SimulatedSkin = SpatialSkin(cfg)  # type: ignore[assignment]
+        elif skin_model == "network":
+            self.skin = SimulatedSkin(cfg)
+        else:
+            raise ValueError(f"unknown skin_model {skin_model!r} (network or spatial)")
+        self.spatial = skin_model == "spatial"
         self.tank = PeltierTank(cfg.peltier, t_s,
                                 (cfg.control.drive_min, cfg.control.drive_max))
         self.R_w = FlowResistance(cfg.skin)
@@ -61,6 +79,10 @@ class SimulatedPlant:
         k = self.k
         skin, tank = self.skin, self.tank
         q_p = (tank.T_p - skin.T_w) / self.R_w(v)
-        skin.step(tank.T_p, v, self.T_a, self.G_c[k], self.T_f[k])
+        if self.spatial:
+            skin.step(tank.T_p, v, self.T_a, self.G_c[k], self.T_f[k],
+                      position=self.position[k])  # type: ignore[call-arg]
+        else:
+            skin.step(tank.T_p, v, self.T_a, self.G_c[k], self.T_f[k])
         tank.step(drive, self.T_a, q_p)
         self.k = k + 1
