@@ -125,7 +125,7 @@ def test_simulate_and_unknown_scenario(tmp_path: Path) -> None:
 
 def test_run_writes_log_and_plot(tmp_path: Path) -> None:
     log, png = tmp_path / "run.csv", tmp_path / "run.png"
-    code, stdout, _ = invoke("run", "--scenario", "one-finger", "--duration", "17",
+    code, stdout, _ = invoke("run", "--scenario", "one-finger", "--duration", "27",
                              "--log", str(log), "--plot", str(png))
     assert code == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -139,3 +139,21 @@ def test_real_entry_point_no_traceback(tmp_path: Path) -> None:
                         "-o", str(tmp_path / "y.csv")], capture_output=True, text=True)
     assert p.returncode == 2
     assert "Traceback" not in p.stderr and p.stderr.count("\n") == 1
+
+
+def test_excitation_then_identify(tmp_path: Path) -> None:
+    from thermoskin.identify import load_model
+
+    log, model = tmp_path / "exc.csv", tmp_path / "peltier.toml"
+    code, _, _ = invoke("simulate", "--scenario", "excitation", "--duration", "200", "-o", str(log))
+    assert code == 0
+    assert {"t", "T_p", "drive", "T_a"} <= set(read_log(log))
+    code, stdout, _ = invoke("identify", str(log), "-o", str(model))
+    assert code == 0 and "NRMSE" in stdout
+    m = load_model(model)
+    assert m.na >= 1 and np.isfinite(m.nrmse) and m.steady_state_gain() > 0  # heating warms
+
+
+def test_identify_bad_log_exit_2(sim_log: Path, tmp_path: Path) -> None:
+    code, _, err = invoke("identify", str(sim_log), "-o", str(tmp_path / "m.toml"))
+    assert code == 2 and "drive" in err and len(err.strip().splitlines()) == 1

@@ -111,7 +111,8 @@ def _scenario(name: str, duration: float | None) -> Any:
     from thermoskin.sim.scenarios import SCENARIOS
 
     if name not in SCENARIOS:
-        raise UserError(f"unknown scenario {name!r} (known: {', '.join(SCENARIOS)})")
+        known = ", ".join([*SCENARIOS, EXCITATION])
+        raise UserError(f"unknown scenario {name!r} (known: {known})")
     sc = SCENARIOS[name]
     if duration is not None:
         if not duration > 0:
@@ -134,6 +135,38 @@ DURATION_OPT = click.option("--duration", type=float, default=None,
                             help="Seconds to simulate (default: the scenario's).")
 
 
+#: The Peltier identification experiment, a scenario of ``simulate`` only.
+EXCITATION = "excitation"
+
+
+@main.command()
+@click.argument("log_csv", type=click.Path(path_type=Path))
+@click.option("-o", "--output", "output_toml", type=click.Path(path_type=Path), required=True,
+              help="TOML file for the identified ARX model.")
+@click.option("--t-model", type=float, default=None,
+              help="Model sample time, s (default: chosen from the data, 0.1-1 s).")
+@_user_errors
+def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
+    """Fit a discrete ARX model of T_p against the Peltier drive (columns t, T_p, drive).
+
+    Orders chosen by BIC; the fit is the simulation NRMSE on the last 30 % held back.
+    """
+    from thermoskin.identify import IdentifyError, identify as fit, save_model
+
+    try:
+        model = fit(log_csv, t_model=t_model)
+    except IdentifyError as e:
+        raise UserError(str(e)) from None
+    save_model(model, output_toml)
+    taus = ", ".join(f"{x:.1f}" for x in model.time_constants())
+    console.print(f"ARX model at t_s = {model.t_s:g} s: orders na = {model.na}, nb = {model.nb}, "
+                  f"delay nk = {model.nk} ({model.criterion.upper()}); time constants {taus} s; "
+                  f"static gain {model.steady_state_gain():.1f} K per unit drive")
+    console.print(f"fit on held-back data (last 30 %, simulation): NRMSE {model.nrmse:.3f}, "
+                  f"RMSE {model.rmse:.3f} K; estimation part NRMSE {model.nrmse_est:.3f}; "
+                  f"wrote {output_toml}")
+
+
 @main.command()
 def scenarios() -> None:
     """List the named simulation scenarios."""
@@ -144,6 +177,8 @@ def scenarios() -> None:
         table.add_column(col)
     for sc in SCENARIOS.values():
         table.add_row(sc.name, f"{sc.duration:g}", str(len(sc.touches)), sc.pump, sc.description)
+    table.add_row(EXCITATION, "600", "0", "off", "the Peltier tank under a rich drive, for "
+                  "`thermoskin identify` (simulate only)")
     console.print(table)
 
 
@@ -161,6 +196,20 @@ def simulate(scenario: str, duration: float | None, config_path: Path | None,
     from thermoskin.sim.run import simulate as run_sim
 
     cfg = _config(config_path)
+    if scenario == EXCITATION:
+        from thermoskin.sim.excitation import simulate_excitation
+
+        dur = 600.0 if duration is None else duration
+        if not dur > 0:
+            raise UserError(f"--duration {dur} must be > 0 s")
+        with _progress_bar("excitation") as bar:
+            task = bar.add_task("simulating the Peltier under excitation", total=1.0)
+            log = simulate_excitation(cfg, dur, seed=cfg.sensor.seed,
+                                      progress=lambda f: bar.update(task, completed=f))
+        write_log(output_csv, log)
+        console.print(f"simulated {dur:g} s of the Peltier tank under a rich drive "
+                      f"({len(log['t'])} samples); wrote {output_csv}")
+        return
     sc = _scenario(scenario, duration)
     with _progress_bar(f"simulating {sc.name}") as bar:
         task = bar.add_task(f"simulating {sc.name}", total=1.0)
