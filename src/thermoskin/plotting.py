@@ -71,6 +71,21 @@ def _event_span(ev: Any, t_end: float) -> tuple[float, float] | None:
     return float(onset), float(release)
 
 
+def _moving_mean(t: Array, y: Array, window: float) -> Array:
+    """Trailing mean over ``window`` seconds (NaN samples left out)."""
+    if t.size < 2:
+        return y.copy()
+    n = max(1, round(window / float(np.median(np.diff(t)))))
+    ok = np.isfinite(y)
+    c = np.concatenate([[0.0], np.cumsum(np.where(ok, y, 0.0))])
+    k = np.concatenate([[0], np.cumsum(ok)])
+    idx = np.arange(1, y.size + 1)
+    lo = np.maximum(idx - n, 0)
+    cnt = k[idx] - k[lo]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(cnt > 0, (c[idx] - c[lo]) / np.maximum(cnt, 1), np.nan)
+
+
 def plot_run(
     columns: Mapping[str, ArrayLike],
     events: Sequence[Any],
@@ -78,12 +93,12 @@ def plot_run(
     title: str = "",
     max_points: int = MAX_POINTS,
 ) -> Path:
-    """Write a PNG of a run: temperatures (top) and heat flow (bottom) over time.
+    """Write a PNG of a run: temperatures, heat flow, and (if present) truth and control.
 
-    Top: ``T_w`` and, if present, ``T_p``, ``T_g`` (true), ``T_w_cmd``, ``T_a`` (°C).
-    Bottom: ``q_i_hat`` (W) on the left axis; on a twin right axis the change from the
-    no-touch baseline ``dq_i_hat`` and the true ``q_i`` when present (both are touch-sized,
-    a few hundredths of a watt, while ``q_i_hat`` sits near a few watts). Detected
+    Panels: ``T_w`` and, if present, ``T_p``, ``T_g`` (true), ``T_w_cmd``, ``T_a`` (°C);
+    ``q_i_hat`` (W, raw and a 0.1 s mean) with, on a twin axis, its change from the
+    no-touch baseline ``dq_i_hat``; the simulator's true ``q_i`` if present; ``T_p_cmd``,
+    the Peltier drive and the pump if present. Detected
     contacts (``events``: objects or mappings with ``onset``/``release`` in s) are shaded
     in both panels; true contacts (``contact_true``) are a thin band at the top of each
     panel. Returns the path.
@@ -100,13 +115,20 @@ def plot_run(
             raise ValueError(f"plot_run: column {k!r} has shape {v.shape}, 't' has {t.shape}")
     t_end = float(t[-1]) if t.size else 0.0
 
-    fig = Figure(figsize=(11, 7), dpi=110, layout="constrained")
-    ax_t, ax_q = fig.subplots(2, 1, sharex=True)
+    has_truth = "q_i" in cols
+    has_ctrl = "T_p_cmd" in cols or "drive" in cols
+    heights = [3, 3] + ([1.4] if has_truth else []) + ([1.6] if has_ctrl else [])
+    fig = Figure(figsize=(11, 3.2 + 1.6 * len(heights)), dpi=110, layout="constrained")
+    axes = list(fig.subplots(len(heights), 1, sharex=True, height_ratios=heights))
+    ax_t, ax_q = axes[0], axes[1]
+    ax_i = axes[2] if has_truth else None
+    ax_c = axes[-1] if has_ctrl else None
 
     def line(
-        ax: Any, name: str, label: str, color: str, style: str = "-", lw: float = 1.0, alpha: float = 1.0
+        ax: Any, name: str, label: str, color: str, style: str = "-", lw: float = 1.0, alpha: float = 1.0,
+        y: Array | None = None,
     ) -> Any:
-        tx, yx = decimate(t, cols[name], max_points)
+        tx, yx = decimate(t, cols[name] if y is None else y, max_points)
         return ax.plot(tx, yx, style, color=color, lw=lw, alpha=alpha, label=label)[0]
 
     # top: temperatures
@@ -115,31 +137,48 @@ def plot_run(
     if not handles_t:
         ax_t.text(0.5, 0.5, "no temperature columns", ha="center", va="center", transform=ax_t.transAxes)
 
-    # bottom: heat flow
+    # heat flow: the paper's estimate (raw and a 0.1 s mean) and its change from no touch
     handles_q = []
     if "q_i_hat" in cols:
-        handles_q.append(line(ax_q, "q_i_hat", "q_i_hat (estimate, left)", "tab:blue", lw=0.8, alpha=0.8))
-    ax_q.set_ylabel("estimated heat flow q_i_hat (W)")
-    twin_names = [k for k in ("dq_i_hat", "q_i") if k in cols]
-    if twin_names:
+        handles_q.append(line(ax_q, "q_i_hat", "q_i_hat (eq. 8, left)", "tab:blue", lw=0.6, alpha=0.35))
+        handles_q.append(line(ax_q, "q_i_hat", "q_i_hat, 0.1 s mean", "tab:blue", lw=1.0,
+                              y=_moving_mean(t, cols["q_i_hat"], 0.1)))
+    ax_q.set_ylabel("q_i_hat (W)")
+    if "dq_i_hat" in cols:
         ax_r = ax_q.twinx() if "q_i_hat" in cols else ax_q
-        if "dq_i_hat" in cols:
-            handles_q.append(
-                line(
-                    ax_r, "dq_i_hat", "dq_i_hat (change from no-touch baseline)", "tab:red", lw=0.8, alpha=0.7
-                )
-            )
-        if "q_i" in cols:
-            handles_q.append(line(ax_r, "q_i", "true q_i", "black", "-", lw=1.6))
-        labels = {"dq_i_hat": "dq_i_hat", "q_i": "true q_i"}
-        ax_r.set_ylabel(", ".join(labels[k] for k in twin_names) + " (W)")
+        handles_q.append(line(ax_r, "dq_i_hat", "dq_i_hat (change from no-touch, right)", "tab:red",
+                              lw=1.0))
+        ax_r.set_ylabel("dq_i_hat (W)")
     if not handles_q:
         ax_q.text(0.5, 0.5, "no heat-flow columns", ha="center", va="center", transform=ax_q.transAxes)
+    handles_i: list[Any] = []
+    if ax_i is not None:
+        handles_i.append(line(ax_i, "q_i", "true q_i (simulator)", "black", lw=1.2))
+        ax_i.set_ylabel("true q_i (W)")
+    handles_c: list[Any] = []
+    if ax_c is not None:
+        if "T_p_cmd" in cols:
+            handles_c.append(line(ax_c, "T_p_cmd", "T_p_cmd (MPC, left)", "tab:purple", lw=1.0))
+            ax_c.set_ylabel("T_p_cmd (°C)")
+        if "drive" in cols:
+            ax_d = ax_c.twinx()
+            handles_c.append(line(ax_d, "drive", "Peltier drive (right)", "tab:green", lw=0.8, alpha=0.8))
+            if "v" in cols:
+                v = cols["v"]
+                vmax = float(np.nanmax(v)) if np.any(v > 0) else 1.0
+                handles_c.append(line(ax_d, "v", "pump duty, 1 s mean (right)", "tab:gray", lw=1.0,
+                                      y=_moving_mean(t, v / vmax, 1.0)))
+            ax_d.set_ylabel("drive, pump")
+    panels = [(ax_t, handles_t), (ax_q, handles_q)]
+    if ax_i is not None:
+        panels.append((ax_i, handles_i))
+    if ax_c is not None:
+        panels.append((ax_c, handles_c))
 
     # contacts
     spans = [s for s in (_event_span(ev, t_end) for ev in events) if s is not None]
     true_runs = _runs(cols["contact_true"]) if "contact_true" in cols else []
-    for ax in (ax_t, ax_q):
+    for ax, _ in panels:
         for a, b in spans:
             ax.axvspan(a, b, **_DETECTED)
         for i0, i1 in true_runs:
@@ -150,7 +189,8 @@ def plot_run(
     if "contact_true" in cols:
         extra.append(Patch(label=f"true contact ({len(true_runs)})", **_TRUE))
 
-    for ax, hs in ((ax_t, handles_t + extra), (ax_q, handles_q + extra)):
+    for i, (ax, hs0) in enumerate(panels):
+        hs = hs0 + (extra if i < 2 else [])
         if hs:  # one row above the panel: never hides data
             ax.legend(
                 handles=hs,
@@ -161,11 +201,11 @@ def plot_run(
                 frameon=False,
                 borderaxespad=0.2,
             )
-    for ax in (ax_t, ax_q):
+    for ax, _ in panels:
         ax.grid(True, alpha=0.3)
-    ax_q.set_xlabel("time (s)")
+    axes[-1].set_xlabel("time (s)")
     if t.size:
-        ax_q.set_xlim(float(t[0]), t_end)
+        axes[-1].set_xlim(float(t[0]), t_end)
     fig.suptitle(title or "thermoskin run")
 
     out = Path(path)
