@@ -1,0 +1,157 @@
+"""The runs behind the figures, as picklable jobs (so that a process pool can share them out).
+
+Every contact and set-point run is the closed loop (:func:`run_closed_loop`: plant with the
+Peltier tank, pump logic, MPC, inner loop, observer and detector) from ambient. Fig. 19 has
+two more kinds, both on the spatial skin with the pump logic on the measured ``T_w`` and the
+tank held at ``T_w_cmd + 0.3 K`` (open loop in ``T_p``, as ``thermoskin simulate``):
+``"stopped"`` stops the pump while a finger is on (what Sec. V's rule does whenever the
+touch heats the pipe above its command), ``"inlet-near"`` lets the water enter at the
+thermocouple end. :func:`open_loop_spatial` says why.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thermoskin.control.pump import PumpLogic
+from thermoskin.detector import ContactDetector, ContactEvent
+from thermoskin.experiments.analysis import aligned_response, contact_stats, setpoint_stats
+from thermoskin.experiments.scenarios import T_A, contact_scenario, setpoint_scenario
+from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.params import Config, load_config
+from thermoskin.physics.finger import contact_profile
+from thermoskin.physics.spatial import SpatialParams
+from thermoskin.runtime.closed_loop import run_closed_loop
+from thermoskin.sim.scenarios import Scenario
+from thermoskin.sim.skin import Sensors
+from thermoskin.sim.spatial_skin import SpatialSkin
+
+Array = NDArray[np.float64]
+
+PLOT_EVERY = 10
+"""Logs returned for plotting are means over blocks of 10 samples (100 Hz)."""
+PLOT_KEYS = ("t", "T_w", "T_p", "v", "T_w_cmd", "T_p_cmd", "q_i_hat", "dq_i_hat", "q_i", "T_g",
+             "T_w_true", "contact_true")
+T_P_OFFSET = 0.3
+"""Tank above the command in the open-loop spatial runs, K (``Scenario.T_p_offset``)."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run: ``kind`` is ``setpoint``, ``contacts`` (closed loop), ``stopped`` or ``inlet-near``."""
+
+    key: str
+    kind: str
+    T_w_cmd: float = 24.0
+    n_fingers: int = 1
+    person: str = "man1"
+    position: float = 0.0
+    skin_model: str = "network"
+    n_contacts: int = 15
+    duration: float = 60.0
+
+    def scenario(self) -> Scenario:
+        if self.kind == "setpoint":
+            return setpoint_scenario(self.T_w_cmd, self.duration)
+        return contact_scenario(self.n_fingers, self.person, self.position, self.n_contacts, name=self.key)
+
+
+def open_loop_spatial(sc: Scenario, cfg: Config, *, stop_in_contact: bool, inlet: str = "far"
+                      ) -> tuple[list[ContactEvent], dict[str, Array]]:
+    """The spatial skin with the pump logic and a held tank; observer and detector over the log.
+
+    Why not the closed loop: with thermocouple noise of 0.02 K and no hysteresis the pump
+    switches at its 50 ms dwell whatever a touch does (a finger moves ``T_w`` by about
+    0.01 K while the pump runs), so in the closed loop the pump runs half the time during
+    every contact. With the water flowing from the far end past the thermocouple
+    (``inlet = "far"``) the outlet collects every cell's heat and a touch reads the same
+    wherever it is; only the stopped phases, too short here, let distance matter. The paper
+    explains Fig. 19 by conduction ("thermal attenuation ... depending on the distance")
+    and its pump rule stops the water whenever the pipe is above its command, which a
+    finger at 34 °C does on the prototype (Sec. VI-B: the pipe was held at 24 °C "other
+    than the time that human contacted"). ``stop_in_contact`` runs that case: the pump
+    logic holds ``T_w`` between contacts and the pump is stopped while a finger is on.
+    The command and the tank are not changed, so the loss of the pump's heat during a
+    contact cools the pipe by about 2 K; the observer's model knows ``v = 0`` and takes it
+    out of ``dq_i_hat``.
+    """
+    t_s = cfg.sampling.t_s
+    n = max(1, int(np.floor(sc.duration / t_s + 1e-9)))
+    t = np.arange(n) * t_s
+    G, T_f, _ = contact_profile(sc.touches, t)
+    pos = np.zeros(n)
+    for tc in sc.touches:
+        pos[(t >= tc.t_on) & (t < tc.t_off)] = tc.position
+    skin = SpatialSkin(cfg, SpatialParams(inlet=inlet))
+    sensors = Sensors(cfg.sensor)
+    pump = PumpLogic(cfg.pump, t_s, min_dwell=cfg.pump.min_dwell)
+    cmd, T_p = float(sc.T_w_cmd), float(sc.T_w_cmd) + T_P_OFFSET
+    skin.reset(cmd, T_a=sc.T_a)
+    noise = sensors.noise("T_w", n).tolist()
+    G_l, T_f_l, pos_l = G.tolist(), T_f.tolist(), pos.tolist()
+    T_w, T_w_true, T_g, v = (np.zeros(n) for _ in range(4))
+    quantise = sensors.quantise
+    for k in range(n):
+        Tw = skin.T_w
+        T_w_true[k] = Tw
+        T_g[k] = skin.T_g
+        m = quantise(Tw + noise[k])
+        T_w[k] = m
+        vk = pump.step(m, cmd)
+        if stop_in_contact and G_l[k] > 0.0:
+            vk = 0.0
+        v[k] = vk
+        skin.step(T_p, vk, sc.T_a, G_l[k], T_f_l[k], position=pos_l[k])
+    T_p_m = sensors.measure("T_p", np.full(n, T_p))
+    T_a_m = sensors.measure("T_a", np.full(n, float(sc.T_a)))
+    out = ThermalExchangeObserver(cfg.skin, cfg.observer, t_s).run(T_w, T_p_m, v, T_a_m)
+    det = ContactDetector(cfg.detector, t_s)
+    det.run(t, out.r, out.dq_i_hat, out.gap)
+    det.finish(float(t[-1]))
+    return det.events, {"t": t, "T_w": T_w, "T_p": T_p_m, "v": v, "T_a": T_a_m, "T_w_cmd": np.full(n, cmd),
+            "T_p_cmd": np.full(n, T_p), "q_i_hat": out.q_i_hat, "dq_i_hat": out.dq_i_hat,
+            "q_i": G * (T_f - T_g), "T_g": T_g, "T_w_true": T_w_true, "contact_true": (G > 0).astype(float)}
+
+
+def block_means(x: Array, n: int) -> Array:
+    """Means over consecutive blocks of ``n`` samples (a trailing partial block is dropped)."""
+    m = x.size // n
+    return x[: m * n].reshape(m, n).mean(axis=1)
+
+
+def run_job(job: Job, cfg: Config | None = None) -> dict[str, Any]:
+    """Run one job; return its key numbers, aligned responses and a decimated log for plots."""
+    cfg = cfg or load_config()
+    sc = job.scenario()
+    wall0 = time.perf_counter()
+    events: list[Any] = []
+    if job.kind in ("setpoint", "contacts"):
+        res = run_closed_loop(sc, cfg, skin_model=job.skin_model)
+        cols, events = res.columns, res.events
+    elif job.kind in ("stopped", "inlet-near"):
+        events, cols = open_loop_spatial(sc, cfg, stop_in_contact=job.kind == "stopped",
+                                 inlet="near" if job.kind == "inlet-near" else "far")
+    else:
+        raise ValueError(f"unknown job kind {job.kind!r}")
+    out: dict[str, Any] = {"job": job, "scenario": sc, "wall_s": time.perf_counter() - wall0,
+                           "n_events": len(events),
+                           "events": [(e.onset, e.release) for e in events]}
+    if job.kind == "setpoint":
+        out["stats"] = setpoint_stats(cols, cfg.sampling.t_s)
+    else:
+        st = contact_stats(cols, sc.touches, events)
+        out["stats"] = st.summary()
+        out["per_contact"] = {"mean_dq": st.mean_dq, "peak_dq": st.peak_dq, "rise": st.rise}
+        out["aligned"] = aligned_response(cols, sc.touches, baseline=st.baseline)
+        out["aligned_q"] = aligned_response(cols, sc.touches, key="q_i", baseline=0.0)
+        touched = np.asarray(cols["contact_true"]) > 0
+        out["pump_on_in_contact"] = float(np.mean(np.asarray(cols["v"])[touched] > 0))
+    out["cols"] = {k: block_means(np.asarray(cols[k], dtype=float), PLOT_EVERY)
+                   for k in PLOT_KEYS if k in cols}
+    out["T_a"] = T_A
+    return out
