@@ -1,4 +1,4 @@
-"""Command line: ``thermoskin observe | simulate | run``.
+"""Command line: ``thermoskin observe | simulate | run | device-emulator | export | replay``.
 
 User errors (a bad log, a bad config, an unknown scenario) print one line,
 ``thermoskin: error: ...``, and exit with code 2; never a traceback.
@@ -7,6 +7,7 @@ User errors (a bad log, a bad config, an unknown scenario) print one line,
 from __future__ import annotations
 
 import functools
+import math
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -151,7 +152,8 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
 
     Orders chosen by BIC; the fit is the simulation NRMSE on the last 30 % held back.
     """
-    from thermoskin.identify import IdentifyError, identify as fit, save_model
+    from thermoskin.identify import IdentifyError, save_model
+    from thermoskin.identify import identify as fit
 
     try:
         model = fit(log_csv, t_model=t_model)
@@ -234,18 +236,30 @@ SETTLE_S = 10.0
               show_default=True, help="Where to save the log.")
 @click.option("--plot", "plot_path", type=click.Path(path_type=Path), default=Path("run.png"),
               show_default=True, help="Where to save the plot.")
+@click.option("--device", default="sim", show_default=True,
+              help="sim (the simulated skin in this process) or serial://PATH (a device or "
+                   "`thermoskin device-emulator` speaking docs/protocol.md).")
+@click.option("--realtime", is_flag=True,
+              help="Pace the simulated skin at wall-clock speed in the fixed-rate loop process.")
+@click.option("--record", "record_path", type=click.Path(path_type=Path), default=None,
+              help="Record every signal, command, event and the parameters to this MCAP file.")
 @_user_errors
 def run(scenario: str, duration: float | None, setpoint: float | None,
-        config_path: Path | None, log_path: Path, plot_path: Path) -> None:
-    """Run the whole skin in closed loop on the simulated skin.
+        config_path: Path | None, log_path: Path, plot_path: Path, device: str, realtime: bool,
+        record_path: Path | None) -> None:
+    """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
 
     From ambient, the MPC and the inner loop bring T_w to its command while the observer
     and the detector run every sample; the scenario's touches start after a settling time.
-    Use --scenario none for no touch.
+    Use --scenario none for no touch. With --device serial://PATH or --realtime the loop
+    runs at t_s against absolute deadlines in a process of its own. A fault (the safety
+    supervisor: T_p bounds, touch-safe surface limit, sensor faults, link) puts the device
+    in its safe state (Peltier drive 0, pump off), ends the run with exit code 3 and one
+    line saying why; start a new run to restart.
     """
     from thermoskin.logio import write_log
     from thermoskin.plotting import plot_run
-    from thermoskin.runtime.closed_loop import run_closed_loop
+    from thermoskin.runtime.closed_loop import COLUMNS, run_closed_loop
 
     cfg = _config(config_path)
     sc = _scenario(scenario, None)
@@ -261,31 +275,150 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         if not duration > 0:
             raise UserError(f"--duration {duration} must be > 0 s")
         sc = sc.with_duration(duration)
+    serial = device.startswith("serial://")
+    if device != "sim" and not serial:
+        raise UserError(f"--device {device!r}: must be sim or serial://PATH")
+    if serial and len(device) <= len("serial://"):
+        raise UserError("--device serial://PATH: the path is missing")
+    if record_path is not None and record_path.suffix.lower() != ".mcap":
+        raise UserError(f"--record {record_path}: the file name must end in .mcap")
     cmd_txt = (", ".join(f"{c:g} degC from {t0:g} s" for t0, c in sc.setpoints)
                if sc.setpoints else f"{sc.T_w_cmd:g} degC")
-    console.print(f"[bold]thermoskin run[/]: closed loop on the simulated skin, scenario "
-                  f"'{sc.name}' ({len(sc.touches)} touches), T_w_cmd {cmd_txt}, "
-                  f"{sc.duration:g} s at {1 / cfg.sampling.t_s:.0f} Hz")
-    with _progress_bar("running") as bar:
-        task = bar.add_task("closed loop", total=1.0)
+    where = (f"the device at {device[len('serial://'):]}" if serial else
+             "the simulated skin" + (" at wall-clock speed" if realtime else ""))
+    console.print(f"[bold]thermoskin run[/]: closed loop on {where}, scenario '{sc.name}'"
+                  + (", " if serial else f" ({len(sc.touches)} touches), ")
+                  + f"T_w_cmd {cmd_txt}, {sc.duration:g} s at {1 / cfg.sampling.t_s:.0f} Hz")
+    recorder = None
+    if record_path is not None:
+        from thermoskin.runtime.record import LoopRecorder
 
-        def started(t: float) -> None:
-            bar.console.print(f"  t = {t:7.3f} s  contact detected")
+        recorder = LoopRecorder(record_path, cfg)
+        recorder.event(0.0, "run-start", device=device, scenario=sc.name, realtime=bool(realtime or serial))
+    try:
+        if serial or realtime:
+            res = _run_fixed_rate(sc, cfg, device, recorder)
+        else:
+            with _progress_bar("running") as bar:
+                task = bar.add_task("closed loop", total=1.0)
 
-        def ended(e: ContactEvent) -> None:
-            bar.console.print(f"  t = {e.release:7.3f} s  released after {e.duration:.2f} s, "
-                              f"peak dq {e.peak_dq * 1e3:.1f} mW, mean {e.mean_dq * 1e3:.1f} mW")
+                def started(t: float) -> None:
+                    bar.console.print(f"  t = {t:7.3f} s  contact detected")
 
-        res = run_closed_loop(sc, cfg, on_start=started, on_event=ended,
-                              progress=lambda f: bar.update(task, completed=f))
-    out = res.columns
-    write_log(log_path, out)
-    plot_run(out, res.events, plot_path, title=f"thermoskin run: {sc.name}, closed loop")
+                def ended(e: ContactEvent) -> None:
+                    bar.console.print(f"  t = {e.release:7.3f} s  released after {e.duration:.2f} s, "
+                                      f"peak dq {e.peak_dq * 1e3:.1f} mW, mean {e.mean_dq * 1e3:.1f} mW")
+
+                res = run_closed_loop(sc, cfg, on_start=started, on_event=ended,
+                                      progress=lambda f: bar.update(task, completed=f),
+                                      on_block=recorder.write_rows if recorder else None)
+        summary = res.summary
+        if recorder is not None:
+            _record_end(recorder, res)
+    finally:
+        if recorder is not None:
+            recorder.close()
+    names = [k for k in COLUMNS if not serial or k not in _TRUTH]
+    out = {k: res.columns[k] for k in names}
+    for k in ("contact", "gap", "contact_true", "n_fingers"):
+        if k in out:
+            out[k] = np.nan_to_num(out[k]).astype(np.int8)
+    if len(out["t"]):
+        write_log(log_path, out)
+        plot_run(out, res.events, plot_path, title=f"thermoskin run: {sc.name}, closed loop")
     if res.events:
         console.print(events_table(res.events))
-    _summary(sc, out, res.events)
-    console.print(f"{sc.duration:g} s simulated in {res.wall_s:.1f} s "
-                  f"({res.realtime_factor:.1f}x real time); wrote {log_path} and {plot_path}")
+    if len(out["t"]) > 1 and not res.fault:
+        if serial:
+            _tracking(sc, out)
+        else:
+            _summary(sc, out, res.events)
+    n = len(out["t"])
+    if serial or realtime:
+        tm = res.timing()
+        g = dict.fromkeys(("late_p50_us", "late_p99_us", "late_max_us", "busy_p99_us", "lag_p50_us",
+                           "lag_p99_us", "lag_max_us"), math.nan) | tm
+        console.print(f"[bold]loop[/]: {n} steps; lateness p50 {g['late_p50_us']:.0f} µs, "
+                      f"p99 {g['late_p99_us']:.0f} µs, max {g['late_max_us']:.0f} µs (host lag p50 "
+                      f"{g['lag_p50_us']:.0f}, p99 {g['lag_p99_us']:.0f}, max {g['lag_max_us']:.0f} µs); "
+                      f"step p99 {g['busy_p99_us']:.0f} µs; {tm['overruns']:.0f} overruns, "
+                      f"{tm['lost_rows']:.0f} rows lost; priority {summary.get('priority', '?')}")
+        if "link" in summary:
+            ln = summary["link"]
+            console.print(f"[bold]link[/]: {ln['frames']} frames, {ln['corrupted']} corrupted, "
+                          f"{ln['lost']} lost, {ln['repeated']} repeated")
+    wrote = f"wrote {log_path} and {plot_path}" if n else "no samples"
+    if record_path is not None:
+        wrote += f" and {record_path}"
+    console.print(f"{n * cfg.sampling.t_s:g} s in {res.wall_s:.1f} s "
+                  f"({res.realtime_factor:.1f}x real time); {wrote}")
+    if res.fault:
+        t_f, t_safe = summary.get("t_fault", math.nan), summary.get("t_safe", math.nan)
+        click.echo(f"thermoskin: fault: {res.fault} at t = {t_f:.3f} s ({summary.get('detail', '')}); "
+                   f"safe state (Peltier drive 0, pump off) commanded at t = {t_safe:.3f} s; "
+                   "restart with a new `thermoskin run`", err=True)
+        sys.exit(3)
+    if summary.get("interrupted"):
+        click.echo("thermoskin: interrupted; the device is in its safe state", err=True)
+        sys.exit(130)
+
+
+_TRUTH = ("q_i", "T_g", "T_w_true", "T_p_true", "contact_true", "n_fingers")
+
+
+def _run_fixed_rate(sc: Any, cfg: Config, device: str, recorder: Any) -> Any:
+    """The fixed-rate loop process; contacts and faults printed as they come."""
+    from thermoskin.runtime.realtime import LoopSpec, run_realtime
+
+    state = {"contact": 0, "t_prev": -math.inf}
+
+    def on_rows(block: dict[str, Any]) -> None:
+        c = block["contact"]
+        f = block["fault"]
+        t = block["t"]
+        for i in np.flatnonzero(np.diff(np.concatenate([[state["contact"]], c])) != 0):
+            if not f[i]:
+                console.print(f"  t = {t[i]:7.3f} s  contact " + ("detected" if c[i] else "released"))
+        if len(c):
+            ok = f == 0
+            if ok.any():
+                state["contact"] = int(c[ok][-1])
+        if recorder is not None:
+            recorder.write_rows(block)
+
+    spec = LoopSpec(cfg, sc, device=device, duration=sc.duration)
+    res = run_realtime(spec, on_rows=on_rows)
+    err = res.summary.get("error")
+    if err:
+        if res.summary.get("device_error"):
+            raise UserError(err.removeprefix("DeviceError: "))
+        raise RuntimeError(err)
+    return res
+
+
+def _record_end(recorder: Any, res: Any) -> None:
+    """Contacts, the fault and the loop's figures on /events."""
+    import dataclasses
+
+    for e in res.events:
+        recorder.event(e.onset, "contact", **dataclasses.asdict(e))
+    s = res.summary
+    t_end = float(res.columns["t"][-1]) if len(res.columns["t"]) else 0.0
+    if res.fault:
+        recorder.event(s.get("t_fault", t_end), "fault", name=res.fault, detail=s.get("detail", ""),
+                       value=s.get("fault_value", math.nan), t_safe=s.get("t_safe", math.nan))
+    timing = res.timing() if hasattr(res, "timing") else {}
+    recorder.event(t_end, "run-end", wall_s=res.wall_s,
+                   priority=s.get("priority", ""), **timing)
+
+
+def _tracking(sc: Any, log: dict[str, Any]) -> None:
+    from thermoskin.evaluation import tracking_errors
+
+    for seg in tracking_errors(log, sc):
+        console.print(f"[bold]tracking[/] T_w_cmd {seg.T_w_cmd:g} degC: mean |error| "
+                      f"{seg.mean_abs_error:.3f} K, mean error {seg.mean_error:+.3f} K over "
+                      f"{seg.t0:.1f}-{seg.t1:.1f} s")
 
 
 def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent]) -> None:
@@ -305,6 +438,93 @@ def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent]) -> None:
                   f"{m.misses} missed, {m.false_alarms} false alarms; {lat_txt}")
 
 
+@main.command("device-emulator")
+@click.option("--link", "link", type=click.Path(path_type=Path), required=True,
+              help="Symbolic link to create, pointing at the emulator's pseudo-terminal.")
+@SCENARIO_OPT
+@click.option("--fault", "faults", multiple=True, metavar="KIND@SECONDS",
+              help="Inject a fault at a device time: tc-open, nan-burst, overtemp, serial-drop, "
+                   "tc-stuck (repeatable).")
+@click.option("--tc-period", type=float, default=0.1, show_default=True,
+              help="Thermocouple update period, s.")
+@CONFIG_OPT
+def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_period: float,
+                    config_path: Path | None) -> None:
+    """Run the simulated skin behind a pseudo-terminal speaking docs/protocol.md.
+
+    Makes LINK a symbolic link to the pty, starts its clock when the host first connects,
+    and runs until stopped (Ctrl-C, SIGTERM); the link is removed on exit. Connect with
+    `thermoskin run --device serial://LINK`.
+    """
+    from thermoskin.devices.emulator import main as emulator_main
+
+    try:
+        cfg = _config(config_path)
+    except ConfigError as e:
+        click.echo(f"thermoskin: error: {' '.join(str(e).split())}", err=True)
+        sys.exit(2)
+    sys.exit(emulator_main(str(link), scenario, list(faults), tc_period, cfg))
+
+
+@main.command()
+@click.argument("recording", type=click.Path(path_type=Path))
+@click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
+              help="RUN.parquet or RUN.csv: one row per sample, every signal as a column.")
+@_user_errors
+def export(recording: Path, output: Path) -> None:
+    """Export an MCAP recording (`thermoskin run --record`) to Parquet or CSV."""
+    from thermoskin.runtime.record import RecordingError
+    from thermoskin.runtime.record import export as do_export
+
+    try:
+        info: dict[str, Any] = {}
+        from thermoskin.runtime.record import read_mcap
+
+        read_mcap(recording, ["/params"], info)
+        out = do_export(recording, output)
+    except RecordingError as e:
+        raise UserError(str(e)) from None
+    note = "" if info.get("complete") else " (the recording was cut short: exported what it holds)"
+    console.print(f"wrote {out}{note}")
+
+
+@main.command()
+@click.argument("recording", type=click.Path(path_type=Path))
+@click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
+              help="CSV: the observer's inputs, the replayed q_i_hat, dq_i_hat, contact, gap and "
+                   "the live q_i_hat_live, contact_live.")
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
+              help="TOML file to replay with instead of the recorded configuration.")
+@_user_errors
+def replay(recording: Path, output: Path, config_path: Path | None) -> None:
+    """Re-run the observer and the detector on a recording; compare with the live estimates.
+
+    Exits with code 1 if the replayed q_i_hat or contact differ from the recorded ones
+    (with the recorded configuration they must be identical).
+    """
+    from thermoskin.logio import write_log
+    from thermoskin.runtime.record import RecordingError
+    from thermoskin.runtime.record import replay as do_replay
+
+    cfg = _config(config_path) if config_path is not None else None
+    try:
+        cols, cmp = do_replay(recording, cfg)
+    except RecordingError as e:
+        raise UserError(str(e)) from None
+    out = {k: np.asarray(v, dtype=float) for k, v in cols.items()}
+    for k in ("contact", "gap", "contact_live"):
+        out[k] = out[k].astype(np.int8)
+    write_log(output, out)
+    if cmp["events"]:
+        console.print(events_table(cmp["events"], title="Replayed contacts"))
+    same = "identical to" if cmp["exact"] else "DIFFERENT from"
+    console.print(f"replayed {cmp['samples']} samples: q_i_hat and contact {same} the live run "
+                  f"(max |q_i_hat difference| {cmp['q_i_hat_max_abs_diff']:.3g} W, "
+                  f"{cmp['contact_mismatches']} contact mismatches); wrote {output}")
+    if not cmp["exact"] and cfg is None:
+        sys.exit(1)
+
+
 @main.command()
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=Path("reproduction"),
               show_default=True, help="Folder for the figures, summary.json and report.md.")
@@ -313,7 +533,8 @@ def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent]) -> None:
 @_user_errors
 def reproduce(out_dir: Path, only: str | None) -> None:
     """Reproduce the paper's Figs. 8 and 12-19 on the simulated skin, with a report."""
-    from thermoskin.experiments.reproduce import FIGURES, reproduce as run_reproduce
+    from thermoskin.experiments.reproduce import FIGURES
+    from thermoskin.experiments.reproduce import reproduce as run_reproduce
 
     figs = None
     if only is not None:

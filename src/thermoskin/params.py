@@ -8,7 +8,8 @@ range. A TOML file overrides any subset of a preset::
     R_g = 12.0
     R_w_flowing = 0.25   # K/W, replaces the convection model while the pump runs
 
-Tables: ``[skin] [sampling] [observer] [detector] [sensor] [pump] [peltier] [control]``.
+Tables: ``[skin] [sampling] [observer] [detector] [sensor] [pump] [peltier] [control]
+[safety]``.
 """
 
 from __future__ import annotations
@@ -216,6 +217,33 @@ class ControlParams(_Validated):
 
 
 @dataclass(frozen=True)
+class SafetyParams(_Validated):
+    """The safety supervisor between the blocks and the device (``runtime.supervisor``).
+
+    ``T_touch_max`` defaults to 40 degC: 3 K under the 43 degC that ISO 13732-1:2006 gives
+    as the burn threshold for contact of 8 h and longer with any material, and that
+    IEC 60601-1 (Table 24) allows for applied parts in contact for 10 min and longer.
+    """
+
+    section = "safety"
+    T_p_min: float = _p(4.0, "degC", -20.0, 80.0, doc="lowest allowed T_p reading (tank)")
+    T_p_max: float = _p(40.0, "degC", -20.0, 80.0, doc="highest allowed T_p reading (tank)")
+    T_touch_max: float = _p(40.0, "degC", 20.0, 60.0,
+                            doc="touch-safe limit on the estimated surface temperature")
+    surface: str = _p("pipe", "", choices=("pipe", "network"),
+                      doc="surface estimate: T_w (upper bound while heating) or the network's "
+                          "steady no-touch sheet temperature")
+    max_nan_s: float = _p(0.15, "s", 0.0, 10.0,
+                          doc="a NaN reading lasting longer trips (shorter gaps are held over)")
+    link_timeout_s: float = _p(0.05, "s", 0.0, 10.0, lo_open=True,
+                               doc="no sample from the device for longer trips")
+    stale_s: float = _p(0.5, "s", 0.0, 60.0, lo_open=True,
+                        doc="a thermocouple with no new reading for longer trips")
+    stuck_readings: int = _p(10, "readings", 0, 10_000,
+                             doc="this many equal new readings in a row trip (0: off)")
+
+
+@dataclass(frozen=True)
 class Config:
     """All parameter sets of one run."""
 
@@ -227,11 +255,15 @@ class Config:
     pump: PumpParams = field(default_factory=PumpParams)
     peltier: PeltierParams = field(default_factory=PeltierParams)
     control: ControlParams = field(default_factory=ControlParams)
+    safety: SafetyParams = field(default_factory=SafetyParams)
 
     def __post_init__(self) -> None:
         if self.control.T_p_min >= self.control.T_p_max:
             raise ConfigError(f"control.T_p_min = {self.control.T_p_min} must be below "
                               f"control.T_p_max = {self.control.T_p_max}")
+        if self.safety.T_p_min >= self.safety.T_p_max:
+            raise ConfigError(f"safety.T_p_min = {self.safety.T_p_min} must be below "
+                              f"safety.T_p_max = {self.safety.T_p_max}")
 
     def replace(self, **sections: dict[str, Any]) -> Config:
         """A copy with some fields of some sections replaced: ``replace(skin={"R_g": 5})``."""
@@ -240,7 +272,7 @@ class Config:
 
 _SECTION_TYPES = {"skin": SkinParams, "sampling": SamplingParams, "observer": ObserverParams,
                   "detector": DetectorParams, "sensor": SensorParams, "pump": PumpParams,
-                  "peltier": PeltierParams, "control": ControlParams}
+                  "peltier": PeltierParams, "control": ControlParams, "safety": SafetyParams}
 
 PRESETS: dict[str, Config] = {
     "paper": Config(),

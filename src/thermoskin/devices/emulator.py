@@ -33,6 +33,11 @@ Faults, ``KIND@SECONDS`` since the host connected:
 - ``overtemp``: ``T_p`` reads :data:`OVERTEMP_C` (beyond the 7-37 °C bound).
 - ``serial-drop``: the device stops sending and stops listening (a cut cable).
 - ``tc-stuck``: ``T_w`` freezes at its last reading while still flagged fresh.
+
+``tc-open``, ``nan-burst`` and ``overtemp`` force a conversion at their onset, so they show
+in the very sample at their time (the host's fault-to-safe delay is measured from there);
+``tc-stuck`` shows at the regular conversions. :attr:`DeviceCore.t_safe` is the device
+time at which the first SAFE of the session took effect (NaN if none).
 """
 
 from __future__ import annotations
@@ -62,6 +67,8 @@ from thermoskin.sim.skin import Sensors, SimulatedSkin
 FAULT_KINDS = ("tc-open", "nan-burst", "overtemp", "serial-drop", "tc-stuck")
 OVERTEMP_C = 45.0
 """``T_p`` reading under the ``overtemp`` fault, °C."""
+_FORCED = frozenset({"tc-open", "nan-burst", "overtemp"})
+"""Faults that force a conversion at their onset (seen in the very next sample)."""
 DEVICE_ID = 0x7E57_0001
 """Device id the emulator reports in HELLO_ACK."""
 
@@ -146,6 +153,8 @@ class DeviceCore:
         self.connected = False
         self.k = 0
         self.seq = 0
+        self.t_safe = math.nan
+        """Device time (s) from which a SAFE held drive 0 and pump off; NaN before any."""
         self._reset_physics()
 
     def _reset_physics(self) -> None:
@@ -184,6 +193,8 @@ class DeviceCore:
                 self.k_cmd = self.k
             return []
         if t == proto.T_SAFE:
+            if not self.safe_latched and self.t_safe != self.t_safe:
+                self.t_safe = self.t
             self.safe_latched = True
             return []
         if t == proto.T_HELLO:
@@ -193,6 +204,7 @@ class DeviceCore:
                              round(self.t_s * 1e6), round(self.tc_period * 1e6))
             if ok:
                 self.safe_latched = False
+                self.t_safe = math.nan
                 self.k_cmd = -1
                 self.cmd_drive = self.cmd_v = 0.0
                 self.connected = True
@@ -215,14 +227,16 @@ class DeviceCore:
         """Measure, report (SAMPLE and new FAULTs), then advance the physics by ``t_s``."""
         t = self.k * self.t_s
         out: list[proto.Message] = []
+        force = False
         for f in self.faults:
             if f.t <= t + 1e-12 and f.kind not in self.active:
                 self.active.add(f.kind)
+                force = force or f.kind in _FORCED
                 if f.kind == "tc-open":
                     out.append(proto.Fault(0, proto.F_TC_OPEN, 0, math.nan))
         active = self.active
         fresh = 0
-        if self.k % self.n_tc == 0:
+        if force or self.k % self.n_tc == 0:
             sens = self.sensors
             T_w = sens.measure_one("T_w", self.skin.T_w)
             T_p = sens.measure_one("T_p", self.tank.T_p)  # type: ignore[attr-defined]
@@ -489,6 +503,9 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
                 print("device-emulator: stopped after {samples:.0f} samples; lateness mean {mean_us:.0f} µs, "
                       "p99 {p99_us:.0f} µs, max {max_us:.0f} µs; {overruns:.0f} overruns, "
                       "{dropped_frames:.0f} frames dropped".format(**tm), file=sys.stderr)
+                if core.t_safe == core.t_safe:
+                    print(f"device-emulator: SAFE from the host took effect at t = {core.t_safe:.3f} s",
+                          file=sys.stderr)
             else:
                 print("device-emulator: stopped (no host connected)", file=sys.stderr)
         return 0

@@ -2,6 +2,12 @@
 
 From ambient, the loop brings ``T_w`` to its command while the scenario's touches (shifted
 by ``t_settle``) come and go; every sample is recorded in the shared schema.
+
+This is the in-process, as-fast-as-possible path (``thermoskin run`` on the simulated skin);
+:mod:`thermoskin.runtime.realtime` runs the same loop body at wall-clock speed in a process
+of its own, against the simulated skin or a serial device. Both check every sample with
+the :class:`~thermoskin.runtime.supervisor.Supervisor`: a fault ends the run in the safe
+state (drive 0, pump off) with ``LoopResult.summary["fault"]`` set.
 """
 
 from __future__ import annotations
@@ -9,13 +15,15 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.detector import ContactEvent
 from thermoskin.params import Config
+from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.controller import SkinController
 from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import Scenario
@@ -33,6 +41,14 @@ class LoopResult:
     events: list[ContactEvent]
     scenario: Scenario
     wall_s: float
+    summary: dict[str, Any] = field(default_factory=dict)
+    """``fault`` (supervisor code, 0 = none), ``fault_name``, ``detail``, ``t_fault``."""
+
+    @property
+    def fault(self) -> str | None:
+        """The fault's name, or ``None``."""
+        code = self.summary.get("fault", 0)
+        return None if code == sv.OK else sv.FAULTS.get(code, str(code))
 
     @property
     def realtime_factor(self) -> float:
@@ -43,10 +59,14 @@ class LoopResult:
 def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "network",
                     on_start: Callable[[float], None] | None = None,
                     on_event: Callable[[ContactEvent], None] | None = None,
-                    progress: Callable[[float], None] | None = None) -> LoopResult:
+                    progress: Callable[[float], None] | None = None,
+                    on_block: Callable[[dict[str, Any]], None] | None = None,
+                    block: int = 1000) -> LoopResult:
     """Run ``scenario`` (its touches at their times) in closed loop from ambient.
 
     ``skin_model``: ``"network"`` (two-node, as the observer assumes) or ``"spatial"``.
+    ``on_block(columns)`` (a recorder) gets every ``block`` rows as column slices, with a
+    ``fault`` column (the supervisor's code, non-zero on the row that tripped).
     """
     plant = SimulatedPlant(cfg, scenario, skin_model=skin_model)
     ctrl = SkinController(cfg)
@@ -57,6 +77,25 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     (c_t, c_Tw, c_Tp, c_v, c_Ta, c_cmd, c_Tpc, c_drv, c_qi, c_dq, c_con, c_gap, c_q, c_Tg,
      c_Twt, c_Tpt, _, _) = cols
     obs, det = ctrl.observer, ctrl.detector
+    sup = sv.Supervisor(cfg)
+    check = sup.check
+    k_sent = 0
+
+    def send(k1: int, code: int = 0) -> None:
+        nonlocal k_sent
+        if on_block is None or k1 <= k_sent:
+            return
+        part = {k: rec[k][k_sent:k1] for k in COLUMNS if k not in ("contact_true", "n_fingers")}
+        part["contact_true"] = (np.asarray(plant.G_c[k_sent:k1]) > 0).astype(np.int8)
+        part["n_fingers"] = np.asarray(plant.n_fingers[k_sent:k1])
+        f = np.zeros(k1 - k_sent)
+        if code:
+            f[-1] = code
+        part["fault"] = f
+        on_block(part)
+        k_sent = k1
+
+    n_run = n
     cmd_at = scenario.T_w_cmd_at
     setpoint_changes = sorted({0.0, *(t0 for t0, _ in scenario.setpoints)})
     cmd = cmd_at(0.0)
@@ -68,7 +107,10 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
             cmd = cmd_at(t)
             setpoint_changes.pop(0)
         T_w, T_p, T_a = plant.measure()
-        ctrl.step(t, T_w, T_p, T_a, cmd)
+        if check(t, T_w, T_p, T_a):
+            ctrl.safe()  # safe outputs first; the plant gets them below
+        else:
+            ctrl.step(t, T_w, T_p, T_a, cmd)
         skin = plant.skin
         c_t[k] = t
         c_Tw[k] = T_w
@@ -91,10 +133,16 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
         if det.ended and on_event is not None:
             on_event(det.events[-1])
         plant.apply(ctrl.drive, ctrl.v)
+        if sup.code:
+            n_run = k + 1
+            break
         if progress is not None and k % every == 0:
             progress(k / n)
+        if on_block is not None and k + 1 - k_sent >= block:
+            send(k + 1)
+    send(n_run, sup.code)
     n_events = len(det.events)
-    det.finish((n - 1) * t_s)
+    det.finish((n_run - 1) * t_s)
     if on_event is not None and len(det.events) > n_events:
         on_event(det.events[-1])
     wall = time.perf_counter() - wall0
@@ -104,4 +152,8 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     rec["n_fingers"] = np.asarray(plant.n_fingers, dtype=np.int8)
     for k in ("contact", "gap"):
         rec[k] = rec[k].astype(np.int8)
-    return LoopResult(columns=rec, events=det.events, scenario=scenario, wall_s=wall)
+    if n_run < n:
+        rec = {k: x[:n_run] for k, x in rec.items()}
+    summary = {"fault": sup.code, "fault_name": sv.FAULTS[sup.code], "detail": sup.detail,
+               "t_fault": sup.t_fault, "fault_value": sup.value, "t_safe": sup.t_fault}
+    return LoopResult(columns=rec, events=det.events, scenario=scenario, wall_s=wall, summary=summary)

@@ -3,9 +3,11 @@
 Topics (messages are JSON objects; signal names and units of ``MODEL.md``)::
 
     /skin/sample    {t, T_w, T_p, T_a, v, drive, fresh, stale, stuck, status, seq}
-    /skin/estimate  {t, q_i_hat, dq_i_hat, contact}
-    /control        {t, T_p_cmd, drive, v_cmd}
-    /events         {t, kind, detail}        contact onsets/releases, faults, link loss
+    /skin/estimate  {t, q_i_hat, dq_i_hat, contact, gap}
+    /control        {t, T_w_cmd, T_p_cmd, drive, v_cmd}
+    /sim/truth      {t, q_i, T_g, T_w_true, T_p_true, contact_true, n_fingers}   simulator only
+    /loop/timing    {t, late, lag, busy}     the fixed-rate loop's lateness, host lag, step time, s
+    /events         {t, kind, detail}        contact onsets/releases, faults, link loss, run end
     /params         {t, config}              the run's configuration, once at the start
 
 Any other topic is accepted with a permissive schema. A message's ``log_time`` and
@@ -56,14 +58,17 @@ TOPIC_SCHEMAS: dict[str, dict[str, Any]] = {
         "title": "thermoskin.Estimate",
         "description": "thermal exchange observer (eq. 8) and contact detector: W, W, 0/1",
         "type": "object",
-        "properties": {"t": _NUM, "q_i_hat": _NUM_NULL, "dq_i_hat": _NUM_NULL, "contact": _INT},
+        "properties": {"t": _NUM, "q_i_hat": _NUM_NULL, "dq_i_hat": _NUM_NULL, "contact": _INT,
+                       "gap": _INT},
         "required": ["t"],
     },
     "/control": {
         "title": "thermoskin.Control",
-        "description": "controller outputs: T_p_cmd degC, drive in [-1, 1], v_cmd m/s",
+        "description": "commands: T_w_cmd, T_p_cmd degC, drive in [-1, 1], v_cmd m/s (the v the "
+                       "observer used)",
         "type": "object",
-        "properties": {"t": _NUM, "T_p_cmd": _NUM_NULL, "drive": _NUM_NULL, "v_cmd": _NUM_NULL},
+        "properties": {"t": _NUM, "T_w_cmd": _NUM_NULL, "T_p_cmd": _NUM_NULL, "drive": _NUM_NULL,
+                       "v_cmd": _NUM_NULL},
         "required": ["t"],
     },
     "/events": {
@@ -72,6 +77,21 @@ TOPIC_SCHEMAS: dict[str, dict[str, Any]] = {
         "type": "object",
         "properties": {"t": _NUM, "kind": {"type": "string"}, "detail": {}},
         "required": ["t", "kind"],
+    },
+    "/sim/truth": {
+        "title": "thermoskin.Truth",
+        "description": "the simulator's truth: q_i W, T_g/T_w_true/T_p_true degC, contact_true 0/1",
+        "type": "object",
+        "properties": {"t": _NUM, "q_i": _NUM_NULL, "T_g": _NUM_NULL, "T_w_true": _NUM_NULL,
+                       "T_p_true": _NUM_NULL, "contact_true": _INT, "n_fingers": _INT},
+        "required": ["t"],
+    },
+    "/loop/timing": {
+        "title": "thermoskin.LoopTiming",
+        "description": "fixed-rate loop: lateness of the step against its deadline, step time (s)",
+        "type": "object",
+        "properties": {"t": _NUM, "late": _NUM_NULL, "lag": _NUM_NULL, "busy": _NUM_NULL},
+        "required": ["t"],
     },
     "/params": {
         "title": "thermoskin.Params",
@@ -272,7 +292,7 @@ def read_mcap(path: str | os.PathLike[str], topics: Sequence[str] | None = None,
 
 # ----------------------------------------------------------------------------- export
 
-MERGE_TOPICS = ("/skin/estimate", "/control")
+MERGE_TOPICS = ("/skin/estimate", "/control", "/sim/truth", "/loop/timing")
 
 
 def to_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample",
@@ -402,3 +422,147 @@ class ReplayDevice:
     @property
     def link_lost(self) -> bool:
         return self._done
+
+
+# ----------------------------------------------------------------------------- loop recording
+
+def _ints(col: Any, n: int) -> list[int]:
+    if col is None:
+        return [0] * n
+    return [int(x) if x == x else 0 for x in col.tolist()]
+
+
+class LoopRecorder:
+    """Records the closed loop's rows (columns of :data:`~thermoskin.runtime.realtime.ROW` or of
+    ``closed_loop.COLUMNS``) on the topics above, block by block, and its events.
+
+    A row whose ``fault`` is non-zero is the sample on which the supervisor tripped: its
+    sample and commands are recorded, no estimate (the blocks did not run on it).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], config: Any, **kw: Any) -> None:
+        self.rec = Recorder(path, config, **kw)
+        self.rows = 0
+        self._contact = 0
+
+    def write_rows(self, c: Mapping[str, Any]) -> None:
+        """One block of rows as columns (arrays of equal length)."""
+        t = c["t"].tolist()
+        n = len(t)
+        if not n:
+            return
+        L = {k: (v.tolist() if hasattr(v, "tolist") else list(v)) for k, v in c.items()}
+        nan = [math.nan] * n
+        T_w, T_p, T_a = L["T_w"], L["T_p"], L["T_a"]
+        v_cmd, drive, T_w_cmd, T_p_cmd = L["v"], L["drive"], L["T_w_cmd"], L["T_p_cmd"]
+        v_dev, drive_dev = L.get("v_dev", v_cmd), L.get("drive_dev", drive)
+        q, dq = L["q_i_hat"], L["dq_i_hat"]
+        contact, gap = _ints(c["contact"], n), _ints(c["gap"], n)
+        fresh = _ints(c.get("fresh"), n) if "fresh" in c else [7] * n
+        stale, stuck = _ints(c.get("stale"), n), _ints(c.get("stuck"), n)
+        status = _ints(c.get("status"), n)
+        seq = _ints(c.get("seq"), n) if "seq" in c else list(range(self.rows, self.rows + n))
+        fault = _ints(c.get("fault"), n)
+        q_i = L.get("q_i", nan)
+        has_truth = "q_i" in c and any(x == x for x in q_i)
+        late, lag, busy = L.get("late"), L.get("lag", nan), L.get("busy")
+        w = self.rec.write
+        for i in range(n):
+            ti = t[i]
+            w("/skin/sample", ti, {"T_w": T_w[i], "T_p": T_p[i], "T_a": T_a[i], "v": v_dev[i],
+                                   "drive": drive_dev[i], "fresh": fresh[i], "stale": stale[i],
+                                   "stuck": stuck[i], "status": status[i], "seq": seq[i]})
+            w("/control", ti, {"T_w_cmd": T_w_cmd[i], "T_p_cmd": T_p_cmd[i], "drive": drive[i],
+                               "v_cmd": v_cmd[i]})
+            if not fault[i]:
+                w("/skin/estimate", ti, {"q_i_hat": q[i], "dq_i_hat": dq[i], "contact": contact[i],
+                                         "gap": gap[i]})
+                if contact[i] != self._contact:
+                    self.rec.event(ti, "contact-on" if contact[i] else "contact-off")
+                    self._contact = contact[i]
+            if has_truth:
+                w("/sim/truth", ti, {"q_i": q_i[i], "T_g": L["T_g"][i], "T_w_true": L["T_w_true"][i],
+                                     "T_p_true": L["T_p_true"][i],
+                                     "contact_true": int(L["contact_true"][i]),
+                                     "n_fingers": int(L["n_fingers"][i])})
+            if late is not None:
+                w("/loop/timing", ti, {"late": late[i], "lag": lag[i], "busy": busy[i]})  # type: ignore[index]
+        self.rows += n
+
+    def event(self, t: float, kind: str, **detail: Any) -> None:
+        self.rec.event(t, kind, **detail)
+
+    def close(self) -> None:
+        self.rec.close()
+
+
+def config_from_params(obj: Mapping[str, Any]) -> Any:
+    """The :class:`~thermoskin.params.Config` recorded on ``/params`` (NaN read back as None)."""
+    from thermoskin.params import _SECTION_TYPES, Config
+
+    sections = {}
+    for name, cls in _SECTION_TYPES.items():
+        d = obj.get(name)
+        if isinstance(d, dict):
+            known = {f.name for f in dataclasses.fields(cls)}
+            vals = {k: (None if isinstance(v, float) and math.isnan(v) else v)
+                    for k, v in d.items() if k in known}
+            sections[name] = cls(**vals)
+    return Config(**sections)
+
+
+def replay(path: str | os.PathLike[str], config: Any = None) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Re-run the observer and the detector on a recording; ``(columns, comparison)``.
+
+    The blocks get the inputs the live loop gave them: ``t, T_w, T_p, T_a`` of
+    ``/skin/sample`` and the ``v_cmd`` of ``/control`` (the pump command the observer
+    used), on every sample that has an ``/skin/estimate`` (the samples the blocks ran
+    on), with the recorded configuration (or ``config``). ``columns`` holds those inputs,
+    the replayed ``q_i_hat, dq_i_hat, contact, gap`` and the live ones as ``*_live``;
+    ``comparison`` the largest differences and the count of contact mismatches.
+    """
+    from thermoskin.detector import ContactDetector
+    from thermoskin.observer import ThermalExchangeObserver
+
+    if config is None:
+        params = read_mcap(path, ["/params"]).get("/params", [])
+        if not params:
+            raise RecordingError(f"{path}: no /params message; pass the configuration")
+        config = config_from_params(params[0].get("config", {}))
+    cols = to_columns(path)
+    n_all = len(cols["t"])
+    c_col = cols.get("contact", [math.nan] * n_all)
+    stepped = [i for i in range(n_all) if c_col[i] == c_col[i]]
+    if not stepped:
+        raise RecordingError(f"{path}: no /skin/estimate messages to compare with")
+    need = ("T_w", "T_p", "T_a", "v_cmd")
+    for k in need:
+        if k not in cols:
+            raise RecordingError(f"{path}: the recording has no {k!r} (recorded by an older version?)")
+    t_s = config.sampling.t_s
+    obs = ThermalExchangeObserver(config.skin, config.observer, t_s)
+    det = ContactDetector(config.detector, t_s)
+    obs.reset()
+    det.reset()
+    out: dict[str, list[float]] = {k: [] for k in ("t", "T_w", "T_p", "v", "T_a", "q_i_hat", "dq_i_hat",
+                                                   "contact", "gap", "q_i_hat_live", "contact_live")}
+    T_w, T_p, T_a, v, t = cols["T_w"], cols["T_p"], cols["T_a"], cols["v_cmd"], cols["t"]
+    q_live, c_live = cols["q_i_hat"], cols["contact"]
+    max_dq = 0.0
+    mism = 0
+    for i in stepped:
+        obs.step(T_w[i], T_p[i], v[i], T_a[i])
+        c = det.step(t[i], obs.r, obs.dq_i_hat, obs.gap or not obs.ready)
+        for k, x in (("t", t[i]), ("T_w", T_w[i]), ("T_p", T_p[i]), ("v", v[i]), ("T_a", T_a[i]),
+                     ("q_i_hat", obs.q_i_hat), ("dq_i_hat", obs.dq_i_hat), ("contact", c),
+                     ("gap", int(obs.gap)), ("q_i_hat_live", q_live[i]), ("contact_live", c_live[i])):
+            out[k].append(x)
+        a, b = obs.q_i_hat, q_live[i]
+        if not (a == b or (a != a and b != b)):
+            max_dq = max(max_dq, abs(a - b)) if a == a and b == b else math.inf
+        if c != c_live[i]:
+            mism += 1
+    det.finish(t[stepped[-1]])
+    comparison = {"samples": len(stepped), "q_i_hat_max_abs_diff": max_dq, "contact_mismatches": mism,
+                  "exact": max_dq == 0.0 and mism == 0, "events": list(det.events)}
+    return out, comparison

@@ -1,0 +1,445 @@
+"""The fixed-rate loop: one process of its own, paced at ``t_s`` against absolute deadlines.
+
+The loop process (:func:`_loop_process`) runs, once per sample::
+
+    sleep to (deadline - spin), busy-wait to the deadline       absolute: t0 + k t_s
+    s     = dev.read_sample()                                   waits for the device's sample
+    code  = supervisor.check(s)                                 bounds, NaN, stuck, stale, link
+    if code: dev.safe(); ...; stop                              safe state before anything else
+    ctrl.step(s.t, s.T_w, s.T_p, s.T_a, T_w_cmd)                SkinController: the same blocks
+    drive, v = supervisor.gate(ctrl.drive, ctrl.v)
+    dev.write_command(drive, v)
+    ring[k] = (t, T_w, ..., lateness, busy)                     fixed-size float64 row
+
+and nothing else: no logging, no plotting, no JSON, no formatting. The garbage collector
+is frozen and disabled after start-up (the loop allocates no reference cycles), the
+process asks for ``SCHED_FIFO`` real-time priority and runs without it where that is not
+permitted. Rows go into a ring of float64 rows in shared memory (one writer, one reader:
+the row first, then the write counter); the parent process (:func:`run_realtime`) drains
+it every ~20 ms into the log columns, the recorder and the console. The loop never waits
+for the parent: if the parent falls more than the ring behind, rows are lost and counted.
+
+Pacing. With the simulated skin the deadlines are ``t0 + k t_s``. With a serial device
+the device's own clock paces the samples: the deadline of a sample is ``t0 + t`` with
+``t`` its device time and ``t0`` the host time the first sample arrived, so the
+lateness is the time from a sample's nominal arrival to the start of its processing
+(the device's own jitter, transport and host scheduling); the *lag* is the host's part,
+from the later of deadline and arrival to the start of processing. Samples already
+queued (after a late step) are taken at once, so the loop catches up instead of running
+behind. (A device clock that drifts against the host's shows as a slow trend of the
+lateness; the emulator shares the host's clock.) An *overrun* is a step that ended more
+than ``t_s`` after its sample was due and there.
+
+A fault ends the run: the device goes to its safe state first (SAFE frame; the
+simulated skin latches drive 0 and pump off), then the fault row is written, and the
+summary carries the fault, its device time and the time the safe state was commanded.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+import math
+import os
+import signal
+import struct
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from multiprocessing import shared_memory
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thermoskin.detector import ContactEvent
+from thermoskin.params import Config
+from thermoskin.runtime import supervisor as sv
+from thermoskin.sim.scenarios import Scenario
+
+#: The fields of a ring row, in order: the log columns of ``closed_loop.COLUMNS`` (truth NaN
+#: on hardware), then the device's flags, the loop's timing and the fault code.
+ROW = ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd", "T_p_cmd", "drive", "q_i_hat", "dq_i_hat",
+       "contact", "gap", "q_i", "T_g", "T_w_true", "T_p_true", "contact_true", "n_fingers",
+       "fresh", "stale", "stuck", "status", "seq", "v_dev", "drive_dev", "late", "lag", "busy", "fault")
+NF = len(ROW)
+_ROW = struct.Struct(f"<{NF}d")
+_HDR = struct.Struct("<qqq")  # rows written (loop), stop request (parent), reserved
+_COUNT = struct.Struct("<q")
+_HDR_BYTES = 64
+_I = {k: i for i, k in enumerate(ROW)}
+#: Columns that only the simulated skin has.
+TRUTH = ("q_i", "T_g", "T_w_true", "T_p_true", "contact_true", "n_fingers")
+
+
+@dataclass
+class LoopSpec:
+    """What the loop process needs (picklable: it crosses into a new process)."""
+
+    cfg: Config
+    scenario: Scenario
+    device: str = "sim"
+    """``"sim"`` (the simulated skin, paced at wall-clock speed) or ``"serial://PATH"``."""
+    duration: float | None = None
+    """Seconds of device time (default: the scenario's)."""
+    skin_model: str = "network"
+    spin_s: float = 2.0e-4
+    """Busy-wait before each deadline, s (the sleep before it ends this early)."""
+    rt_priority: int = 50
+    """``SCHED_FIFO`` priority asked for (0: do not ask)."""
+    first_sample_timeout: float = 1.0
+
+
+@dataclass
+class RealtimeResult:
+    """The log, the contacts, the loop's timing and the fault (if any) of one run."""
+
+    columns: dict[str, NDArray[np.float64]]
+    events: list[ContactEvent]
+    scenario: Scenario
+    wall_s: float
+    summary: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def fault(self) -> str | None:
+        """The fault's name, or ``None`` (a stop on request is no fault)."""
+        code = self.summary.get("fault", 0)
+        return None if code in (sv.OK, sv.STOPPED) else sv.FAULTS.get(code, str(code))
+
+    @property
+    def realtime_factor(self) -> float:
+        n = len(self.columns.get("t", ()))
+        dur = n * self.summary.get("t_s", 1e-3)
+        return dur / self.wall_s if self.wall_s > 0 else math.inf
+
+    def timing(self) -> dict[str, float]:
+        """p50/p99/max (µs) of the lateness, the lag (start after the sample was there) and the
+        step time; overruns, rows."""
+        late = self.columns.get("late", np.zeros(0))
+        busy = self.columns.get("busy", np.zeros(0))
+        out: dict[str, float] = {"rows": float(len(late)),
+                                 "overruns": float(self.summary.get("overruns", 0)),
+                                 "lost_rows": float(self.summary.get("lost_rows", 0))}
+        lag = self.columns.get("lag", np.zeros(0))
+        for name, x in (("late", late), ("lag", lag), ("busy", busy)):
+            x = x[np.isfinite(x)] * 1e6
+            if x.size:
+                out[f"{name}_p50_us"] = float(np.percentile(x, 50))
+                out[f"{name}_p99_us"] = float(np.percentile(x, 99))
+                out[f"{name}_max_us"] = float(x.max())
+        return out
+
+
+# ----------------------------------------------------------------------------- loop process
+
+def _set_priority(prio: int) -> str:
+    if prio <= 0 or not hasattr(os, "sched_setscheduler"):
+        return "normal"
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(prio))
+        return f"SCHED_FIFO {prio}"
+    except (PermissionError, OSError):
+        return "normal (no permission for SCHED_FIFO)"
+
+
+def _make_device(spec: LoopSpec) -> Any:
+    if spec.device == "sim":
+        from thermoskin.devices.sim_device import SimDevice
+
+        return SimDevice(spec.cfg, spec.scenario, skin_model=spec.skin_model)
+    if spec.device.startswith("serial://"):
+        from thermoskin.devices.serial_device import SerialDevice
+
+        s = spec.cfg.safety
+        return SerialDevice(spec.device[len("serial://"):], t_s=spec.cfg.sampling.t_s,
+                            link_timeout=s.link_timeout_s, stale_after=s.stale_s,
+                            stuck_after=max(1, s.stuck_readings))
+    raise ValueError(f"unknown device {spec.device!r} (sim or serial://PATH)")
+
+
+def _warm_up(cfg: Config, T: float) -> None:
+    """Step a throw-away loop body so that first-call costs (imports, caches) are paid now."""
+    from thermoskin.runtime.controller import SkinController
+
+    c = SkinController(cfg)
+    c.reset(T)
+    for k in range(20):
+        c.step(k * cfg.sampling.t_s, T, T, T, T)
+
+
+def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
+    """The fixed-rate loop over ``spec.device``; rows into the ring in ``buf``; the summary."""
+    from thermoskin.runtime.controller import SkinController
+
+    cfg, sc = spec.cfg, spec.scenario
+    t_s = cfg.sampling.t_s
+    duration = spec.duration if spec.duration is not None else sc.duration
+    n_max = max(1, math.floor(duration / t_s + 1e-9))
+    summary: dict[str, Any] = {"t_s": t_s, "fault": sv.OK, "overruns": 0, "rows": 0,
+                               "device": spec.device}
+    dev = _make_device(spec)
+    is_sim = spec.device == "sim"
+    ctrl = SkinController(cfg)
+    sup = sv.Supervisor(cfg)
+    _warm_up(cfg, sc.T_a)
+    summary["priority"] = _set_priority(spec.rt_priority)
+    cmd_at = sc.T_w_cmd_at
+    changes = sorted({0.0, *(t0 for t0, _ in sc.setpoints)})
+    pack = _ROW.pack_into
+    count_pack = _COUNT.pack_into
+    hdr_unpack = _HDR.unpack_from
+    mono = time.monotonic
+    sleep = time.sleep
+    spin = spec.spin_s
+    row_bytes = _ROW.size
+    nan = math.nan
+    truth = getattr(dev, "truth", None)
+    plant = getattr(dev, "plant", None)
+    pending = getattr(dev, "pending", None)
+    faults_seen = 0
+    dev_faults = getattr(dev, "faults", None)
+    ppid = os.getppid()
+
+    gc.collect()
+    if hasattr(gc, "freeze"):
+        gc.freeze()
+    gc.disable()
+    dev.open()  # DeviceError propagates: the parent reports it
+    try:
+        s = dev.read_sample(spec.first_sample_timeout)
+        if s is None:
+            summary.update(fault=sv.LINK, fault_name="link", t_fault=0.0,
+                           detail=f"no first sample within {spec.first_sample_timeout:g} s")
+            dev.safe()
+            return summary
+        t_first = s.t
+        t0 = mono() if is_sim else s.t_recv  # the host time of device time t_first
+        ctrl.reset(s.T_p if (not is_sim and s.T_p == s.T_p) else sc.T_a)
+        cmd = cmd_at(0.0)
+        k = 0
+        overruns = 0
+        t_last_arrival = mono()
+        code = sv.OK
+        t_safe_host = nan
+        next_deadline = t0
+        while True:
+            # ---- the sample of this step (s) is in hand; its deadline:
+            t_dev = s.t - t_first
+            deadline = t0 + t_dev
+            start = mono()
+            late = start - deadline
+            if changes and t_dev >= changes[0]:
+                cmd = cmd_at(t_dev)
+                changes.pop(0)
+            code = sup.check(s.t, s.T_w, s.T_p, s.T_a, s.stale, s.stuck, s.status)
+            if dev_faults is not None and len(dev_faults) > faults_seen:
+                f = dev_faults[faults_seen][1]
+                faults_seen = len(dev_faults)
+                code = sup.device_fault(s.t, f.name, f.value)
+            if code:
+                dev.safe()  # safe state before anything else
+                t_safe_host = mono()
+                drive = v = 0.0
+                q_i_hat, dq, contact, gap = ctrl.observer.q_i_hat, ctrl.observer.dq_i_hat, 0, 1
+                T_p_cmd = ctrl.T_p_cmd
+            else:
+                ctrl.step(s.t, s.T_w, s.T_p, s.T_a, cmd)
+                drive, v = sup.gate(ctrl.drive, ctrl.v)
+                obs = ctrl.observer
+                q_i_hat, dq, contact, gap = obs.q_i_hat, obs.dq_i_hat, ctrl.contact, obs.gap
+                T_p_cmd = ctrl.T_p_cmd
+            if truth is not None:
+                q_i, T_g, T_wt, T_pt = truth()
+                kk = plant.k
+                c_true = 1.0 if plant.G_c[kk] > 0 else 0.0
+                n_f = float(plant.n_fingers[kk])
+            else:
+                q_i = T_g = T_wt = T_pt = c_true = n_f = nan
+            if not code:
+                dev.write_command(drive, v)
+            end = mono()
+            t_avail = s.t_recv if s.t_recv > deadline else deadline
+            if end > t_avail + t_s:
+                overruns += 1
+            pack(buf, _HDR_BYTES + (k % cap) * row_bytes, s.t, s.T_w, s.T_p, v, s.T_a, cmd, T_p_cmd,
+                 drive, q_i_hat, dq, contact, gap, q_i, T_g, T_wt, T_pt, c_true, n_f, s.fresh, s.stale,
+                 s.stuck, s.status, s.seq, s.v, s.drive, late, start - t_avail, end - start, code)
+            k += 1
+            count_pack(buf, 0, k)
+            if code or k >= n_max:
+                break
+            # ---- wait for the next deadline, then take the next sample
+            if hdr_unpack(buf, 0)[1] or (k & 127 == 0 and os.getppid() != ppid):
+                code = sup.stop(s.t)
+                dev.safe()
+                t_safe_host = mono()
+                break
+            next_deadline = t0 + t_dev + t_s
+            if pending is None or not pending():
+                rest = next_deadline - mono() - spin
+                if rest > 0.0:
+                    sleep(rest)
+                while mono() < next_deadline:
+                    pass
+            if is_sim:
+                s = dev.read_sample(0.0)
+                if s is None:
+                    break
+                continue
+            s = dev.read_sample(0.0)
+            while s is None:
+                age = mono() - t_last_arrival
+                code = sup.link_lost(next_deadline - t0 + t_first, age)
+                if code:
+                    break
+                s = dev.read_sample(min(0.002, sup.link_timeout - age + 1e-4))
+            if code:
+                dev.safe()
+                t_safe_host = mono()
+                break
+            t_last_arrival = s.t_recv
+        summary.update(overruns=overruns, rows=k, fault=sup.code, fault_name=sv.FAULTS[sup.code],
+                       detail=sup.detail, t_fault=sup.t_fault, fault_value=sup.value,
+                       t_safe=(t_safe_host - t0 + t_first) if t_safe_host == t_safe_host else nan,
+                       t_end=s.t if s is not None else nan)
+        det = ctrl.detector
+        det.finish(summary["t_end"] if math.isfinite(summary["t_end"]) else (k - 1) * t_s)
+        summary["events"] = list(det.events)
+        dec = getattr(dev, "decoder", None)
+        if dec is not None:
+            st = dec.stats
+            summary["link"] = {"frames": st.frames, "corrupted": st.corrupted, "lost": st.lost,
+                               "repeated": st.repeated, "out_of_order": st.out_of_order}
+        return summary
+    finally:
+        gc.enable()
+        with contextlib.suppress(Exception):
+            dev.close()  # safe state, then disconnect
+
+
+def _loop_process(spec: LoopSpec, shm_name: str, cap: int, conn: Any) -> None:
+    """Entry point of the loop process: run, then send the summary down ``conn``."""
+    with contextlib.suppress(ValueError, OSError):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent asks for the stop
+    shm = shared_memory.SharedMemory(name=shm_name)
+    try:
+        try:
+            summary = run_loop(spec, shm.buf, cap)
+        except Exception as e:  # reported by the parent as one line
+            summary = {"error": f"{type(e).__name__}: {e}",
+                       "device_error": type(e).__name__ == "DeviceError"}
+        with contextlib.suppress(OSError):  # the parent may be gone (killed)
+            conn.send(summary)
+            conn.close()
+    finally:
+        shm.close()
+
+
+# ----------------------------------------------------------------------------- parent side
+
+class _Columns:
+    """Growing float64 columns of the ring's rows."""
+
+    def __init__(self, n_hint: int) -> None:
+        self.data = np.empty((max(16, n_hint), NF))
+        self.n = 0
+
+    def add(self, rows: NDArray[np.float64]) -> None:
+        m = len(rows)
+        if self.n + m > len(self.data):
+            new = np.empty((max(2 * len(self.data), self.n + m), NF))
+            new[: self.n] = self.data[: self.n]
+            self.data = new
+        self.data[self.n: self.n + m] = rows
+        self.n += m
+
+    def columns(self) -> dict[str, NDArray[np.float64]]:
+        d = self.data[: self.n]
+        return {k: d[:, i].copy() for k, i in _I.items()}
+
+
+def run_realtime(spec: LoopSpec, *, on_rows: Callable[[dict[str, NDArray[np.float64]]], None] | None = None,
+                 ring_rows: int = 1 << 16, poll_s: float = 0.02,
+                 stop: threading.Event | None = None) -> RealtimeResult:
+    """Run the fixed-rate loop in a new process; drain its rows; return the log and summary.
+
+    ``on_rows(block)`` gets each drained block as columns (for the console and the
+    recorder). Ctrl-C (or ``stop``) asks the loop to stop: the device goes to its safe
+    state and the run ends with the rows so far (``summary["fault"] == STOPPED``).
+    """
+    import multiprocessing as mp
+
+    t_s = spec.cfg.sampling.t_s
+    duration = spec.duration if spec.duration is not None else spec.scenario.duration
+    n_hint = math.floor(duration / t_s + 1e-9) + 1
+    # fork is fast; a process with other threads (an emulator thread in the tests) spawns
+    method = "fork" if threading.active_count() == 1 and "fork" in mp.get_all_start_methods() else "spawn"
+    ctx = mp.get_context(method)
+    shm = shared_memory.SharedMemory(create=True, size=_HDR_BYTES + ring_rows * _ROW.size)
+    views = {"hdr": np.ndarray((3,), dtype=np.int64, buffer=shm.buf),
+             "ring": np.ndarray((ring_rows, NF), dtype=np.float64, buffer=shm.buf, offset=_HDR_BYTES)}
+    hdr = views["hdr"]
+    hdr[:] = 0
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_loop_process, args=(spec, shm.name, ring_rows, send),
+                       name="thermoskin-loop", daemon=True)
+    cols = _Columns(n_hint)
+    read = 0
+    lost = 0
+    summary: dict[str, Any] | None = None
+    wall0 = time.perf_counter()
+    interrupted = False
+
+    def drain() -> None:
+        nonlocal read, lost
+        ring = views["ring"]
+        w = int(views["hdr"][0])
+        if w <= read:
+            return
+        if w - read > ring_rows:
+            lost += w - read - ring_rows
+            read = w - ring_rows
+        i0, i1 = read % ring_rows, w % ring_rows
+        block = (ring[i0:i1] if i0 < i1 or w - read == 0 else
+                 np.concatenate([ring[i0:], ring[:i1]]))
+        block = np.array(block)  # copy before the writer comes round
+        read = w
+        cols.add(block)
+        if on_rows is not None:
+            on_rows({k: block[:, i] for k, i in _I.items()})
+
+    try:
+        proc.start()
+        send.close()
+        while summary is None:
+            try:
+                if stop is not None and stop.is_set():
+                    hdr[1] = 1
+                if recv.poll(poll_s):
+                    try:
+                        summary = recv.recv()
+                    except EOFError:
+                        summary = {"error": "the loop process ended without a summary"}
+                drain()
+                if summary is None and not proc.is_alive() and not recv.poll(0):
+                    summary = {"error": f"the loop process died (exit code {proc.exitcode})"}
+            except KeyboardInterrupt:
+                interrupted = True
+                hdr[1] = 1
+        drain()
+    finally:
+        if proc.pid is not None:
+            proc.join(5.0)
+        if proc.pid is not None and proc.is_alive():
+            proc.terminate()
+            proc.join(2.0)
+        del hdr
+        views.clear()  # no view may outlive the shared memory
+        shm.close()
+        shm.unlink()
+    summary["lost_rows"] = lost
+    summary["interrupted"] = interrupted
+    wall = time.perf_counter() - wall0
+    return RealtimeResult(columns=cols.columns(), events=summary.get("events", []),
+                          scenario=spec.scenario, wall_s=wall, summary=summary)

@@ -1,0 +1,142 @@
+"""`thermoskin device-emulator`, `run --device serial://`, `--record`, `export`, `replay` as
+processes, end to end over a real pseudo-terminal."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thermoskin.logio import read_log
+from thermoskin.runtime.closed_loop import COLUMNS
+from thermoskin.runtime.record import iter_messages, read_mcap
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+
+ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
+CMD = [sys.executable, "-c", "from thermoskin.cli import main; main()"]
+MEASURED = [k for k in COLUMNS if k not in ("q_i", "T_g", "T_w_true", "T_p_true", "contact_true",
+                                             "n_fingers")]
+
+
+def thermoskin(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*CMD, *args], capture_output=True, text=True, timeout=timeout, env=ENV)
+
+
+@pytest.fixture
+def emulator(tmp_path: Path) -> Iterator[Callable[..., Path]]:
+    procs: list[subprocess.Popen[str]] = []
+
+    def start(*faults: str) -> Path:
+        link = tmp_path / f"skin{len(procs)}"
+        args = [*CMD, "device-emulator", "--link", str(link)]
+        for f in faults:
+            args += ["--fault", f]
+        p = subprocess.Popen(args, stderr=subprocess.PIPE, text=True, env=ENV)
+        procs.append(p)
+        t_end = time.monotonic() + 20
+        while not link.is_symlink():
+            assert p.poll() is None, p.stderr.read() if p.stderr else ""
+            assert time.monotonic() < t_end, "the emulator did not create its link"
+            time.sleep(0.05)
+        return link
+
+    yield start
+    for p in procs:
+        p.send_signal(signal.SIGTERM)
+        try:
+            p.wait(10)
+        except subprocess.TimeoutExpired:
+            p.kill()
+
+
+def test_serial_run_record_replay_export(emulator: Callable[..., Path], tmp_path: Path) -> None:
+    link = emulator()
+    log, rec = tmp_path / "x.csv", tmp_path / "x.mcap"
+    r = thermoskin("run", "--device", f"serial://{link}", "--duration", "3", "--log", str(log),
+                   "--plot", str(tmp_path / "x.png"), "--record", str(rec))
+    assert r.returncode == 0, r.stderr
+    assert "lateness p50" in r.stdout and "overruns" in r.stdout
+    d = read_log(log)
+    assert list(d) == MEASURED and len(d["t"]) == 3000
+    assert all(np.isfinite(v).all() for v in d.values())
+    # the recording: JSON-schema channels, parameters, every sample
+    info: dict = {}
+    data = read_mcap(rec, info=info)
+    assert info["complete"]
+    assert len(data["/skin/sample"]) == 3000 and len(data["/skin/estimate"]) == 3000
+    assert data["/params"][0]["config"]["safety"]["T_touch_max"] == 40.0
+    kinds = [e["kind"] for e in data["/events"]]
+    assert kinds[0] == "run-start" and kinds[-1] == "run-end"
+    # replay reproduces the live estimates exactly
+    out = tmp_path / "replay.csv"
+    r = thermoskin("replay", str(rec), "-o", str(out))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "identical" in r.stdout
+    rp = read_log(out)
+    np.testing.assert_array_equal(rp["q_i_hat"], d["q_i_hat"])
+    np.testing.assert_array_equal(rp["contact"], d["contact"])
+    # export
+    for ext in ("parquet", "csv"):
+        r = thermoskin("export", str(rec), "-o", str(tmp_path / f"x.{ext}"))
+        assert r.returncode == 0, r.stderr
+    import pyarrow.parquet as pq
+
+    tab = pq.read_table(tmp_path / "x.parquet")
+    assert tab.num_rows == 3000 and {"T_w", "q_i_hat", "v_cmd", "late"} <= set(tab.column_names)
+
+
+def test_fault_exits_3_in_safe_state(emulator: Callable[..., Path], tmp_path: Path) -> None:
+    link = emulator("overtemp@1.0")
+    log = tmp_path / "f.csv"
+    r = thermoskin("run", "--device", f"serial://{link}", "--duration", "5", "--log", str(log),
+                   "--plot", str(tmp_path / "f.png"), "--record", str(tmp_path / "f.mcap"))
+    assert r.returncode == 3, r.stdout + r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("thermoskin: fault:")]
+    assert len(lines) == 1 and "overtemp at t = 1.000 s" in lines[0] and "drive 0, pump off" in lines[0]
+    d = read_log(log)  # what was recorded is kept
+    assert 999 <= len(d["t"]) <= 1001 and d["drive"][-1] == 0 and d["v"][-1] == 0
+    ev = [e for e in read_mcap(tmp_path / "f.mcap", ["/events"])["/events"] if e["kind"] == "fault"]
+    assert ev and ev[0]["detail"]["name"] == "overtemp"
+
+
+def test_no_device_is_a_one_line_error(tmp_path: Path) -> None:
+    r = thermoskin("run", "--device", f"serial://{tmp_path / 'nothing'}", "--duration", "1",
+                   "--log", str(tmp_path / "n.csv"))
+    assert r.returncode == 2 and r.stderr.startswith("thermoskin: error: cannot open")
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_bad_arguments(tmp_path: Path) -> None:
+    r = thermoskin("run", "--device", "usb0", "--duration", "1")
+    assert r.returncode == 2 and "sim or serial://PATH" in r.stderr
+    r = thermoskin("run", "--duration", "1", "--record", str(tmp_path / "x.bag"))
+    assert r.returncode == 2 and ".mcap" in r.stderr
+    r = thermoskin("replay", str(tmp_path / "none.mcap"), "-o", str(tmp_path / "o.csv"))
+    assert r.returncode == 2 and "does not exist" in r.stderr
+    r = thermoskin("device-emulator", "--link", str(tmp_path / "l"), "--fault", "melt@1")
+    assert r.returncode == 2 and "KIND@SECONDS" in r.stderr
+
+
+def test_killed_recording_loses_at_most_a_second(tmp_path: Path) -> None:
+    rec = tmp_path / "k.mcap"
+    p = subprocess.Popen([*CMD, "run", "--realtime", "--scenario", "none", "--duration", "60",
+                          "--log", str(tmp_path / "k.csv"), "--record", str(rec)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    assert p.stdout is not None
+    assert p.stdout.readline().startswith("thermoskin run")  # the loop starts right after this
+    time.sleep(3.0)
+    p.kill()
+    p.wait(10)
+    info: dict = {}
+    t = [ti for _, ti, _ in iter_messages(rec, ["/skin/sample"], info)]
+    assert info["truncated"] or not info["complete"]
+    assert 3.0 - 1.0 - 0.6 <= t[-1] <= 3.1  # at most the last second lost (0.6 s start-up)
+    assert np.allclose(np.diff(t), 1e-3)  # contiguous: nothing lost in between

@@ -1,0 +1,158 @@
+"""The fixed-rate loop process: simulated skin at wall-clock speed, the emulator over a real
+pseudo-terminal, and every injected fault ending in the safe state within its delay."""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thermoskin.devices.emulator import DeviceCore, FaultSpec, PtyEmulator
+from thermoskin.params import Config
+from thermoskin.runtime import supervisor as sv
+from thermoskin.runtime.closed_loop import COLUMNS, run_closed_loop
+from thermoskin.runtime.realtime import ROW, LoopSpec, run_realtime
+from thermoskin.sim.scenarios import SCENARIOS
+
+needs_pty = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+
+#: Fault -> (the supervisor's name for it, the delay by which the host must be safe, s).
+FAULT_LIMITS = {"tc-open": ("tc-open", 0.010), "nan-burst": ("nan", 0.200),
+                "overtemp": ("overtemp", 0.010), "serial-drop": ("link", 0.100),
+                "tc-stuck": ("stuck", 1.0)}
+
+Start = Callable[..., tuple[DeviceCore, Path]]
+
+
+@pytest.fixture
+def emulator(tmp_path: Path) -> Iterator[Start]:
+    running: list[tuple[PtyEmulator, threading.Thread]] = []
+
+    def start(faults: tuple[str, ...] = ()) -> tuple[DeviceCore, Path]:
+        core = DeviceCore(Config(), SCENARIOS["fingers"], [FaultSpec.parse(f) for f in faults])
+        emu = PtyEmulator(tmp_path / "skin", core)
+        th = threading.Thread(target=emu.run, daemon=True)
+        th.start()
+        assert emu.ready.wait(5.0)
+        running.append((emu, th))
+        return core, emu.link
+
+    yield start
+    for emu, th in running:
+        emu.stop()
+        th.join(5.0)
+
+
+def test_realtime_sim_same_columns_and_paced() -> None:
+    cfg = Config()
+    sc = SCENARIOS["none"].with_duration(1.5)
+    res = run_realtime(LoopSpec(cfg, sc, device="sim"))
+    assert res.fault is None and not res.summary.get("error")
+    cols = res.columns
+    assert set(COLUMNS) <= set(cols) and len(cols["t"]) == 1500
+    assert np.all(np.diff(cols["t"]) == pytest.approx(1e-3))
+    assert 1.4 < res.wall_s < 4.0  # wall-clock speed, plus the process start
+    tm = res.timing()
+    assert tm["late_p50_us"] < 500 and tm["lost_rows"] == 0
+    # the same blocks and the same plant as the in-process loop: the same log
+    fast = run_closed_loop(sc, cfg).columns
+    for k in ("T_w", "T_p", "v", "T_p_cmd", "drive", "q_i_hat", "contact", "T_g"):
+        np.testing.assert_array_equal(cols[k], fast[k], err_msg=k)
+
+
+def test_stop_request_ends_in_safe_state() -> None:
+    stop = threading.Event()
+    seen = [0]
+
+    def on_rows(block: dict) -> None:
+        seen[0] += len(block["t"])
+        if seen[0] >= 500:
+            stop.set()
+
+    res = run_realtime(LoopSpec(Config(), SCENARIOS["none"].with_duration(30.0)), stop=stop,
+                       on_rows=on_rows)
+    assert res.summary["fault"] == sv.STOPPED and res.fault is None
+    assert 500 <= len(res.columns["t"]) < 1000 and res.wall_s < 10
+
+
+def test_unknown_device_reported() -> None:
+    res = run_realtime(LoopSpec(Config(), SCENARIOS["none"].with_duration(1.0), device="usb://x"))
+    assert "unknown device" in res.summary["error"]
+
+
+@needs_pty
+def test_serial_loop_over_emulator(emulator: Start) -> None:
+    core, link = emulator()
+    res = run_realtime(LoopSpec(Config(), SCENARIOS["fingers"], device=f"serial://{link}", duration=2.0))
+    assert res.fault is None, res.summary
+    c = res.columns
+    assert len(c["t"]) == 2000 and np.all(np.diff(c["t"]) == pytest.approx(1e-3))
+    for k in ("t", "T_w", "T_p", "T_a", "v", "T_p_cmd", "drive", "q_i_hat", "dq_i_hat"):
+        assert np.all(np.isfinite(c[k])), k
+    assert np.all(np.isnan(c["T_g"]))  # no truth behind a serial line
+    # 10 Hz thermocouples: fresh readings every 100 samples, the rest repeated (held)
+    fresh = np.flatnonzero(c["fresh"] != 0)
+    assert 19 <= len(fresh) <= 21 and np.all(np.diff(fresh) == 100)
+    seg = c["T_w"][fresh[1]:fresh[2]]
+    assert np.all(seg == seg[0])
+    assert res.summary["link"]["corrupted"] == 0
+    assert core.t_safe == pytest.approx(2.0, abs=0.05)  # close() sends SAFE at the end
+
+
+@needs_pty
+@pytest.mark.parametrize("kind", list(FAULT_LIMITS))
+def test_fault_ends_in_safe_state_within_delay(emulator: Start, kind: str) -> None:
+    t_f = 1.2
+    name, limit = FAULT_LIMITS[kind]
+    core, link = emulator((f"{kind}@{t_f}",))
+    res = run_realtime(LoopSpec(Config(), SCENARIOS["fingers"], device=f"serial://{link}", duration=5.0))
+    s = res.summary
+    assert res.fault == name, s
+    delay_host = s["t_safe"] - t_f
+    assert 0.0 <= delay_host <= limit, (kind, delay_host)
+    if kind != "serial-drop":  # a cut cable carries no SAFE: the device's watchdog takes over
+        delay_dev = core.t_safe - t_f
+        assert 0.0 <= delay_dev <= limit + 0.002, (kind, delay_dev)
+        assert core.safe_latched
+    c = res.columns
+    if kind == "serial-drop":  # no sample, no row: the fault is in the summary
+        assert np.all(c["fault"] == 0) and c["t"][-1] < t_f
+    else:  # the sample that tripped: recorded, outputs zero
+        assert c["fault"][-1] != 0 and c["drive"][-1] == 0.0 and c["v"][-1] == 0.0
+        assert np.all(c["fault"][:-1] == 0)
+    before = c["t"] < t_f - 1e-9
+    assert np.all(np.isfinite(c["q_i_hat"][before]))
+
+
+def test_row_layout_covers_log_columns() -> None:
+    assert set(COLUMNS) <= set(ROW) and len(set(ROW)) == len(ROW)
+
+
+def test_in_process_loop_trips_on_touch_limit() -> None:
+    cfg = Config().replace(safety={"T_touch_max": 22.0})
+    res = run_closed_loop(SCENARIOS["none"].with_duration(30.0), cfg)
+    assert res.fault == "touch-temp"
+    c = res.columns
+    n = len(c["t"])
+    assert n < 30_000 and c["T_w"][-1] > 22.0 and c["drive"][-1] == 0.0 and c["v"][-1] == 0.0
+    assert math.isclose(res.summary["t_fault"], c["t"][-1])
+
+
+def test_in_process_recording_replays_exactly(tmp_path: Path) -> None:
+    from thermoskin.runtime.record import LoopRecorder, replay
+
+    cfg = Config()
+    rec = LoopRecorder(tmp_path / "r.mcap", cfg)
+    res = run_closed_loop(SCENARIOS["one-finger"].shifted(3.0).with_duration(8.0), cfg,
+                          on_block=rec.write_rows, block=700)
+    rec.close()
+    cols, cmp = replay(tmp_path / "r.mcap")
+    assert cmp["exact"] and cmp["samples"] == len(res.columns["t"]) == 8000
+    np.testing.assert_array_equal(cols["q_i_hat"], res.columns["q_i_hat"])
+    np.testing.assert_array_equal(cols["contact"], res.columns["contact"])
+    assert [e.onset for e in cmp["events"]] == [e.onset for e in res.events]

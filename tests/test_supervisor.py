@@ -1,0 +1,87 @@
+"""The safety supervisor, sample by sample (no I/O)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from thermoskin.devices import protocol as proto
+from thermoskin.params import Config, ConfigError, load_config
+from thermoskin.runtime import supervisor as sv
+
+
+def sup(**safety: object) -> sv.Supervisor:
+    return sv.Supervisor(Config().replace(safety=safety) if safety else Config())
+
+
+def test_quiet_samples_pass_and_gate_passes_outputs() -> None:
+    s = sup()
+    for k in range(2000):
+        assert s.check(k * 1e-3, 24.0 + 0.01 * math.sin(k), 30.0, 20.0) == sv.OK
+    assert s.gate(0.3, 0.141) == (0.3, 0.141)
+
+
+@pytest.mark.parametrize(("sample", "code"), [
+    ((24.0, 45.0, 20.0, 0, 0, 0), sv.OVERTEMP),
+    ((24.0, 2.0, 20.0, 0, 0, 0), sv.OVERTEMP),
+    ((math.nan, 30.0, 20.0, 0, 0, proto.ST_OPEN_W), sv.TC_OPEN),
+    ((41.0, 39.0, 20.0, 0, 0, 0), sv.TOUCH_TEMP),
+    ((24.0, 30.0, 20.0, 0, proto.CH_W, 0), sv.STUCK),
+    ((24.0, 30.0, 20.0, proto.CH_A, 0, 0), sv.STALE),
+    ((24.0, 30.0, 20.0, 0, 0, proto.ST_WATCHDOG), sv.DEVICE),
+])
+def test_each_fault_trips_at_once_and_latches(sample: tuple, code: int) -> None:
+    s = sup()
+    assert s.check(0.0, 24.0, 30.0, 20.0) == sv.OK
+    assert s.check(0.001, *sample) == code
+    assert s.tripped and s.t_fault == 0.001 and s.detail
+    assert s.gate(0.5, 0.141) == (0.0, 0.0)
+    assert s.check(0.002, 24.0, 30.0, 20.0) == code  # latched: a good sample does not clear it
+    s.reset()  # the explicit restart
+    assert s.check(0.003, 24.0, 30.0, 20.0) == sv.OK and s.gate(0.5, 0.1) == (0.5, 0.1)
+
+
+def test_short_nan_gap_held_over_lasting_one_trips() -> None:
+    s = sup(max_nan_s=0.15)
+    t = 0.0
+    for _ in range(100):  # one bad thermocouple conversion: 0.1 s of NaN
+        assert s.check(t, math.nan, 30.0, 20.0) == sv.OK
+        t += 1e-3
+    assert s.check(t, 24.0, 30.0, 20.0) == sv.OK
+    t0 = t = t + 1e-3
+    while s.check(t, 24.0, math.nan, 20.0) == sv.OK:
+        t += 1e-3
+        assert t - t0 < 0.2
+    assert s.code == sv.NAN and t - t0 == pytest.approx(0.151, abs=1.5e-3)
+
+
+def test_link_timeout() -> None:
+    s = sup(link_timeout_s=0.05)
+    assert s.link_lost(1.0, 0.04) == sv.OK
+    assert s.link_lost(1.01, 0.051) == sv.LINK
+
+
+def test_surface_estimate_network_is_less_conservative() -> None:
+    cfg = Config()
+    net = sv.Supervisor(cfg.replace(safety={"surface": "network"}))
+    Rg, Rag = cfg.skin.R_g, cfg.skin.R_ag
+    assert net.surface(41.0, 20.0) == pytest.approx((Rag * 41 + Rg * 20) / (Rg + Rag))
+    assert net.check(0.0, 41.0, 39.0, 20.0) == sv.OK  # the sheet sits near the air
+    assert sup().check(0.0, 41.0, 39.0, 20.0) == sv.TOUCH_TEMP
+
+
+def test_device_fault_frame() -> None:
+    s = sup()
+    assert s.device_fault(0.5, "tc-open", math.nan) == sv.TC_OPEN
+
+
+def test_safety_config_validated(tmp_path) -> None:
+    with pytest.raises(ConfigError, match=r"safety\.T_touch_max = 70"):
+        Config().replace(safety={"T_touch_max": 70})
+    with pytest.raises(ConfigError, match=r"safety\.T_p_min"):
+        Config().replace(safety={"T_p_min": 40.0, "T_p_max": 30.0})
+    f = tmp_path / "c.toml"
+    f.write_text("[safety]\nT_touch_max = 38.5\nsurface = 'network'\n")
+    cfg = load_config(f)
+    assert cfg.safety.T_touch_max == 38.5 and cfg.safety.surface == "network"
