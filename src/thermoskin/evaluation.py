@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -67,7 +68,7 @@ def tracking_errors(log: dict[str, NDArray[np.float64]], scenario: object,
     edges = np.flatnonzero(np.diff(cmd) != 0) + 1
     bounds = [0, *edges.tolist(), len(t)]
     out = []
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+    for a, b in itertools.pairwise(bounds):
         t_end = t[b - 1]
         t_start = max(t[a] + 0.5 * (t_end - t[a]), t_end - window)
         w = slice(int(np.searchsorted(t, t_start)), b)
