@@ -46,9 +46,9 @@ class LoopResult:
 
     @property
     def fault(self) -> str | None:
-        """The fault's name, or ``None``."""
+        """The fault's name, or ``None`` (a stop on request is no fault)."""
         code = self.summary.get("fault", 0)
-        return None if code == sv.OK else sv.FAULTS.get(code, str(code))
+        return None if code in (sv.OK, sv.STOPPED) else sv.FAULTS.get(code, str(code))
 
     @property
     def realtime_factor(self) -> float:

@@ -46,16 +46,16 @@ import struct
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from multiprocessing import shared_memory
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.detector import ContactEvent
 from thermoskin.params import Config
 from thermoskin.runtime import supervisor as sv
+from thermoskin.runtime.closed_loop import LoopResult
 from thermoskin.sim.scenarios import Scenario
 
 #: The fields of a ring row, in order: the log columns of ``closed_loop.COLUMNS`` (truth NaN
@@ -91,21 +91,8 @@ class LoopSpec:
     first_sample_timeout: float = 1.0
 
 
-@dataclass
-class RealtimeResult:
-    """The log, the contacts, the loop's timing and the fault (if any) of one run."""
-
-    columns: dict[str, NDArray[np.float64]]
-    events: list[ContactEvent]
-    scenario: Scenario
-    wall_s: float
-    summary: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def fault(self) -> str | None:
-        """The fault's name, or ``None`` (a stop on request is no fault)."""
-        code = self.summary.get("fault", 0)
-        return None if code in (sv.OK, sv.STOPPED) else sv.FAULTS.get(code, str(code))
+class RealtimeResult(LoopResult):
+    """A :class:`LoopResult` with the fixed-rate loop's timing (``late``, ``lag``, ``busy``)."""
 
     @property
     def realtime_factor(self) -> float:
