@@ -150,6 +150,9 @@ class DetectorParams(_Validated):
                           doc="time constant of the noise estimate")
     sigma: float | None = _p(None, "W", 0, lo_open=True, optional=True,
                              doc="fixed residual noise level; measured when absent")
+    arm_band: float = _p(0.5, "K", 0.0, 50.0, lo_open=True,
+                         doc="in a loop with a command: detection starts once |T_w - T_w_cmd| ...")
+    t_arm: float = _p(3.0, "s", 0.0, 600.0, doc="... has stayed within arm_band this long")
     max_contact_s: float = _p(300.0, "s", 0.1, 1e6, lo_open=True,
                               doc="a contact longer than this is taken as a drift and ended")
 

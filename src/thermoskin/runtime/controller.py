@@ -3,8 +3,7 @@
 The same object runs against the simulated skin, a serial device, or a benchmark::
 
     v       = pump.step(T_w, T_w_cmd)                 Sec. V: stop while T_w is above its command
-    q_i_hat = observer.step(T_w, T_p, v, T_a)         eq. 8
-    contact = detector.step(t, r, dq_i_hat)
+    contact = estimator.step(t, T_w, T_p, v, T_a, T_w_cmd)   observer (eq. 8) -> detector
     T_p_cmd = mpc.step(T_w, T_a, T_w_cmd)             eqs. 9-11
     drive   = inner.step(T_p, T_p_cmd, T_a)           PI on the Peltier drive (Table I)
 
@@ -16,22 +15,22 @@ from __future__ import annotations
 from thermoskin.control.inner import InnerLoop
 from thermoskin.control.mpc import Mpc
 from thermoskin.control.pump import PumpLogic
-from thermoskin.detector import ContactDetector
-from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.estimator import TouchEstimator
 from thermoskin.params import Config
 
 
 class SkinController:
     """Observer, detector, MPC, inner loop and pump logic of one skin."""
 
-    __slots__ = ("T_p_cmd", "cfg", "contact", "detector", "drive", "inner", "mpc", "observer",
-                 "pump", "v")
+    __slots__ = ("T_p_cmd", "cfg", "contact", "detector", "drive", "estimator", "inner", "mpc",
+                 "observer", "pump", "v")
 
     def __init__(self, cfg: Config) -> None:
         t_s = cfg.sampling.t_s
         self.cfg = cfg
-        self.observer = ThermalExchangeObserver(cfg.skin, cfg.observer, t_s)
-        self.detector = ContactDetector(cfg.detector, t_s)
+        self.estimator = TouchEstimator(cfg)
+        self.observer = self.estimator.observer
+        self.detector = self.estimator.detector
         self.pump = PumpLogic(cfg.pump, t_s, min_dwell=cfg.pump.min_dwell)
         self.mpc = Mpc(cfg.skin, cfg.control, t_s, v_on=cfg.pump.v_on)
         self.inner = InnerLoop(cfg.control, t_s)
@@ -39,8 +38,7 @@ class SkinController:
 
     def reset(self, T_p: float | None = None) -> None:
         """Start every block afresh; ``T_p`` seeds the MPC's previous command."""
-        self.observer.reset()
-        self.detector.reset()
+        self.estimator.reset()
         self.pump.reset(on=True)
         self.mpc.reset(T_p)
         self.inner.reset(0.0)
@@ -52,9 +50,7 @@ class SkinController:
         """One sample of measurements; sets ``v, drive, T_p_cmd, contact`` (and the blocks')."""
         v = self.pump.step(T_w, T_w_cmd)
         self.v = v
-        obs = self.observer
-        obs.step(T_w, T_p, v, T_a)
-        self.contact = self.detector.step(t, obs.r, obs.dq_i_hat, obs.gap or not obs.ready)
+        self.contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd)
         T_p_cmd = self.mpc.step(T_w, T_a, T_w_cmd, v > 0.0)
         self.T_p_cmd = T_p_cmd
         self.drive = self.inner.step(T_p, T_p_cmd, T_a)

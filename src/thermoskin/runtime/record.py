@@ -521,8 +521,7 @@ def replay(path: str | os.PathLike[str], config: Any = None) -> tuple[dict[str, 
     the replayed ``q_i_hat, dq_i_hat, contact, gap`` and the live ones as ``*_live``;
     ``comparison`` the largest differences and the count of contact mismatches.
     """
-    from thermoskin.detector import ContactDetector
-    from thermoskin.observer import ThermalExchangeObserver
+    from thermoskin.estimator import TouchEstimator
 
     if config is None:
         params = read_mcap(path, ["/params"]).get("/params", [])
@@ -539,20 +538,17 @@ def replay(path: str | os.PathLike[str], config: Any = None) -> tuple[dict[str, 
     for k in need:
         if k not in cols:
             raise RecordingError(f"{path}: the recording has no {k!r} (recorded by an older version?)")
-    t_s = config.sampling.t_s
-    obs = ThermalExchangeObserver(config.skin, config.observer, t_s)
-    det = ContactDetector(config.detector, t_s)
-    obs.reset()
-    det.reset()
+    est = TouchEstimator(config)
+    obs, det = est.observer, est.detector
     out: dict[str, list[float]] = {k: [] for k in ("t", "T_w", "T_p", "v", "T_a", "q_i_hat", "dq_i_hat",
                                                    "contact", "gap", "q_i_hat_live", "contact_live")}
     T_w, T_p, T_a, v, t = cols["T_w"], cols["T_p"], cols["T_a"], cols["v_cmd"], cols["t"]
+    cmd = cols.get("T_w_cmd", [math.nan] * n_all)
     q_live, c_live = cols["q_i_hat"], cols["contact"]
     max_dq = 0.0
     mism = 0
     for i in stepped:
-        obs.step(T_w[i], T_p[i], v[i], T_a[i])
-        c = det.step(t[i], obs.r, obs.dq_i_hat, obs.gap or not obs.ready)
+        c = est.step(t[i], T_w[i], T_p[i], v[i], T_a[i], cmd[i])
         for k, x in (("t", t[i]), ("T_w", T_w[i]), ("T_p", T_p[i]), ("v", v[i]), ("T_a", T_a[i]),
                      ("q_i_hat", obs.q_i_hat), ("dq_i_hat", obs.dq_i_hat), ("contact", c),
                      ("gap", int(obs.gap)), ("q_i_hat_live", q_live[i]), ("contact_live", c_live[i])):

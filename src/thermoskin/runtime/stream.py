@@ -12,8 +12,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.detector import ContactDetector, ContactEvent
-from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.detector import ContactEvent
+from thermoskin.estimator import TouchEstimator
 from thermoskin.params import Config
 from thermoskin.pipeline import Observation
 
@@ -23,9 +23,8 @@ def stream(log: dict[str, NDArray[np.float64]], cfg: Config, *,
            on_event: Callable[[ContactEvent], None] | None = None,
            progress: Callable[[float], None] | None = None) -> Observation:
     """Observer and detector ``step`` per sample over ``log``; callbacks as contacts occur."""
-    t_s = cfg.sampling.t_s
-    obs = ThermalExchangeObserver(cfg.skin, cfg.observer, t_s)
-    det = ContactDetector(cfg.detector, t_s)
+    est = TouchEstimator(cfg)
+    obs, det = est.observer, est.detector
     t, T_w, T_p, v, T_a = (np.asarray(log[k], dtype=float).tolist()
                            for k in ("t", "T_w", "T_p", "v", "T_a"))
     n = len(t)
@@ -34,12 +33,12 @@ def stream(log: dict[str, NDArray[np.float64]], cfg: Config, *,
     contact = np.zeros(n, dtype=np.int8)
     gap = np.zeros(n, dtype=np.int8)
     every = max(1, n // 200)
-    obs_step, det_step = obs.step, det.step
+    est_step = est.step
     for k in range(n):
-        q_i_hat[k] = obs_step(T_w[k], T_p[k], v[k], T_a[k])
+        contact[k] = est_step(t[k], T_w[k], T_p[k], v[k], T_a[k])
+        q_i_hat[k] = obs.q_i_hat
         dq_i_hat[k] = obs.dq_i_hat
         gap[k] = obs.gap
-        contact[k] = det_step(t[k], obs.r, obs.dq_i_hat, obs.gap or not obs.ready)
         if det.started and on_start is not None:
             on_start(t[k])
         if det.ended and on_event is not None:
