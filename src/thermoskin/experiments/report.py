@@ -68,9 +68,10 @@ def write_report(path: Path, figs: Sequence[str], paths: dict[str, Path], summar
           "within 3 s of the onset, *rise* = peak minus the value at the onset. With a contact every 3 s the "
           "estimate does not return to its baseline in between (its low-pass `R_g C_w` ≈ 1.3 s), so mean and "
           "peak include what earlier contacts left; the rise does not. The detector's own events (Δq̂ "
-          "over the detected span, against a baseline it learnt over the first 2 s of the run, while the "
-          "pipe was still heating from ambient and Δq̂ was about −0.08 W) read higher and are listed for "
-          "completeness; the scripted windows are what the paper's plots show.", "",
+          "over the detected span, against the baseline it tracks once the skin holds its set-point) "
+          "are listed for completeness and read a little higher (they start at the detection, later "
+          "than the press, and end at the release); the scripted windows are what the paper's plots "
+          "show.", "",
           TABLE_I, "", UNKNOWN.format(T_a=T_A, touch=TOUCH_S, period=PERIOD_S), ""]
 
     def img(fig: str) -> None:
