@@ -1,4 +1,4 @@
-"""Per-sample cost of the 1 kHz estimation path: observer.step + detector.step.
+"""Per-sample cost of the 1 kHz estimation path: TouchEstimator.step (observer + detector).
 
 Times each sample with perf_counter_ns over a simulated log (pump switching, touches),
 and the vectorised path over the same log for the ratio. Prints one JSON object as its
@@ -16,8 +16,7 @@ import time
 
 import numpy as np
 
-from thermoskin.detector import ContactDetector
-from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.estimator import TouchEstimator
 from thermoskin.params import load_config
 from thermoskin.pipeline import observe
 from thermoskin.sim.run import simulate
@@ -33,15 +32,14 @@ def main() -> None:
     log = simulate(SCENARIOS["fingers"].with_duration(a.seconds), cfg)
     t, T_w, T_p, v, T_a = (log[k].tolist() for k in ("t", "T_w", "T_p", "v", "T_a"))
     n = len(t)
-    obs = ThermalExchangeObserver(cfg.skin, cfg.observer, cfg.sampling.t_s)
-    det = ContactDetector(cfg.detector, cfg.sampling.t_s)
+    est = TouchEstimator(cfg)
+    step = est.step
     dt = np.empty(n, dtype=np.int64)
     clock = time.perf_counter_ns
     gc.disable()
     for k in range(n):
         t0 = clock()
-        obs.step(T_w[k], T_p[k], v[k], T_a[k])
-        det.step(t[k], obs.r, obs.dq_i_hat, obs.gap or not obs.ready)
+        step(t[k], T_w[k], T_p[k], v[k], T_a[k])
         dt[k] = clock() - t0
     gc.enable()
     us = dt[cfg.observer.n_init:] / 1e3
@@ -58,7 +56,7 @@ def main() -> None:
         "step_over_vectorised": round(float(us.mean()) / (batch_s / n * 1e6), 1),
     }
     if not a.json:
-        print(f"observer+detector step over {n} samples: p50 {res['p50_us']} us, "
+        print(f"TouchEstimator step over {n} samples: p50 {res['p50_us']} us, "
               f"p99 {res['p99_us']} us, max {res['max_us']} us; vectorised "
               f"{res['vectorised_us_per_sample']} us/sample")
     print(json.dumps(res))

@@ -26,7 +26,7 @@ def test_setpoint_steps_tracked(steps_run) -> None:  # type: ignore[no-untyped-d
         w = (c["t"] >= t0 + 40.0) & (c["t"] < t0 + 60.0)  # the last 20 s of the step
         assert np.mean(np.abs(c["T_w_true"][w] - cmd)) <= 0.1
         assert np.mean(np.abs(c["T_w"][w] - cmd)) <= 0.1
-    segs = tracking_errors(c, steps_run.scenario, window=20.0)
+    segs = tracking_errors(c, window=20.0)
     assert [s.T_w_cmd for s in segs] == [24.0, 26.0, 28.0]
     assert all(s.mean_abs_error <= 0.1 for s in segs)
 

@@ -28,7 +28,7 @@ def synthetic(n: int = 4000, noise: float = 0.02, seed: int = 0):
 
 
 def test_recovers_synthetic_arx():
-    m = identify(synthetic(), t_model=1.0, refine=False, nk_max=3)
+    m = identify(synthetic(), t_model=1.0, nk_max=3)
     assert (m.na, m.nb, m.nk) == (2, 2, 2)
     assert m.a == pytest.approx(A_TRUE, abs=0.01)
     assert m.b == pytest.approx(B_TRUE, abs=0.01)
@@ -38,7 +38,7 @@ def test_recovers_synthetic_arx():
 
 
 def test_aic_also_finds_orders():
-    m = identify(synthetic(seed=3), t_model=1.0, refine=False, criterion="aic", na_max=3, nb_max=3)
+    m = identify(synthetic(seed=3), t_model=1.0, criterion="aic", na_max=3, nb_max=3)
     assert (m.na, m.nb, m.nk) == (2, 2, 2)
 
 

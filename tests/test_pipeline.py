@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from thermoskin.estimator import TouchEstimator
 from thermoskin.evaluation import match_events
 from thermoskin.params import load_config
-from thermoskin.pipeline import observe
-from thermoskin.runtime.stream import stream
+from thermoskin.pipeline import Observation, observe
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS, random_scenario
 
@@ -48,6 +48,20 @@ def test_heat_flow_grows_with_fingers() -> None:
     assert len(res.events) == 9
     peaks = np.array([e.peak_dq for e in res.events]).reshape(3, 3).mean(axis=1)
     assert peaks[0] < peaks[1] < peaks[2]
+
+
+def stream(log: dict[str, np.ndarray], cfg) -> Observation:  # type: ignore[no-untyped-def]
+    """The live path: ``TouchEstimator.step`` per sample, as the loop body calls it."""
+    est = TouchEstimator(cfg)
+    obs = est.observer
+    n = len(log["t"])
+    cols = {k: np.zeros(n) for k in ("q_i_hat", "dq_i_hat", "contact", "gap")}
+    rows = zip(*(log[k].tolist() for k in ("t", "T_w", "T_p", "v", "T_a")), strict=True)
+    for i, (t, T_w, T_p, v, T_a) in enumerate(rows):
+        cols["contact"][i] = est.step(t, T_w, T_p, v, T_a)
+        cols["q_i_hat"][i], cols["dq_i_hat"][i], cols["gap"][i] = obs.q_i_hat, obs.dq_i_hat, obs.gap
+    est.detector.finish(float(log["t"][-1]))
+    return Observation(columns=cols, events=est.detector.events)
 
 
 def test_streaming_equals_vectorised() -> None:

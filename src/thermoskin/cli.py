@@ -257,9 +257,9 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     in its safe state (Peltier drive 0, pump off), ends the run with exit code 3 and one
     line saying why; start a new run to restart.
     """
-    from thermoskin.logio import write_log
+    from thermoskin.logio import FLAG_COLUMNS, write_log
     from thermoskin.plotting import plot_run
-    from thermoskin.runtime.closed_loop import COLUMNS, run_closed_loop
+    from thermoskin.runtime.closed_loop import COLUMNS, TRUTH, run_closed_loop
 
     cfg = _config(config_path)
     sc = _scenario(scenario, None)
@@ -318,9 +318,9 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     finally:
         if recorder is not None:
             recorder.close()
-    names = [k for k in COLUMNS if not serial or k not in _TRUTH]
+    names = [k for k in COLUMNS if not serial or k not in TRUTH]
     out = {k: res.columns[k] for k in names}
-    for k in ("contact", "gap", "contact_true", "n_fingers"):
+    for k in FLAG_COLUMNS:
         if k in out:
             out[k] = np.nan_to_num(out[k]).astype(np.int8)
     if len(out["t"]):
@@ -330,7 +330,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         console.print(events_table(res.events))
     if len(out["t"]) > 1 and not res.fault:
         if serial:
-            _tracking(sc, out)
+            _tracking(out)
         else:
             _summary(sc, out, res.events)
     n = len(out["t"])
@@ -363,7 +363,6 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         sys.exit(130)
 
 
-_TRUTH = ("q_i", "T_g", "T_w_true", "T_p_true", "contact_true", "n_fingers")
 
 
 def _run_fixed_rate(sc: Any, cfg: Config, device: str, recorder: Any) -> Any:
@@ -412,24 +411,23 @@ def _record_end(recorder: Any, res: Any) -> None:
                    priority=s.get("priority", ""), **timing)
 
 
-def _tracking(sc: Any, log: dict[str, Any]) -> None:
+def _tracking(log: dict[str, Any], with_T_p_cmd: bool = False) -> None:
+    """Tracking over the last minute (or half) of each command."""
     from thermoskin.evaluation import tracking_errors
 
-    for seg in tracking_errors(log, sc):
+    for seg in tracking_errors(log):
+        bounds = (f"; T_p_cmd within [{seg.T_p_cmd_min:.2f}, {seg.T_p_cmd_max:.2f}] degC"
+                  if with_T_p_cmd else "")
         console.print(f"[bold]tracking[/] T_w_cmd {seg.T_w_cmd:g} degC: mean |error| "
                       f"{seg.mean_abs_error:.3f} K, mean error {seg.mean_error:+.3f} K over "
-                      f"{seg.t0:.1f}-{seg.t1:.1f} s")
+                      f"{seg.t0:.1f}-{seg.t1:.1f} s{bounds}")
 
 
 def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent]) -> None:
-    """Tracking over the last minute (or half) of each command; touches vs detections."""
-    from thermoskin.evaluation import match_events, tracking_errors
+    """Tracking of each command (with T_p_cmd's range); touches vs detections."""
+    from thermoskin.evaluation import match_events
 
-    for seg in tracking_errors(log, sc):
-        console.print(f"[bold]tracking[/] T_w_cmd {seg.T_w_cmd:g} degC: mean |error| "
-                      f"{seg.mean_abs_error:.3f} K, mean error {seg.mean_error:+.3f} K over "
-                      f"{seg.t0:.1f}-{seg.t1:.1f} s; T_p_cmd within [{seg.T_p_cmd_min:.2f}, "
-                      f"{seg.T_p_cmd_max:.2f}] degC")
+    _tracking(log, with_T_p_cmd=True)
     m = match_events(sc.touches, events)
     lat = m.latencies
     lat_txt = (f"onset latency median {np.median(lat) * 1e3:.0f} ms, max {np.max(lat) * 1e3:.0f} ms"

@@ -61,8 +61,7 @@ class Tracking:
     T_p_cmd_max: float
 
 
-def tracking_errors(log: dict[str, NDArray[np.float64]], scenario: object,
-                    window: float = 60.0) -> list[Tracking]:
+def tracking_errors(log: dict[str, NDArray[np.float64]], window: float = 60.0) -> list[Tracking]:
     """Per command segment of ``log["T_w_cmd"]``: errors over its last ``window`` s (or half)."""
     t, cmd, T_w = log["t"], log["T_w_cmd"], log["T_w"]
     edges = np.flatnonzero(np.diff(cmd) != 0) + 1

@@ -48,7 +48,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import lfilter
 
 from thermoskin.logio import LogError, read_log
 
@@ -301,57 +300,6 @@ def _sim_fit(y: Array, u: Array, ta: Array | None, a: Array, b: Array, nk: int, 
         return nrmse(Y, ysim), float(np.sqrt(np.mean((Y - ysim) ** 2)))
 
 
-def steiglitz_mcbride(y: Array, u: Array, ta: Array | None, na: int, nb: int, nk: int,
-                      start: int, stop: int, th0: Array, n_iter: int = 20,
-                      tol: float = 1e-9) -> Array:
-    """Refine ARX ``θ`` towards the simulation (output-error) fit by Steiglitz-McBride.
-
-    Each pass filters ``y, u, (T_a), 1`` by ``1/A(q)`` of the previous pass and solves
-    the same linear least squares again: ``A(q) (y/A_prev) = B(q) (u/A_prev) + ...`` weighs
-    the equation error by ``1/A_prev``, which at convergence is the simulation error. The
-    filters start from rest on deviations from the first samples; the first ``lag``
-    equations (which the zero start does not satisfy) leave a free response of
-    ``1/A_prev``, absorbed exactly by ``lag`` extra regressors ``(1/A_prev) δ[k - j]``.
-    Stops early when ``A_prev`` is unstable (returns the last stable ``θ``).
-    """
-    lag = start
-    y0, u0 = y[0], u[0]
-    yd, ud = y - y0, u - u0
-    td = ta - ta[0] if ta is not None else None
-    ones = np.ones_like(y)
-    th = th0
-    for _ in range(n_iter):
-        den = np.r_[1.0, th[:na]]
-        if np.max(np.abs(np.roots(den)), initial=0.0) >= 1.0:
-            break
-        yf = lfilter([1.0], den, yd)
-        uf = lfilter([1.0], den, ud)
-        tf = lfilter([1.0], den, td) if td is not None else None
-        of = lfilter([1.0], den, ones)
-        Phi, Y = regressors(yf, uf, tf, na, nb, nk, start, stop)
-        Phi[:, -1] = of[start:stop]
-        imp = np.zeros((y.size, lag))
-        imp[np.arange(lag), np.arange(lag)] = 1.0
-        free = lfilter([1.0], den, imp, axis=0)[start:stop]
-        X = np.column_stack([Phi, free])
-        scale = np.linalg.norm(X, axis=0)
-        scale[scale == 0.0] = 1.0
-        sol, *_ = np.linalg.lstsq(X / scale, Y, rcond=None)
-        sol = sol / scale
-        new = sol[:Phi.shape[1]].copy()
-        # back from deviations: A (y - y0) = B (u - u0) + d (T_a - T_a0) + c'
-        a, b = new[:na], new[na:na + nb]
-        c = new[-1] + (1.0 + a.sum()) * y0 - b.sum() * u0
-        if ta is not None:
-            c -= new[na + nb] * ta[0]
-        new[-1] = c
-        done = np.max(np.abs(new[:na + nb] - th[:na + nb])) < tol
-        th = new
-        if done:
-            break
-    return th
-
-
 def decimate_blocks(x: Array, m: int) -> Array:
     """Means of consecutive blocks of ``m`` samples (the tail shorter than ``m`` is dropped)."""
     n = (x.size // m) * m
@@ -417,12 +365,11 @@ def _auto_t_model(t_s: float, y: Array, u: Array, n_blocks_min: int) -> float:
 def identify(log: Mapping[str, ArrayLike] | str | os.PathLike[str], *, t_model: float | None = None,
              na_max: int = 4, nb_max: int = 4, nk_max: int = 3, nk_min: int = 0,
              criterion: str = "bic", val_fraction: float = 0.3, with_T_a: bool = False,
-             orders: Sequence[int] | None = None, refine: bool = True) -> ArxModel:
+             orders: Sequence[int] | None = None) -> ArxModel:
     """Fit an :class:`ArxModel` of ``T_p`` against ``drive`` (see the module doc).
 
     ``log``: columns ``t, T_p, drive`` (and ``T_a`` with ``with_T_a``), or a CSV path.
-    ``orders = (na, nb, nk)`` skips the order search. ``refine``: Steiglitz-McBride passes
-    after the ARX fit (kept only if they improve the estimation split's simulation fit).
+    ``orders = (na, nb, nk)`` skips the order search.
     Raises :class:`IdentifyError`.
     """
     if isinstance(log, str | os.PathLike):
@@ -484,12 +431,6 @@ def identify(log: Mapping[str, ArrayLike] | str | os.PathLike[str], *, t_model: 
     ic, _, (na, nb, nk), th = best
     a, b, d, c = _unpack(th, na, nb, ta is not None)
     fit_est, _ = _sim_fit(y, u, ta, a, b, nk, c, d, start, n_est)
-    if refine:
-        th_r = steiglitz_mcbride(y, u, ta, na, nb, nk, start, n_est, th)
-        a_r, b_r, d_r, c_r = _unpack(th_r, na, nb, ta is not None)
-        fit_r, _ = _sim_fit(y, u, ta, a_r, b_r, nk, c_r, d_r, start, n_est)
-        if fit_r > fit_est:
-            a, b, d, c, fit_est = a_r, b_r, d_r, c_r, fit_r
     fit_val, rmse = _sim_fit(y, u, ta, a, b, nk, c, d, n_est, N)
     return ArxModel(na=na, nb=nb, nk=nk, a=a, b=b, c=c, t_s=t_m, d=d, with_T_a=ta is not None,
                     nrmse=fit_val, nrmse_est=fit_est, rmse=rmse, criterion=criterion, ic=ic,

@@ -135,6 +135,7 @@ class Mpc:
         self.loss = loss
         self.cost = cost
         self.on_stop = on_stop
+        self._hold_on_stop = on_stop == "hold"
         self.R_w = float(R_w) if R_w is not None else R_w_of_v(v_on, skin)
         if not (self.R_w > 0 and math.isfinite(self.R_w)):
             raise ValueError(f"Mpc: R_w = {self.R_w} K/W must be > 0")
@@ -238,7 +239,7 @@ class Mpc:
 
     def step(self, T_w: float, T_a: float, T_w_cmd: float, pump_on: bool = True) -> float:
         """One sample: ``T_p_cmd`` for the inner loop, within ``[T_p_min, T_p_max]`` (eq. 11)."""
-        if (not pump_on and self.on_stop == "hold") or not (
+        if (not pump_on and self._hold_on_stop) or not (
                 math.isfinite(T_w) and math.isfinite(T_a) and math.isfinite(T_w_cmd)):
             self.n_held += 1
             self.status = 0

@@ -29,7 +29,11 @@ class PumpLogic:
 
     __slots__ = ("_half", "_held", "_n_dwell", "_v_on", "min_dwell", "on", "params", "t_s")
 
-    def __init__(self, params: PumpParams, t_s: float = 1.0e-3, *, min_dwell: float = 0.05) -> None:
+    def __init__(self, params: PumpParams, t_s: float = 1.0e-3, *,
+                 min_dwell: float | None = None) -> None:
+        """``min_dwell`` (s) defaults to ``params.min_dwell``."""
+        if min_dwell is None:
+            min_dwell = params.min_dwell
         if not (t_s > 0 and math.isfinite(t_s)):
             raise ValueError(f"PumpLogic: t_s = {t_s} s must be > 0")
         if not (min_dwell >= 0 and math.isfinite(min_dwell)):

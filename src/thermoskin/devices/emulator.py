@@ -15,12 +15,9 @@ by the wall clock with absolute deadlines) it
    (:func:`~thermoskin.physics.finger.contact_at`, repeating every ``scenario.duration``)
    and the scenario's ``T_a``.
 
-The tank: :class:`thermoskin.physics.peltier.PeltierTank` when that module exists,
-otherwise :class:`FirstOrderTank`::
-
-    C_tank dT_p/dt = drive P_max - (T_p - T_a)/R_tank_air - q_out,   q_out = (T_p - T_w)/R_w(v)
-
-started at ``scenario.T_p(0)``.
+The tank: :class:`thermoskin.physics.peltier.PeltierTank` (with the configured drive
+limits), losing ``q_out = (T_p - T_w)/R_w(v)`` to the skin's water, started at
+``scenario.T_p(0)``.
 
 Until the first COMMAND after a HELLO, and while no COMMAND came for ``command_timeout``
 s (the watchdog), the device holds drive 0 and the pump off. SAFE latches the same
@@ -59,8 +56,9 @@ from pathlib import Path
 import numpy as np
 
 from thermoskin.devices import protocol as proto
-from thermoskin.params import Config, PeltierParams
+from thermoskin.params import Config
 from thermoskin.physics.finger import contact_at
+from thermoskin.physics.peltier import PeltierTank
 from thermoskin.sim.scenarios import DEFAULT_SCENARIO, SCENARIOS, Scenario, get_scenario
 from thermoskin.sim.skin import Sensors, SimulatedSkin
 
@@ -97,43 +95,6 @@ class FaultSpec:
         return cls(kind, t)
 
 
-class FirstOrderTank:
-    """The tank as one heat capacity (the stand-in for a Peltier model), integrated exactly::
-
-        C dT_p/dt = drive P_max - (T_p - T_a)/R - q_out
-
-    ``C = C_tank``, ``R = R_tank_air``; ``P_max = n (S_m I_max T_0 - I_max^2 R_m / 2)`` with
-    ``T_0 = 298.15 K``: the modules' heat pumped at zero temperature difference and full
-    current, taken as symmetric for heating and cooling.
-    """
-
-    def __init__(self, params: PeltierParams, t_s: float) -> None:
-        self.C = params.C_tank
-        self.R = params.R_tank_air
-        I = params.I_max  # noqa: E741
-        self.P_max = params.n_modules * (params.S_m * I * 298.15 - 0.5 * I * I * params.R_m)
-        self.t_s = float(t_s)
-        self._a = math.exp(-self.t_s / (self.R * self.C))
-        self.T_p = 20.0
-
-    def reset(self, T_p: float, T_sink: float | None = None, T_a: float = 20.0) -> None:
-        self.T_p = float(T_p)
-
-    def step(self, drive: float, T_a: float, q_out: float = 0.0) -> float:
-        T_eq = T_a + self.R * (drive * self.P_max - q_out)
-        self.T_p = T_eq + (self.T_p - T_eq) * self._a
-        return self.T_p
-
-
-def make_tank(cfg: Config, t_s: float) -> object:
-    """``PeltierTank(cfg.peltier, t_s)`` if ``physics.peltier`` exists, else :class:`FirstOrderTank`."""
-    try:
-        from thermoskin.physics.peltier import PeltierTank  # type: ignore[import-not-found]
-    except ImportError:
-        return FirstOrderTank(cfg.peltier, t_s)
-    return PeltierTank(cfg.peltier, t_s)
-
-
 class DeviceCore:
     """What the device does, without I/O or wall clock: messages in, one step per ``t_s``."""
 
@@ -149,7 +110,8 @@ class DeviceCore:
         self.device_id = device_id
         self.skin = SimulatedSkin(cfg)
         self.sensors = Sensors(cfg.sensor)
-        self.tank = make_tank(cfg, self.t_s)
+        self.tank = PeltierTank(cfg.peltier, self.t_s,
+                                (cfg.control.drive_min, cfg.control.drive_max))
         self.connected = False
         self.k = 0
         self.seq = 0
@@ -160,7 +122,7 @@ class DeviceCore:
     def _reset_physics(self) -> None:
         sc = self.scenario
         T_p0 = float(sc.T_p(0.0))
-        self.tank.reset(T_p0, None, sc.T_a)  # type: ignore[attr-defined]
+        self.tank.reset(T_p0, None, sc.T_a)
         self.skin.reset_equilibrium(T_p0, self.cfg.pump.v_on, sc.T_a)
         self.sensors.reset()
         self.drive = 0.0

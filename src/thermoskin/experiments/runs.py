@@ -22,6 +22,7 @@ from thermoskin.control.pump import PumpLogic
 from thermoskin.detector import ContactDetector, ContactEvent
 from thermoskin.experiments.analysis import aligned_response, contact_stats, setpoint_stats
 from thermoskin.experiments.scenarios import T_A, contact_scenario, setpoint_scenario
+from thermoskin.identify import decimate_blocks
 from thermoskin.observer import ThermalExchangeObserver
 from thermoskin.params import Config, load_config
 from thermoskin.physics.finger import contact_profile
@@ -89,7 +90,7 @@ def open_loop_spatial(sc: Scenario, cfg: Config, *, stop_in_contact: bool, inlet
         pos[(t >= tc.t_on) & (t < tc.t_off)] = tc.position
     skin = SpatialSkin(cfg, SpatialParams(inlet=inlet))
     sensors = Sensors(cfg.sensor)
-    pump = PumpLogic(cfg.pump, t_s, min_dwell=cfg.pump.min_dwell)
+    pump = PumpLogic(cfg.pump, t_s)
     cmd, T_p = float(sc.T_w_cmd), float(sc.T_w_cmd) + T_P_OFFSET
     skin.reset(cmd, T_a=sc.T_a)
     noise = sensors.noise("T_w", n).tolist()
@@ -116,12 +117,6 @@ def open_loop_spatial(sc: Scenario, cfg: Config, *, stop_in_contact: bool, inlet
     return det.events, {"t": t, "T_w": T_w, "T_p": T_p_m, "v": v, "T_a": T_a_m, "T_w_cmd": np.full(n, cmd),
             "T_p_cmd": np.full(n, T_p), "q_i_hat": out.q_i_hat, "dq_i_hat": out.dq_i_hat,
             "q_i": G * (T_f - T_g), "T_g": T_g, "T_w_true": T_w_true, "contact_true": (G > 0).astype(float)}
-
-
-def block_means(x: Array, n: int) -> Array:
-    """Means over consecutive blocks of ``n`` samples (a trailing partial block is dropped)."""
-    m = x.size // n
-    return x[: m * n].reshape(m, n).mean(axis=1)
 
 
 def run_job(job: Job, cfg: Config | None = None) -> dict[str, Any]:
@@ -151,7 +146,7 @@ def run_job(job: Job, cfg: Config | None = None) -> dict[str, Any]:
         out["aligned_q"] = aligned_response(cols, sc.touches, key="q_i", baseline=0.0)
         touched = np.asarray(cols["contact_true"]) > 0
         out["pump_on_in_contact"] = float(np.mean(np.asarray(cols["v"])[touched] > 0))
-    out["cols"] = {k: block_means(np.asarray(cols[k], dtype=float), PLOT_EVERY)
+    out["cols"] = {k: decimate_blocks(np.asarray(cols[k], dtype=float), PLOT_EVERY)
                    for k in PLOT_KEYS if k in cols}
     out["T_a"] = T_A
     return out

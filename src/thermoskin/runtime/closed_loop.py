@@ -28,9 +28,11 @@ from thermoskin.runtime.controller import SkinController
 from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import Scenario
 
+#: The simulator's truth columns (a serial device has none).
+TRUTH = ("q_i", "T_g", "T_w_true", "T_p_true", "contact_true", "n_fingers")
 #: Recorded columns, in order: measured, commands, estimates, then the simulator's truth.
 COLUMNS = ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd", "T_p_cmd", "drive", "q_i_hat", "dq_i_hat",
-           "contact", "gap", "q_i", "T_g", "T_w_true", "T_p_true", "contact_true", "n_fingers")
+           "contact", "gap", *TRUTH)
 
 
 @dataclass
@@ -124,7 +126,7 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
         c_dq[k] = obs.dq_i_hat
         c_con[k] = ctrl.contact
         c_gap[k] = obs.gap
-        c_q[k] = skin.G_c * (skin.T_f - skin.T_g) if skin.G_c else 0.0
+        c_q[k] = skin.q_i
         c_Tg[k] = skin.T_g
         c_Twt[k] = skin.T_w
         c_Tpt[k] = plant.tank.T_p

@@ -22,16 +22,15 @@ from thermoskin.params import Config
 class SkinController:
     """Observer, detector, MPC, inner loop and pump logic of one skin."""
 
-    __slots__ = ("T_p_cmd", "cfg", "contact", "detector", "drive", "estimator", "inner", "mpc",
+    __slots__ = ("T_p_cmd", "contact", "detector", "drive", "estimator", "inner", "mpc",
                  "observer", "pump", "v")
 
     def __init__(self, cfg: Config) -> None:
         t_s = cfg.sampling.t_s
-        self.cfg = cfg
         self.estimator = TouchEstimator(cfg)
         self.observer = self.estimator.observer
         self.detector = self.estimator.detector
-        self.pump = PumpLogic(cfg.pump, t_s, min_dwell=cfg.pump.min_dwell)
+        self.pump = PumpLogic(cfg.pump, t_s)
         self.mpc = Mpc(cfg.skin, cfg.control, t_s, v_on=cfg.pump.v_on)
         self.inner = InnerLoop(cfg.control, t_s)
         self.reset()

@@ -55,13 +55,12 @@ from numpy.typing import NDArray
 
 from thermoskin.params import Config
 from thermoskin.runtime import supervisor as sv
-from thermoskin.runtime.closed_loop import LoopResult
+from thermoskin.runtime.closed_loop import COLUMNS, LoopResult
 from thermoskin.sim.scenarios import Scenario
 
 #: The fields of a ring row, in order: the log columns of ``closed_loop.COLUMNS`` (truth NaN
 #: on hardware), then the device's flags, the loop's timing and the fault code.
-ROW = ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd", "T_p_cmd", "drive", "q_i_hat", "dq_i_hat",
-       "contact", "gap", "q_i", "T_g", "T_w_true", "T_p_true", "contact_true", "n_fingers",
+ROW = (*COLUMNS,
        "fresh", "stale", "stuck", "status", "seq", "v_dev", "drive_dev", "late", "lag", "busy", "fault")
 NF = len(ROW)
 _ROW = struct.Struct(f"<{NF}d")
@@ -69,8 +68,6 @@ _HDR = struct.Struct("<qqq")  # rows written (loop), stop request (parent), rese
 _COUNT = struct.Struct("<q")
 _HDR_BYTES = 64
 _I = {k: i for i, k in enumerate(ROW)}
-#: Columns that only the simulated skin has.
-TRUTH = ("q_i", "T_g", "T_w_true", "T_p_true", "contact_true", "n_fingers")
 
 
 @dataclass

@@ -45,7 +45,7 @@ def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = Non
 
     skin = SimulatedSkin(cfg)
     sensors = Sensors(cfg.sensor)
-    pump = PumpLogic(cfg.pump, t_s, min_dwell=cfg.pump.min_dwell)
+    pump = PumpLogic(cfg.pump, t_s)
     cmd = float(sc.T_w_cmd)
     v_const = cfg.pump.v_on if sc.pump == "on" else 0.0
     logic = sc.pump == "logic"
