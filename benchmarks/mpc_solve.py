@@ -20,6 +20,11 @@ Reports p50/p99 of each, the ratios to the warm-started solve, the fraction of s
 that called daqp, and the largest difference between the two controllers' commands.
 Prints one JSON object as its last line.
 
+OpenBLAS runs on one thread unless ``OPENBLAS_NUM_THREADS`` says otherwise (daqp and the
+loop are single-threaded; on a loaded two-core machine a multi-threaded BLAS under
+``lsq_linear`` spends most of its time contending for the cores, 5-6 times the
+one-thread figure). The JSON says which.
+
     python benchmarks/mpc_solve.py [--n 20000] [--every 10] [--cost rate] [--json]
 """
 
@@ -28,7 +33,10 @@ from __future__ import annotations
 import argparse
 import gc
 import json
+import os
 import time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # before numpy loads OpenBLAS
 
 import daqp
 import numpy as np
@@ -136,6 +144,7 @@ def run(n: int, cost: str, every: int = 10, seed: int = 0, tau_p: float = 0.05
 
     return {
         "calls": n, "H": full.H, "cost": cost,
+        "openblas_threads": os.environ.get("OPENBLAS_NUM_THREADS"),
         "fast": {**pct(us_fast), **ratios(us_fast),
                  "fast_path_samples": pct(us_fast[~qp]) if (~qp).any() else None,
                  "qp_samples": pct(us_fast[qp]) if qp.any() else None,
