@@ -55,11 +55,16 @@ eq. 11 it is feasible and no feasible point costs less, so it *is* the constrain
 minimiser (the KKT conditions hold with all multipliers zero), and unique. If any element
 leaves the box, the constrained minimiser differs from ``u*``, and the QP is needed:
 checking ``u*_0`` alone is not enough, since a bound active later in the horizon moves
-``u_0``. Each sample therefore evaluates the whole sequence against both bounds as one
-preallocated mat-vec and one reduction, ``g = Gx (theta, 1) <= 0`` with
-``Gx = [K, -T_p_max; -K, T_p_min]`` (2H x 5), and returns ``u*_0`` (four products on
-plain floats) when it holds; only otherwise is daqp called. The test is exact up to
-rounding (a few 1e-15 K), far inside daqp's own primal tolerance (1e-6).
+``u_0``. Each sample therefore tests the whole sequence against both bounds and returns
+``u*_0`` (four products on plain floats) when it passes; only otherwise is daqp called.
+The test (``Mpc.feasible``): first a sufficient interval bound on plain floats (the
+column ranges of ``K`` times the state's distance from ``T_p_prev``; it settles nearly
+every sample while a set-point is held), and when that is inconclusive the exact one,
+``g = Gx (theta, 1) <= 0`` with ``Gx = [K, -T_p_max; -K, T_p_min]`` (2H x 5), one
+preallocated mat-vec (which also yields ``q`` for daqp) and one reduction. It is exact up
+to rounding (a few 1e-15 K), far inside daqp's own primal tolerance (1e-6). With
+``cost="absolute"`` the input term pulls the horizon's tail towards 0 °C, below
+``T_p_min``, so ``u*`` is never feasible and daqp runs every sample.
 
 Warm start across the two paths. daqp starts each solve from the working set its last
 solve ended with. Solving every sample, a sample whose optimum is unconstrained ends with
@@ -173,15 +178,20 @@ class Mpc:
         # unconstrained optimum u* = K theta, K = -P^-1 F: the fast path and the fallback
         self._K_unc = K = -np.linalg.solve(self.P, self.F)
         self._k0 = tuple(float(x) for x in K[0])            # u*_0 on plain floats
-        # box test g = Gx (theta, 1) <= 0: rows K_i theta - T_p_max, then T_p_min - K_i theta
-        Gx = np.empty((2 * H, 5))
-        Gx[:H, :4] = K
-        Gx[:H, 4] = -self.T_p_max
-        Gx[H:, :4] = -K
-        Gx[H:, 4] = self.T_p_min
-        self._Gx = Gx
-        self._g = np.empty(2 * H)
-        self._theta1 = np.ones(5)                           # (T_w, T_a, T_w_cmd, T_p_prev, 1)
+        # one mat-vec on theta1 = (T_w, T_a, T_w_cmd, T_p_prev, 1): the box test
+        # g = Gx theta1 <= 0 (rows K_i theta - T_p_max, then T_p_min - K_i theta), then q
+        Gq = np.zeros((3 * H, 5))
+        Gq[:H, :4] = K
+        Gq[:H, 4] = -self.T_p_max
+        Gq[H:2 * H, :4] = -K
+        Gq[H:2 * H, 4] = self.T_p_min
+        Gq[2 * H:, :4] = self.F
+        self._Gq = Gq
+        self._Fq = Gq[2 * H:]                               # q = Fq theta1 (a view)
+        self._gq = np.zeros(3 * H)
+        self._g = self._gq[:2 * H]
+        self._q = self._gq[2 * H:]                          # daqp's f, a view
+        self._theta1 = np.ones(5)
         # the interval bound of feasible(): column ranges of K (T_w, T_a, T_w_cmd), row sums
         s_row = K.sum(axis=1)
         self._interval = (*(float(x) for x in K[:, :3].max(axis=0)),
@@ -194,8 +204,6 @@ class Mpc:
         self._ws_set = False                                # daqp's working set may be non-empty
         self._u_fast = False                                # the last u is u* (not stored)
         self.fast = bool(fast)
-        self._theta = np.zeros(4)
-        self._q = np.zeros(H)
         self._lb = np.full(H, self.T_p_min)
         self._ub = np.full(H, self.T_p_max)
         self._model = daqp.Model()
@@ -272,6 +280,11 @@ class Mpc:
         interval is inside the box by 1e-9 K (a margin over rounding), ``u*`` is. Otherwise
         the exact test, ``Gx (theta, 1) <= 0`` over all ``2 H`` rows.
         """
+        return (self._in_interval(T_w, T_a, T_w_cmd, T_p_prev)
+                or self._box_test(T_w, T_a, T_w_cmd, T_p_prev))
+
+    def _in_interval(self, T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float) -> bool:
+        """The sufficient interval bound of ``feasible`` (plain floats)."""
         d0 = T_w - T_p_prev
         d1 = T_a - T_p_prev
         d2 = T_w_cmd - T_p_prev
@@ -300,16 +313,17 @@ class Mpc:
         else:
             up += d2 * lo2
             dn += d2 * hi2
-        if up <= self._ub_inner and dn >= self._lb_inner:
-            return True
+        return up <= self._ub_inner and dn >= self._lb_inner
+
+    def _box_test(self, T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float) -> bool:
+        """The exact test ``Gx (theta, 1) <= 0``; the same mat-vec leaves ``q`` in ``_q``."""
         th = self._theta1
         th[0] = T_w
         th[1] = T_a
         th[2] = T_w_cmd
         th[3] = T_p_prev
-        g = self._g
-        np.dot(self._Gx, th, out=g)
-        return bool(g.max() <= 0.0)
+        np.dot(self._Gq, th, out=self._gq)
+        return bool(self._g.max() <= 0.0)
 
     def unconstrained(self, T_w: float, T_a: float, T_w_cmd: float,
                       T_p_prev: float | None = None) -> np.ndarray:
@@ -328,12 +342,16 @@ class Mpc:
 
         Updates the warm start and the solve attributes like ``step``.
         """
-        th = self._theta
+        th = self._theta1
         th[0] = T_w
         th[1] = T_a
         th[2] = T_w_cmd
         th[3] = self.T_p_prev if T_p_prev is None else T_p_prev
-        np.dot(self.F, th, out=self._q)
+        np.dot(self._Fq, th, out=self._q)
+        return self._qp()
+
+    def _qp(self) -> np.ndarray:
+        """The warm-started daqp solve for the ``q`` and ``theta`` in the buffers."""
         model = self._model
         model.update(f=self._q)
         x, _, flag, info = model.solve()
@@ -345,7 +363,7 @@ class Mpc:
         self.solve_time = info["solve_time"]
         if flag <= 0 or not math.isfinite(x[0]):
             self.n_fallback += 1
-            x = np.clip(self._K_unc @ th, self.T_p_min, self.T_p_max)
+            x = np.clip(self._K_unc @ self._theta1[:4], self.T_p_min, self.T_p_max)
             model.update(sense=self._no_sense)
         self._u = x
         return x
@@ -358,9 +376,14 @@ class Mpc:
             self.status = 0
             self.iterations = 0
             return self.T_p_prev
-        if self.fast:
+        if not self.fast:
+            x = self.solve(T_w, T_a, T_w_cmd)
+        else:
             prev = self.T_p_prev
-            if self.feasible(T_w, T_a, T_w_cmd, prev):      # u* within eq. 11: the optimum
+            # after a QP sample the interval bound is skipped (a bound was just active)
+            if ((not self._ws_set and self._in_interval(T_w, T_a, T_w_cmd, prev))
+                    or self._box_test(T_w, T_a, T_w_cmd, prev)):
+                # u* within eq. 11: the optimum
                 if self._ws_set:                            # as a solve would have left it
                     self._model.update(sense=self._no_sense)
                     self._ws_set = False
@@ -375,7 +398,7 @@ class Mpc:
                 self.solve_time = 0.0
                 self.T_p_prev = u0
                 return u0
-        x = self.solve(T_w, T_a, T_w_cmd)
+            x = self._qp()                                  # q left by the box test
         u0 = float(x[0])
         # daqp meets the bounds to its primal tolerance (1e-6): make eq. 11 exact
         u0 = min(max(u0, self.T_p_min), self.T_p_max)
