@@ -7,6 +7,8 @@ the same measurements, stepped in lockstep (alternating which goes first):
 
 * ``body_fast``: the controller as shipped (MPC fast path), which drives the plant;
 * ``body_qp``: the same controller with ``mpc.fast = False`` (daqp every sample);
+  both also from 10 s on (``*_after_10s``), once the warm-up from ambient, where the
+  command sits at ``T_p_max`` and daqp runs, is over;
 * ``parts``: a third controller whose blocks are called one by one exactly as
   ``SkinController.step`` does, each timed: the share of the MPC and of the estimator
   (observer + detector) in the body.
@@ -121,6 +123,8 @@ def loop_body(seconds: float) -> dict[str, object]:
         "simulated_s": sc.duration,
         "body_fast": pct(dt),
         "body_qp": pct(dt_qp),
+        "body_fast_after_10s": pct(dt[int(10.0 / t_s):]),    # warmed up, touches from 15 s
+        "body_qp_after_10s": pct(dt_qp[int(10.0 / t_s):]),
         "parts": {name: {**pct(dt_parts[:, i]),
                          "share_of_time": round(float(dt_parts[:, i].sum()) / body_sum, 3)}
                   for i, name in enumerate(names)},

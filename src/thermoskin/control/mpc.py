@@ -43,10 +43,10 @@ and writing the input term as ``rho = D u - d``, ``J/2 = 0.5 u'Pu + q'u + const`
     P = W1 Gam'Gam + W2 D'D,     q = W1 Gam'(Phi T_w + s T_a - 1 T_w_cmd) - W2 D'd
 
 ``P`` and the bounds never change; ``q`` is linear in ``theta = (T_w, T_a, T_w_cmd, T_p_prev)``,
-so ``q = F theta`` with ``F`` (H x 4) precomputed. Each sample costs one small mat-vec, an
+so ``q = F theta`` with ``F`` (H x 4) precomputed. A QP sample costs one small mat-vec, an
 ``update(f=q)`` of a persistent ``daqp.Model`` (set up once: ``P`` factored once, the
-active set of the previous sample reused as warm start) and one ``solve``. The output is the
-first element, ``T_p_cmd = u_0``.
+active set of the previous solve reused as warm start) and one ``solve``; most samples
+need none of it (fast path, below). The output is the first element, ``T_p_cmd = u_0``.
 
 Fast path (``fast=True``, default). ``P`` is positive definite, so the QP is strictly
 convex and its unconstrained minimiser ``u* = -P^-1 q = K theta`` (``K = -P^-1 F``,
