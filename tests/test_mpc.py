@@ -338,10 +338,18 @@ def test_fast_path_equals_qp_every_sample_in_closed_loop(cost: str) -> None:
     assert full_mpc.n_fallback == 0
 
 
+def box_ls(A: np.ndarray, r0: np.ndarray, ctl: ControlParams) -> np.ndarray:
+    return lsq_linear(A, -r0, bounds=(ctl.T_p_min, ctl.T_p_max), method="bvls",
+                      tol=1e-14, lsmr_tol=None).x
+
+
 def test_fast_path_matches_box_least_squares_along_a_closed_loop() -> None:
     """``T_p_cmd`` and the whole sequence ``u`` against lsq_linear, fast and QP samples."""
     ctl = ControlParams()
     mpc = Mpc(SKIN, ctl, T_S)
+    # residual = A u + r0(state): A by superposition once, r0 from one simulation per state
+    A, _ = ls_form(20.0, 20.0, 24.0, 20.0, "rate", ctl)
+    zeros = np.zeros(ctl.H)
     rng = np.random.default_rng(2)
     T_a, T_w, T_p = 20.0, 20.0, 20.0
     mpc.reset(T_a)
@@ -352,20 +360,23 @@ def test_fast_path_matches_box_least_squares_along_a_closed_loop() -> None:
         T_w_meas = T_w + rng.normal(0.0, 0.02)
         n0 = mpc.n_solves
         T_p_cmd = mpc.step(T_w_meas, T_a, T_w_cmd)
-        if k % 100 == 3 or 2500 <= k < 2510:
-            ref = lsq_reference(T_w_meas, T_a, T_w_cmd, prev, "rate", ctl)
+        if k % 400 == 3 or 2500 <= k < 2505:            # a bvls solve is costly: a few
+            ref = box_ls(A, residual(zeros, T_w_meas, T_a, T_w_cmd, prev, "rate", ctl), ctl)
             assert abs(T_p_cmd - ref[0]) < 1e-6
             np.testing.assert_allclose(mpc.u, ref, atol=1e-6, rtol=0)
             checked[mpc.n_solves > n0] += 1
         T_p += T_S / 0.2 * (T_p_cmd - T_p)
         T_w = eq10_step(T_w, T_p, T_a)
-    assert checked[True] >= 5 and checked[False] >= 20
+    assert checked[True] >= 5 and checked[False] >= 5
 
 
 def test_feasibility_test_agrees_with_the_least_squares_optimum() -> None:
     """``Mpc.feasible`` against the unconstrained LS optimum (lstsq) checked on the box."""
     ctl = ControlParams()
     mpc = Mpc(SKIN, ctl, T_S)
+    A, _ = ls_form(20.0, 20.0, 24.0, 20.0, "rate", ctl)    # state-independent
+    A_pinv = np.linalg.pinv(A)                              # (SVD)
+    zeros = np.zeros(ctl.H)
     rng = np.random.default_rng(4)
     verdicts, margins = [], []
     for _ in range(60):
@@ -373,8 +384,7 @@ def test_feasibility_test_agrees_with_the_least_squares_optimum() -> None:
         T_a = rng.uniform(15.0, 30.0)
         T_w_cmd = T_w0 + rng.normal(0.0, 1.5)
         prev = rng.uniform(8.0, 36.0)
-        A, r0 = ls_form(T_w0, T_a, T_w_cmd, prev, "rate", ctl)
-        u_star = np.linalg.lstsq(A, -r0, rcond=None)[0]
+        u_star = -A_pinv @ residual(zeros, T_w0, T_a, T_w_cmd, prev, "rate", ctl)
         np.testing.assert_allclose(mpc.unconstrained(T_w0, T_a, T_w_cmd, prev), u_star,
                                    atol=1e-9, rtol=0)
         margin = min(u_star.min() - ctl.T_p_min, ctl.T_p_max - u_star.max())
