@@ -94,6 +94,11 @@ def first_bad_value(cols: list[Array], allow: list[bool]) -> tuple[int, int] | N
     return first
 
 
+def writable(a: Array) -> Array:
+    """``a``, or a copy of it if read-only (Arrow's zero-copy views are)."""
+    return a if a.flags.writeable and a.flags.c_contiguous else np.array(a, dtype=np.float64)
+
+
 def sample_time(t: ArrayLike) -> float:
     """Median sample interval of the time vector ``t`` (s)."""
     tt = np.asarray(t, dtype=np.float64).ravel()

@@ -36,6 +36,7 @@ from thermoskin.logio.common import (
     is_number,
     parse_value,
     short,
+    writable,
 )
 
 #: Lines per piece when a failing block is parsed again to locate its error.
@@ -106,38 +107,50 @@ class CsvSource:
     def close(self) -> None:
         self._fh.close()
 
-    def blocks(self, chunk_rows: int) -> Iterator[bytes]:
+    def blocks(self, chunk_rows: int) -> Iterator[memoryview]:
         """Blocks of whole data lines, about ``chunk_rows`` lines each; trailing blank lines dropped.
 
         In ``live`` mode a last line without its line end (a write in progress) is left out.
         """
-        size = max(1 << 16, chunk_rows * 64)  # bytes; adapted to the line length after each block
+        size = max(1 << 16, chunk_rows * 64)  # bytes; set from the line length after the first block
+        sized = False
         rest = b""
         while True:
             piece = self._fh.read(size)
             buf = rest + piece if rest else piece
             if not piece:  # end of file
-                if self.live:
-                    buf = buf[: buf.rfind(b"\n") + 1]
-                buf = buf.rstrip(_BLANK)
-                if buf:
-                    yield buf
+                stop = buf.rfind(b"\n") + 1 if self.live else len(buf)
+                end = _content_end(buf, stop)
+                if end:
+                    yield memoryview(buf)[:end]
                 return
             cut = buf.rfind(b"\n") + 1
             if cut == 0:  # a line longer than the block: read on
                 rest = buf
                 continue
-            # blank lines at the end are held back: trailing ones (end of file) are harmless
-            end = buf.find(b"\n", len(buf[:cut].rstrip(_BLANK))) + 1 if buf[:cut].strip(_BLANK) else 0
-            block, rest = buf[:end], buf[end:]
-            if not block:
+            # blank lines at the end are held back (if the file ends there, they are harmless)
+            end = _content_end(buf, cut)
+            end = buf.find(b"\n", end) + 1 if end else 0
+            rest = buf[end:]
+            if not end:
                 continue
-            yield block
-            lines = block.count(b"\n")
-            size = max(1 << 16, int(chunk_rows * len(block) / max(lines, 1)))
+            yield memoryview(buf)[:end]
+            if not sized:
+                sample = min(end, 1 << 20)
+                lines = buf.count(b"\n", 0, sample)
+                size = max(1 << 16, int(chunk_rows * sample / max(lines, 1)))
+                sized = True
 
 
-def _arrow_parse(block: bytes, names: list[str]) -> list[Array] | None:
+def _content_end(buf: bytes, stop: int) -> int:
+    """Index just after the last non-blank byte of ``buf[:stop]`` (0 if all blank)."""
+    tail = buf[max(0, stop - 4096) : stop].rstrip(_BLANK)
+    if tail or stop <= 4096:
+        return max(0, stop - 4096) + len(tail)
+    return len(buf[:stop].rstrip(_BLANK))
+
+
+def _arrow_parse(block: bytes | memoryview, names: list[str]) -> list[Array] | None:
     """Float64 columns of a block (empty and ``NA`` fields as NaN); None if Arrow cannot parse it."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
@@ -155,7 +168,7 @@ def _arrow_parse(block: bytes, names: list[str]) -> list[Array] | None:
         )
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
         return None
-    return [np.ascontiguousarray(c.to_numpy(), dtype=np.float64) for c in tab.columns]
+    return [writable(c.to_numpy()) for c in tab.columns]
 
 
 def _scan_lines(
@@ -208,7 +221,7 @@ def _checked_piece(
 
 
 def parse_block(
-    path: Path, block: bytes, names: list[str], allow: list[bool], first_line: int
+    path: Path, block: bytes | memoryview, names: list[str], allow: list[bool], first_line: int
 ) -> list[Array]:
     """Float64 columns of a block of lines starting at file line ``first_line``, values checked.
 
@@ -217,7 +230,7 @@ def parse_block(
     cols = _arrow_parse(block, names)
     if cols is not None and first_bad_value(cols, allow) is None:
         return cols
-    lines = block.split(b"\n")
+    lines = bytes(block).split(b"\n")
     if lines and not lines[-1].strip(_BLANK):
         lines.pop()
     parts = [
