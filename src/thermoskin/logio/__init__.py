@@ -71,15 +71,18 @@ def read_log(
     nan_columns: Iterable[str] | None = None,
     *,
     uniform: bool = True,
+    live: bool = False,
 ) -> dict[str, Array]:
     """Read a whole log into ``{column: float64 array}`` (in the file's column order).
 
     ``t`` is always required. ``nan_columns`` lists the columns where NaN (CSV: ``nan``,
     ``NaN``, ``NA``, empty) is accepted; by default the ``T_*`` and ``v`` columns.
-    ``uniform=False`` accepts jitter in ``t`` (still strictly increasing). Raises
-    :class:`LogError` on any user error. See :class:`LogReader` for long logs.
+    ``uniform=False`` accepts jitter in ``t`` (still strictly increasing); ``live=True``
+    leaves out a CSV's last line if it has no line end yet (a log still being written, or
+    whose writer was killed). Raises :class:`LogError` on any user error. See
+    :class:`LogReader` for long logs.
     """
-    with LogReader(path, required, nan_columns, uniform=uniform) as reader:
+    with LogReader(path, required, nan_columns, uniform=uniform, live=live) as reader:
         chunks = list(reader)
         names = reader.names
     if len(chunks) == 1:

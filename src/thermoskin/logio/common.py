@@ -118,7 +118,8 @@ def check_time(
     """First fault of the time vector ``t``, as ``(k, reason)``, or None.
 
     ``t`` must increase strictly; with ``uniform``, every interval must be within ``rtol`` of
-    ``t_s`` (default: the median interval, :func:`sample_time`). ``t_prev`` is the sample
+    ``t_s`` (default: the median of the positive intervals). The fault met first in time
+    is reported. ``t_prev`` is the sample
     before ``t[0]`` (the previous chunk's last), so a chunked log is checked across its
     boundaries. ``k`` indexes ``t``: the interval ending at ``t[k]`` is at fault.
     """
@@ -127,21 +128,23 @@ def check_time(
     off = 0 if t_prev is None else 1
     dt = np.diff(full)
     nonpos = ~(dt > 0)
-    if nonpos.any():
-        i = int(np.argmax(nonpos))
-        t0, t1 = float(full[i]), float(full[i + 1])
-        return i + 1 - off, f"time not strictly increasing (t = {t1!r} after {t0!r})"
-    if not uniform or dt.size == 0:
-        return None
-    ts = float(np.median(dt)) if t_s is None else t_s
-    bad = np.abs(dt - ts) > rtol * ts
-    if bad.any():
-        i = int(np.argmax(bad))
-        t0, t1 = float(full[i]), float(full[i + 1])
-        return i + 1 - off, (
-            f"non-uniform sampling: interval {dt[i]:.6g} s (t = {t0!r} -> {t1!r}), "
+    i_np = int(np.argmax(nonpos)) if nonpos.any() else dt.size
+    i_nu = dt.size
+    if uniform and dt.size:
+        pos = dt[dt > 0]
+        ts = t_s if t_s is not None else float(np.median(pos)) if pos.size else 1.0
+        off_rate = np.abs(dt[:i_np] - ts) > rtol * ts  # the first fault in time order is reported
+        if off_rate.any():
+            i_nu = int(np.argmax(off_rate))
+    if i_nu < i_np:
+        t0, t1 = float(full[i_nu]), float(full[i_nu + 1])
+        return i_nu + 1 - off, (
+            f"non-uniform sampling: interval {dt[i_nu]:.6g} s (t = {t0!r} -> {t1!r}), "
             f"expected {ts:.6g} s ± {100 * rtol:g} % (read with uniform=False to accept jitter)"
         )
+    if i_np < dt.size:
+        t0, t1 = float(full[i_np]), float(full[i_np + 1])
+        return i_np + 1 - off, f"time not strictly increasing (t = {t1!r} after {t0!r})"
     return None
 
 
