@@ -36,6 +36,7 @@ from thermoskin.logio.common import (
     UNIFORM_RTOL,
     Array,
     LogError,
+    as_column,
     check_names,
     check_time,
     log_format,
@@ -112,8 +113,7 @@ def write_log(
     arrays = {}
     for n in names:
         a = np.asarray(columns[n])
-        if a.dtype.kind not in "iubf":
-            a = a.astype(np.float64)
+        a = as_column(a)
         if a.ndim != 1:
             raise ValueError(f"write_log: column {n!r} is not 1-D (shape {a.shape})")
         arrays[n] = a

@@ -94,6 +94,13 @@ def first_bad_value(cols: list[Array], allow: list[bool]) -> tuple[int, int] | N
     return first
 
 
+def as_column(a: np.ndarray) -> np.ndarray:
+    """A column as written: booleans kept, integers as int64, anything else as float64 (native order)."""
+    if a.dtype.kind == "b":
+        return a
+    return a.astype(np.int64 if a.dtype.kind in "iu" else np.float64, copy=False)
+
+
 def writable(a: Array) -> Array:
     """``a``, or a copy of it if read-only (Arrow's zero-copy views are)."""
     return a if a.flags.writeable and a.flags.c_contiguous else np.array(a, dtype=np.float64)

@@ -44,7 +44,6 @@ class ParquetSource:
     """An open Parquet log: schema checked on opening, then :meth:`batches` of float64 columns."""
 
     def __init__(self, path: Path) -> None:
-        import pyarrow as pa
         import pyarrow.parquet as pq
 
         self.path = path
@@ -58,6 +57,16 @@ class ParquetSource:
             ) from exc
         self.names: list[str] = list(schema.names)
         self.n_rows: int | None = self._file.metadata.num_rows
+        try:
+            self._check_schema(schema)
+        except LogError:
+            self.close()
+            raise
+
+    def _check_schema(self, schema: Any) -> None:
+        import pyarrow as pa
+
+        path = self.path
         if not self.names:
             raise LogError(f"{path}: empty file (no columns)")
         dups = [n for n, c in Counter(self.names).items() if c > 1]

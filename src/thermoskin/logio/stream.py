@@ -25,6 +25,7 @@ from thermoskin.logio.common import (
     Array,
     LogError,
     allow_nan,
+    as_column,
     check_names,
     check_time,
     first_bad_value,
@@ -242,8 +243,7 @@ class LogWriter:
         cols = []
         for n in self.names:
             a = np.asarray(chunk[n])
-            if a.dtype.kind not in "iubf":
-                a = a.astype(np.float64)
+            a = as_column(a)
             if a.ndim != 1:
                 raise ValueError(f"LogWriter.write: column {n!r} is not 1-D (shape {a.shape})")
             cols.append(a)
