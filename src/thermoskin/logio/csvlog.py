@@ -112,8 +112,7 @@ class CsvSource:
 
         In ``live`` mode a last line without its line end (a write in progress) is left out.
         """
-        size = max(1 << 16, chunk_rows * 64)  # bytes; set from the line length after the first block
-        sized = False
+        size = max(1 << 16, chunk_rows * 48)  # bytes; then from the line length of each block
         rest = b""
         while True:
             piece = self._fh.read(size)
@@ -135,11 +134,9 @@ class CsvSource:
             if not end:
                 continue
             yield memoryview(buf)[:end]
-            if not sized:
-                sample = min(end, 1 << 20)
-                lines = buf.count(b"\n", 0, sample)
-                size = max(1 << 16, int(chunk_rows * sample / max(lines, 1)))
-                sized = True
+            sample = min(end, 1 << 20)  # the line length at the block's end sizes the next one
+            lines = buf.count(b"\n", end - sample, end)
+            size = max(1 << 16, int(chunk_rows * sample / max(lines, 1)))
 
 
 def _content_end(buf: bytes, stop: int) -> int:
