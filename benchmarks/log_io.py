@@ -149,7 +149,8 @@ def bench(folder: Path, hours: float, runs: int) -> dict[str, object]:
         for impl, rs in res.items():
             entry[impl] = {"s": _stats([r["s"] for r in rs]), "peak_mib": _stats([r["peak_mib"] for r in rs]),
                            "base_mib": statistics.median(r["base_mib"] for r in rs),
-                           "rows_per_s": rows / statistics.median(r["s"] for r in rs)}
+                           "rows_per_s": rows / statistics.median(r["s"] for r in rs),
+                           "out_mib": (folder / f"out_{impl}.{fmt}").stat().st_size / 2**20}
         med = {impl: statistics.median(r["s"] for r in rs) for impl, rs in res.items()}
         ratio = med["ours"] / med["peer"]
         peak = max(r["peak_mib"] for r in res["ours"])

@@ -24,8 +24,11 @@ from thermoskin.logio.common import Array, LogError, short, writable
 
 #: Rows per row group (8 columns: 16 MiB before compression).
 ROW_GROUP_ROWS = 262_144
-#: zstd over byte-stream-split floats, no dictionary: as small as polars' default files, and
-#: faster to write than pyarrow's defaults (dictionary tried on every column).
+#: Encoding: a dictionary for the columns of few values (flags, set-points, 1/64 K steps),
+#: given up after 64 KiB of dictionary for the others (8192 distinct values), which are then
+#: byte-stream-split; zstd over all. Measured on the 1 h benchmark log: smaller than polars'
+#: default file (16 vs 24 MiB) and faster to write than pyarrow's defaults.
+DICTIONARY_PAGE_BYTES = 1 << 16
 COMPRESSION = "zstd"
 
 
@@ -123,7 +126,8 @@ class ParquetSink:
         self.row_group_rows = row_group_rows
         self._schema = pa.schema([(n, pa.float64()) for n in names])
         self._writer: Any = pq.ParquetWriter(
-            path, self._schema, compression=COMPRESSION, use_dictionary=False, use_byte_stream_split=True
+            path, self._schema, compression=COMPRESSION, use_byte_stream_split=True,
+            dictionary_pagesize_limit=DICTIONARY_PAGE_BYTES,
         )
         self._buf: list[list[np.ndarray]] = []
         self._rows = 0
