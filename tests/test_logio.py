@@ -416,6 +416,8 @@ def test_reader_chunks_and_boundaries(tmp_path: Path) -> None:
         chunks = list(r)
         assert r.n_rows == r.rows == 25_000
         assert r.t_s == pytest.approx(1e-3)
+        with pytest.raises(RuntimeError, match="iterated once"):
+            list(r)
     sizes = [c["t"].size for c in chunks]
     assert len(chunks) > 5 and max(sizes) < 4 * 2000, sizes  # chunks of about chunk_rows rows
     for k, a in cols.items():

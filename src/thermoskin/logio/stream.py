@@ -62,7 +62,8 @@ class LogReader:
     a last line without its line end is left out instead of read as a cut row.
 
     Attributes: ``names`` (column order of the file), ``n_rows`` (Parquet: from the footer;
-    CSV: None until read to the end), ``rows`` (rows given so far), ``t_s``, ``format``.
+    CSV: None until read to the end), ``rows`` (rows given so far), ``t_s`` (the first
+    chunk's median interval, once it is read), ``format``. A reader is iterated once.
     """
 
     def __init__(
@@ -85,6 +86,7 @@ class LogReader:
         self.rows = 0
         self.t_s: float | None = None
         self._t_prev: float | None = None
+        self._started = False
         self._src: CsvSource | ParquetSource
         try:
             self._src = CsvSource(p, live) if self.format == "csv" else ParquetSource(p)
@@ -103,6 +105,9 @@ class LogReader:
     # ------------------------------------------------------------------ iteration
 
     def __iter__(self) -> Iterator[dict[str, Array]]:
+        if self._started:
+            raise RuntimeError(f"LogReader({self.path}) can be iterated once; open a new one")
+        self._started = True
         pending: list[Array] | None = None  # a first chunk of one row waits for the next
         for cols in self._chunks():
             if pending is not None:
