@@ -51,7 +51,9 @@ class ParquetSource:
 
         self.path = path
         try:
-            self._file = pq.ParquetFile(path)
+            # pre_buffer (pyarrow's default) keeps every row group read so far: memory would
+            # grow with the log's length
+            self._file = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
             schema = self._file.schema_arrow
         except _arrow_errors() as exc:
             raise LogError(
