@@ -76,7 +76,7 @@ def kernel_params(cfg: Config, tables: ModelTables) -> Array:
     pr[K.PR_TS] = t_s
     pr[K.PR_RT] = tables.R_T
     pr[K.PR_AMB] = tables.amb_idx
-    pr[K.PR_K] = d.k_drift
+    pr[K.PR_D] = d.dq_design
     pr[K.PR_H] = d.h_on
     pr[K.PR_KOFF] = d.k_off
     pr[K.PR_FOFF] = d.f_off
@@ -85,10 +85,18 @@ def kernel_params(cfg: Config, tables: ModelTables) -> Array:
     pr[K.PR_ALVL] = min(1.0, t_s / d.tau_level)
     pr[K.PR_NWARM] = n_warm
     pr[K.PR_WSTRIDE] = max(1, math.ceil(n_warm / K.NWB))
+    pr[K.PR_S0] = d.z_scale
+    pr[K.PR_HSLOPE] = d.h_rate
+    pr[K.PR_ARATE] = min(1.0, t_s / 2.0)
+    pr[K.PR_TCMD] = 2.0
+    pr[K.PR_CMAN] = cfg.estimator.tank_jump
+    pr[K.PR_TMAN] = cfg.estimator.tank_jump_s
     pr[K.PR_TREF] = d.t_refractory
     pr[K.PR_TSETTLE] = d.t_settle
-    pr[K.PR_AB] = min(1.0, t_s / d.tau_baseline)
-    pr[K.PR_AS] = min(1.0, t_s / d.tau_sigma)
+    pr[K.PR_AB] = min(1.0, 1.25 * t_s / d.tau_baseline)
+    eta = min(0.5, 2.0 * t_s / d.tau_sigma)
+    pr[K.PR_UP] = math.exp(0.5 * eta)
+    pr[K.PR_DOWN] = math.exp(-0.5 * eta)
     pr[K.PR_NMAX] = max(1, round(d.max_contact_s / t_s))
     pr[K.PR_MAXGAP] = max(1, round(cfg.estimator.max_gap_s / t_s))
     pr[K.PR_P0Q] = 1.0
@@ -122,7 +130,7 @@ class TouchEstimator:
     def _build(self, v_values: tuple[float, ...]) -> None:
         self.tables = build_tables(self.cfg, self.t_s, v_values)
         tb = self.tables
-        self._tabs = (tb.Phi, tb.Gam, tb.Q, tb.Phi_a, tb.Q_a)
+        self._tabs = (tb.Phi, tb.Gam, tb.Q_idle, tb.Q, tb.Phi_a, tb.Q_a)
         self._iv = {v: i for i, v in enumerate(tb.v_values)}
         self.pr = kernel_params(self.cfg, tb)
 
@@ -165,14 +173,19 @@ class TouchEstimator:
 
     # -- streaming --------------------------------------------------------------------------
     def step(self, t: float, T_w: float, T_p: float, v: float, T_a: float,
-             T_w_cmd: float = math.nan, fresh: int = 7) -> int:
-        """One sample (``v`` the pump command applied from ``t`` on; ``fresh`` the bitmask of
-        channels with a new reading: 1 ``T_w``, 2 ``T_p``, 4 ``T_a``); returns ``contact``."""
+             T_w_cmd: float = math.nan, fresh: int = 7, drive: float = math.nan) -> int:
+        """One sample; returns ``contact``.
+
+        ``v`` and ``drive``: the pump command and the Peltier drive applied from ``t`` on
+        (``drive`` NaN: unknown, the tank is then a constant-velocity model); ``fresh``: the
+        bitmask of channels with a new reading (1 ``T_w``, 2 ``T_p``, 4 ``T_a``).
+        """
         self.q_i_hat = self.observer.step(T_w, T_p, v, T_a)
         iv = self._iv.get(v)
         if iv is None:
             iv = self._index(v)
-        code = K.step(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, T_w_cmd, iv, fresh, self._ev)
+        code = K.step(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
+                      self._ev)
         self.started = bool(code & K.C_STARTED)
         self.ended = bool(code & K.C_ENDED)
         if self.ended:
@@ -188,12 +201,13 @@ class TouchEstimator:
 
     # -- arrays -----------------------------------------------------------------------------
     def run(self, t: Array, T_w: Array, T_p: Array, v: Array, T_a: Array,
-            T_w_cmd: Array | None = None, fresh: Any = None) -> Observation:
+            T_w_cmd: Array | None = None, fresh: Any = None, drive: Array | None = None) -> Observation:
         """``reset``, then every sample, then ``finish``: equal to ``step`` per sample."""
         self.reset()
         t, T_w, T_p, v, T_a = (np.ascontiguousarray(x, dtype=float) for x in (t, T_w, T_p, v, T_a))
         n = len(t)
         cmd = np.full(n, math.nan) if T_w_cmd is None else np.ascontiguousarray(T_w_cmd, dtype=float)
+        drv = np.full(n, math.nan) if drive is None else np.ascontiguousarray(drive, dtype=float)
         fr = (np.full(n, 7, dtype=np.int64) if fresh is None
               else np.ascontiguousarray(fresh, dtype=np.int64))
         vals, inv = np.unique(v, return_inverse=True)
@@ -202,8 +216,8 @@ class TouchEstimator:
         o = self.observer.run(T_w, T_p, v, T_a)
         dq, q, sq, contact = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
         events = np.empty((max(16, n // 100), K.NEV))
-        ne = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, fr, dq, q, sq, contact,
-                   events)
+        ne = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, dq, q, sq,
+                   contact, events)
         self.events = [ContactEvent.from_kernel(events[i]) for i in range(min(ne, len(events)))]
         if n:
             self.finish(float(t[-1]))

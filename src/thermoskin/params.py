@@ -138,12 +138,24 @@ class EstimatorParams(_Validated):
 
     section = "estimator"
     S_q: float = _p(1.0, "W^2/s", 0.0, 1e6, lo_open=True,
-                    doc="random-walk density of the touch heat q_i: the estimate's bandwidth")
-    S_p: float = _p(10.0, "K^2/s^3", 0.0, 1e6, lo_open=True,
+                    doc="random-walk density of the touch heat q_i in a contact: how fast the "
+                        "estimate follows it")
+    S_q_idle: float = _p(1e-4, "W^2/s", 0.0, 1e6, lo_open=True,
+                         doc="the same while no contact is detected: slow drift only, so that a "
+                             "touch is not absorbed before it is detected")
+    S_p: float = _p(0.01, "K^2/s^3", 0.0, 1e6, lo_open=True,
                     doc="acceleration density of the tank temperature T_p (constant-velocity model)")
     S_a: float = _p(1e-3, "K^2/s", 0.0, 1e6, lo_open=True,
                     doc="random-walk density of the ambient temperature T_a")
     S_w: float = _p(1e-8, "K^2/s", 0.0, 1e6, doc="model error on the pipe node")
+    tank_gain: float | None = _p(None, "K/s", 0.0, 1e3, optional=True,
+                                 doc="the tank's rate per unit Peltier drive; default: the [peltier] "
+                                     "modules' Peltier heat over the tank's capacitance")
+    tank_jump: float = _p(4.0, "sd", 1.0, 100.0,
+                          doc="a T_p reading this many standard deviations off is a manoeuvre of "
+                              "the tank (a drive step): its slope is let go")
+    tank_jump_s: float = _p(0.3, "s", 0.0, 60.0, lo_open=True,
+                            doc="time over which such a jump is taken as a change of slope")
     max_gap_s: float = _p(2.0, "s", 0, 3600.0, lo_open=True,
                           doc="a pipe reading missing for longer restarts the estimate")
 
@@ -153,10 +165,15 @@ class DetectorParams(_Validated):
     """Two-sided contact detector on the estimator's standardised touch heat."""
 
     section = "detector"
-    k_drift: float = _p(2.0, "sigma", 0.0, 100.0,
-                        doc="CUSUM drift allowance: evidence accrues while |dq| exceeds it")
-    h_on: float = _p(0.12, "sigma s", 0.0, 100.0, lo_open=True,
-                     doc="CUSUM threshold: onset once the accrued evidence exceeds it")
+    dq_design: float = _p(0.4, "W", 0.0, 100.0, lo_open=True,
+                          doc="the change of the touch heat the CUSUM is tuned to (about half a "
+                              "fingertip's)")
+    h_on: float = _p(5.0, "", 0.0, 1000.0, lo_open=True,
+                     doc="onset threshold, log-likelihood ratio of a touch against none, for one "
+                         "pipe reading a second ...")
+    h_rate: float = _p(1.3, "", 0.0, 100.0,
+                       doc="... plus this times ln(readings per second): more readings, more "
+                           "chances of a false alarm (10 Hz boards: 8.0, 1 kHz: 14.0)")
     k_off: float = _p(2.0, "sigma", 0.0, 100.0, doc="release threshold in noise standard deviations")
     f_off: float = _p(0.35, "", 0.0, 1.0,
                       doc="release threshold as a fraction of the contact's smoothed level")
@@ -166,7 +183,7 @@ class DetectorParams(_Validated):
                       doc="release CUSUM drift: evidence accrues while the estimate is this far below")
     h_off: float = _p(0.05, "sigma s", 0.0, 100.0, lo_open=True,
                       doc="release CUSUM threshold")
-    t_warmup: float = _p(2.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
+    t_warmup: float = _p(1.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
     t_refractory: float = _p(0.5, "s", 0.0, 60.0,
                              doc="after a release, no onset of the opposite sign for this long")
     t_settle: float = _p(2.0, "s", 0.0, 600.0,
@@ -174,7 +191,10 @@ class DetectorParams(_Validated):
     tau_baseline: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,
                              doc="time constant of the no-touch baseline")
     tau_sigma: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,
-                          doc="time constant of the noise estimate")
+                          doc="time constant of the innovations' scale estimate")
+    z_scale: float = _p(0.6, "", 0.0, 100.0, lo_open=True,
+                        doc="standard deviation of the contact estimate over its filter's own sd "
+                            "(for the release threshold)")
     arm_band: float = _p(0.5, "K", 0.0, 50.0, lo_open=True,
                          doc="in a loop with a command: detection starts once |T_w - T_w_cmd| ...")
     t_arm: float = _p(3.0, "s", 0.0, 600.0, doc="... has stayed within arm_band this long")

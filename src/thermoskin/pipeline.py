@@ -44,4 +44,4 @@ def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None 
     fresh, _ = infer_fresh(log)
     est = TouchEstimator(cfg, t_s=t_s)
     return est.run(t, log["T_w"], log["T_p"], log["v"], log["T_a"],
-                   T_w_cmd=log.get("T_w_cmd"), fresh=fresh)
+                   T_w_cmd=log.get("T_w_cmd"), fresh=fresh, drive=log.get("drive"))

@@ -10,11 +10,21 @@ Per sample (``t`` s, readings ``T_w, T_p, T_a`` °C, ``fresh`` bitmask: 1 ``T_w`
 coming interval)::
 
     ambient update (T_a fresh):  x_a += K_a (T_a - x_a[i_a]),  P_a -= K_a P_a[i_a, :]
-    patch updates (T_w, T_p fresh): x += K (y - x[i]),          K = P[:, i] / (P[i, i] + R)
-    outputs: q_i estimate x[2], its standard deviation sqrt(P[2, 2])
-    detector (armed): u = (q - b) / (s sqrt(P_qq));  g+ = max(0, g+ + (u - k) t_s),
-                      g- = max(0, g- + (-u - k) t_s); onset when g± > h
-    predict: x_a = Phi_a x_a,  x = Phi x + Gamma x_a[0],  P = Phi P Phi' + Q
+    patch updates (T_w, T_p fresh), innovation e, its variance S = P[i, i] + R:
+        g = P[i, q] / P[q, q]            the reading's sensitivity to a lasting change of q_i
+        l± += ±Δ g e / (κ S) - Δ² g² / (2 κ S)     log-likelihood ratio of q_i + Δ (q_i - Δ)
+        x += K e,  P -= K P[i, :],  K = P[:, i] / S
+    detector (armed, idle): G± = max(0, G± + l±); onset when G± > h (Page's CUSUM)
+    predict: x_a = Phi_a x_a,  x = Phi x + Gamma [x_a[0], drive],  P = Phi P Phi' + Q
+
+This is Page's test on the Kalman filter's innovations for a step of the touch heat of
+design size ``Δ`` (``detector.dq_design``): each fresh reading adds the evidence it
+carries, weighted by how much it depends on ``q_i`` (a reading while the pump runs
+carries little, one after the pump stood still a lot). While idle the filter's ``q_i``
+follows only slow drift (``S_q_idle``), so a touch is not absorbed before it is seen;
+at an onset the estimate jumps by the change the evidence points to and the filter
+follows the contact (``S_q``) until the release. ``κ``, the innovations' scale against
+their predicted variance, is tracked as a running median (1 when the model is right).
 
 A stale reading (its fresh bit clear), a NaN or an infinity is no measurement: the model
 predicts through it. The state of a patch is one float64 vector (offsets below); the
@@ -35,10 +45,10 @@ XA = 30        # x_a: T_a, T_as (2)
 PA = 32        # P_a: 2 x 2 (4)
 READY = 36     # 1 once the filter is initialised
 GAPRUN = 37    # samples since the last valid pipe reading
-MODE = 38      # detector: WARM, IDLE, CONTACT
+MODE = 38      # detector: WARM, IDLE, INCONTACT
 NWARM = 39     # warm-up samples seen
 B = 40         # baseline of the q_i estimate, W
-VAR = 41       # variance scale of the standardised estimate
+KAPPA = 41     # scale of the innovations against their predicted standard deviation
 GP = 42        # CUSUM for a rise
 GM = 43        # CUSUM for a fall
 TQP = 44       # last time GP was zero, s
@@ -63,9 +73,19 @@ CONTACT = 62   # output: 0/1
 LEVEL = 63     # smoothed level of the contact, W
 LVLMAX = 64    # its largest value, W
 GAP = 65       # output: 1 while a reading is NaN (held over)
-WBUF = 66      # warm-up buffer: NWB q values, then NWB standard deviations
+LLP = 66       # this sample's log-likelihood ratio for a rise
+LLM = 67       # ... for a fall
+SGEP = 68      # since GP was zero: sum of g e / S
+SGGP = 69      # ... and of g^2 / S (their ratio estimates the change)
+SGEM = 70
+SGGM = 71
+SGE = 72       # this sample's sum of g e / S
+SGG = 73       # ... and of g^2 / S
+RATE = 74      # fresh pipe readings per sample (running mean)
+CMD = 75       # the last set-point seen, degC
+WBUF = 80      # warm-up buffer: NWB q values
 NWB = 256
-SCR = WBUF + 2 * NWB  # scratch: Phi P (25)
+SCR = WBUF + NWB  # scratch: Phi P (25)
 NSTATE = SCR + 25
 
 WARM, IDLE, INCONTACT = 0, 1, 2
@@ -74,8 +94,8 @@ WARM, IDLE, INCONTACT = 0, 1, 2
 PR_TS = 0        # t_s, s
 PR_RT = 1        # thermocouple variance, K^2
 PR_AMB = 2       # ambient state read by the air sensor (0 or 1)
-PR_K = 3         # k_drift, sigma
-PR_H = 4         # h_on, sigma s
+PR_D = 3         # design change of q_i, W
+PR_H = 4         # onset threshold, log-likelihood ratio
 PR_KOFF = 5      # k_off, sigma
 PR_FOFF = 6      # f_off
 PR_HOFF = 7      # h_off, sigma s
@@ -83,8 +103,8 @@ PR_NWARM = 8     # warm-up samples
 PR_WSTRIDE = 9   # stride of the warm-up buffer
 PR_TREF = 10     # t_refractory, s
 PR_TSETTLE = 11  # t_settle, s
-PR_AB = 12       # baseline EMA weight per sample
-PR_AS = 13       # variance EMA weight per sample
+PR_AB = 12       # baseline tracker step per sample (in standard deviations)
+PR_UP = 13       # innovation-scale tracker: factor when |e|/sqrt(S) is above its median
 PR_NMAX = 14     # max contact in samples
 PR_MAXGAP = 15   # max pipe-reading gap in samples
 PR_P0Q = 16      # initial variance of q_i, W^2
@@ -94,7 +114,14 @@ PR_BAND = 19     # arm_band, K
 PR_NARM = 20     # t_arm in samples
 PR_KREL = 21     # k_rel, sigma
 PR_ALVL = 22     # EMA weight of the contact level per sample
-NPARAM = 24
+PR_DOWN = 23     # innovation-scale tracker: factor when below its median
+PR_S0 = 24       # standard deviation of the contact estimate over its filter's own sd
+PR_CMAN = 25     # a tank innovation beyond this many sd is a manoeuvre
+PR_TMAN = 26     # time over which a manoeuvre's jump is taken as a change of slope, s
+PR_HSLOPE = 27   # onset threshold grows by this per e-fold of the pipe reading rate
+PR_ARATE = 28    # weight per sample of the reading-rate mean
+PR_TCMD = 29     # a set-point change of dc makes the tank's slope uncertain by dc / this, s
+NPARAM = 30
 
 # event fields
 EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
@@ -108,26 +135,54 @@ def new_state() -> np.ndarray:
     """A fresh (uninitialised) patch state."""
     st = np.zeros(NSTATE)
     st[TREL] = -1e300
+    st[KAPPA] = 1.0
+    st[RATE] = 1.0
+    st[CMD] = np.nan
     return st
 
 
 @njit(cache=True, inline="always")
-def _update(st, i, y, R):
-    """Scalar measurement of state ``i``: ``K = P[:, i]/(P[i, i] + R)``, Joseph-free form."""
+def _update(st, pr, i, y, R):
+    """Scalar measurement of state ``i``; adds its evidence about a change of ``q_i``."""
     S = st[P + 6 * i] + R
     e = y - st[X + i]
+    kap = st[KAPPA]
+    sS = math.sqrt(S)
+    if i == 3 and abs(e) > pr[PR_CMAN] * kap * sS:
+        # the tank manoeuvres (the drive jumped): let its slope go, as a fading-memory filter
+        # does, and take no evidence about q_i from this reading
+        st[P + 18] += e * e
+        st[P + 24] += (e / pr[PR_TMAN]) ** 2
+        S = st[P + 18] + R
+    else:
+        # evidence: the reading's sensitivity to a lasting change of q_i, g = P[i, q] / P[q, q]
+        pqq = st[P + 12]
+        g = st[P + 5 * i + 2] / pqq if pqq > 0.0 else 0.0
+        Se = kap * kap * S
+        D = pr[PR_D]
+        a = D * g * e / Se
+        c = 0.5 * D * D * g * g / Se
+        st[LLP] += a - c
+        st[LLM] += -a - c
+        st[SGE] += g * e / Se
+        st[SGG] += g * g / Se
+        # the innovations' scale: running median of |e| / sqrt(S) (0.6745 for a unit normal)
+        if abs(e) > 0.6745 * kap * sS:
+            st[KAPPA] = kap * pr[PR_UP]
+        else:
+            st[KAPPA] = kap * pr[PR_DOWN]
     inv = 1.0 / S
-    for a in range(5):
-        st[X + a] += st[P + 5 * a + i] * inv * e
-    # P <- P - K P[i, :] with K = P[:, i]/S (symmetric): compute from a copy of row i
+    for a_ in range(5):
+        st[X + a_] += st[P + 5 * a_ + i] * inv * e
+    # P <- P - K P[i, :] with K = P[:, i]/S (symmetric): from a copy of row i
     r0 = st[P + 5 * i]
     r1 = st[P + 5 * i + 1]
     r2 = st[P + 5 * i + 2]
     r3 = st[P + 5 * i + 3]
     r4 = st[P + 5 * i + 4]
-    for a in range(5):
-        ka = st[P + 5 * a + i] * inv
-        base = P + 5 * a
+    for a_ in range(5):
+        ka = st[P + 5 * a_ + i] * inv
+        base = P + 5 * a_
         st[base] -= ka * r0
         st[base + 1] -= ka * r1
         st[base + 2] -= ka * r2
@@ -136,12 +191,12 @@ def _update(st, i, y, R):
 
 
 @njit(cache=True, inline="always")
-def _predict(st, F, G, QQ, u):
-    """``x = Phi x + Gamma u``, ``P = Phi P Phi' + Q``."""
+def _predict(st, F, G, QQ, u, w):
+    """``x = Phi x + Gamma [u, w]``, ``P = Phi P Phi' + Q``."""
     x0, x1, x2, x3, x4 = st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4]
     for i in range(5):
         st[X + i] = (F[i, 0] * x0 + F[i, 1] * x1 + F[i, 2] * x2 + F[i, 3] * x3 + F[i, 4] * x4
-                     + G[i] * u)
+                     + G[i, 0] * u + G[i, 1] * w)
     for i in range(5):
         for j in range(5):
             acc = 0.0
@@ -158,7 +213,7 @@ def _predict(st, F, G, QQ, u):
 
 
 @njit(cache=True, inline="always")
-def _ambient(st, Fa, Qa, y, fresh, R, idx):
+def _ambient(st, y, fresh, R, idx):
     """Update the ambient filter with a fresh air reading (if any)."""
     if fresh:
         S = st[PA + 3 * idx] + R
@@ -238,6 +293,7 @@ def _end(st, t_release, ev):
     st[LASTSIGN] = sg
     st[GP] = 0.0
     st[GM] = 0.0
+    st[SGEP] = st[SGGP] = st[SGEM] = st[SGGM] = 0.0
     st[TQP] = t_release
     st[TQM] = t_release
     st[RUN] = 0.0
@@ -249,58 +305,67 @@ def _detect(st, pr, t, ev):
     q = st[Q]
     sq = st[SQ]
     mode = st[MODE]
-    ts = pr[PR_TS]
-    if mode == WARM:
+    if mode == WARM:  # the filter settles; the baseline is the median of its estimate
         n = int(st[NWARM])
         stride = int(pr[PR_WSTRIDE])
         if n % stride == 0:
             j = n // stride
             if j < NWB:
                 st[WBUF + j] = q
-                st[WBUF + NWB + j] = sq
         n += 1
         st[NWARM] = n
         st[B] += (q - st[B]) / n
         if n >= int(pr[PR_NWARM]):
             m = min((n - 1) // stride + 1, NWB)
-            qs = st[WBUF:WBUF + m].copy()
-            b = np.median(qs)
-            zs = np.abs(qs - b) / st[WBUF + NWB:WBUF + NWB + m]
-            s = 1.4826 * np.median(zs)
-            if not s > 1e-6:
-                s = 1e-6
-            st[B] = b
-            st[VAR] = s * s
+            st[B] = np.median(st[WBUF:WBUF + m])
             st[MODE] = IDLE
             st[TQP] = t
             st[TQM] = t
         st[DQ] = q - st[B]
         return 0
     b = st[B]
-    s = math.sqrt(st[VAR])
     if mode == IDLE:
-        u = (q - b) / (s * sq)
-        k = pr[PR_K]
-        gp = st[GP] + (u - k) * ts
-        gm = st[GM] + (-u - k) * ts
-        if gp < 0.0:
-            gp = 0.0
-        if gm < 0.0:
-            gm = 0.0
+        gp = st[GP] + st[LLP]
+        gm = st[GM] + st[LLM]
         if t - st[TREL] < pr[PR_TREF]:  # no onset of the other sign right after a release
             if st[LASTSIGN] > 0:
                 gm = 0.0
             else:
                 gp = 0.0
-        if gp == 0.0:
+        if gp <= 0.0:
+            gp = 0.0
             st[TQP] = t
-        if gm == 0.0:
+            st[SGEP] = st[SGGP] = 0.0
+        else:
+            st[SGEP] += st[SGE]
+            st[SGGP] += st[SGG]
+        if gm <= 0.0:
+            gm = 0.0
             st[TQM] = t
+            st[SGEM] = st[SGGM] = 0.0
+        else:
+            st[SGEM] += st[SGE]
+            st[SGGM] += st[SGG]
         st[GP] = gp
         st[GM] = gm
-        h = pr[PR_H]
+        # more readings per second are more chances of a false alarm: h = h_on + c ln(rate)
+        rate = st[RATE] / pr[PR_TS]
+        h = pr[PR_H] + pr[PR_HSLOPE] * math.log(rate if rate > 1.0 else 1.0)
         if gp > h or gm > h:
             sg = 1.0 if gp >= gm else -1.0
+            # the change the evidence since the CUSUM left zero points to, sum(g e/S)/sum(g²/S)
+            if sg > 0:
+                jump = st[SGEP] / st[SGGP] if st[SGGP] > 0.0 else pr[PR_D]
+                if jump < pr[PR_D]:
+                    jump = pr[PR_D]
+            else:
+                jump = st[SGEM] / st[SGGM] if st[SGGM] > 0.0 else -pr[PR_D]
+                if jump > -pr[PR_D]:
+                    jump = -pr[PR_D]
+            st[X + 2] += jump
+            st[P + 12] += 0.25 * jump * jump
+            q = st[X + 2]
+            st[Q] = q
             st[MODE] = INCONTACT
             st[CONTACT] = 1.0
             st[SIGN] = sg
@@ -319,21 +384,14 @@ def _detect(st, pr, t, ev):
             st[GM] = 0.0
             st[DQ] = q - b
             return C_CONTACT | C_STARTED
-        if t - st[TREL] >= pr[PR_TSETTLE]:
-            # idle and settled: learn the noise scale (clipped at 3 sigma, so that a rising
-            # edge cannot inflate it) and, while there is no evidence of a touch, the baseline
-            z = (q - b) / sq
-            z2 = z * z
-            v = st[VAR]
-            if z2 > 9.0 * v:
-                z2 = 9.0 * v
-            st[VAR] = v + pr[PR_AS] * (z2 - v)
-            if gp == 0.0 and gm == 0.0:
-                b += pr[PR_AB] * (q - b)
-                st[B] = b
+        if gp == 0.0 and gm == 0.0 and t - st[TREL] >= pr[PR_TSETTLE]:
+            # no evidence of a touch: the baseline follows the estimate (a running median)
+            step_b = pr[PR_AB] * sq
+            b += step_b if q > b else -step_b
+            st[B] = b
         st[DQ] = q - b
         return 0
-    # in contact: release by a CUSUM for the estimate falling below max(k_off sigma, f_off
+    # in contact: release by a CUSUM for the estimate falling below max(k_off sd, f_off
     # times the contact's smoothed level), back-dated to where that evidence began
     sg = st[SIGN]
     d = sg * (q - b)
@@ -347,12 +405,12 @@ def _detect(st, pr, t, ev):
     st[LEVEL] = lvl
     if lvl > st[LVLMAX]:
         st[LVLMAX] = lvl
-    sd = s * sq
+    sd = pr[PR_S0] * st[KAPPA] * sq
     thr = pr[PR_KOFF] * sd
     f = pr[PR_FOFF] * st[LVLMAX]
     if f > thr:
         thr = f
-    g = st[RUN] + ((thr - d) / sd - pr[PR_KREL]) * ts
+    g = st[RUN] + ((thr - d) / sd - pr[PR_KREL]) * pr[PR_TS]
     if g <= 0.0:
         g = 0.0
         st[TFB] = t
@@ -368,30 +426,45 @@ def _detect(st, pr, t, ev):
 
 
 @njit(cache=True)
-def step(st, pr, Phi, Gam, Qd, Phi_a, Q_a, t, T_w, T_p, T_a, T_w_cmd, iv, fresh, ev):
-    """One sample of one patch; returns the step-result bits (contact, started, ended)."""
+def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
+         ev):
+    """One sample of one patch; returns the step-result bits (contact, started, ended).
+
+    ``iv`` and ``drive``: the pump's table row and the Peltier drive applied over the coming
+    interval; ``Qi`` / ``Qc``: the process-noise tables while idle and in contact.
+    """
     R = pr[PR_RT]
     gap = not (math.isfinite(T_w) and math.isfinite(T_p) and math.isfinite(T_a))
     st[GAP] = 1.0 if gap else 0.0
-    ok_w = (fresh & 1) != 0 and math.isfinite(T_w)
-    ok_p = (fresh & 2) != 0 and math.isfinite(T_p)
-    ok_a = (fresh & 4) != 0 and math.isfinite(T_a)
+    st[LLP] = st[LLM] = st[SGE] = st[SGG] = 0.0
     if st[READY] == 0.0:
         if gap:
             return C_CONTACT if st[MODE] == INCONTACT else 0
         _init(st, pr, T_w, T_p, T_a)
     else:
-        _ambient(st, Phi_a, Q_a, T_a, ok_a, R, int(pr[PR_AMB]))
-        if ok_w:
-            _update(st, 0, T_w, R)
+        _ambient(st, T_a, (fresh & 4) != 0 and math.isfinite(T_a), R, int(pr[PR_AMB]))
+        if (fresh & 1) != 0 and math.isfinite(T_w):
+            _update(st, pr, 0, T_w, R)
             st[GAPRUN] = 0.0
+            st[RATE] += pr[PR_ARATE] * (1.0 - st[RATE])
         else:
             st[GAPRUN] += 1.0
-        if ok_p:
-            _update(st, 3, T_p, R)
+            st[RATE] -= pr[PR_ARATE] * st[RATE]
+        if (fresh & 2) != 0 and math.isfinite(T_p):
+            _update(st, pr, 3, T_p, R)
     st[Q] = st[X + 2]
     pq = st[P + 12]
     st[SQ] = math.sqrt(pq) if pq > 0.0 else 1e-12
+    # a new set-point: the controller is about to drive the tank hard; let its slope go
+    # and drop the evidence gathered so far (it was about the old regime)
+    if T_w_cmd == T_w_cmd:
+        dc = T_w_cmd - st[CMD]
+        if st[CMD] == st[CMD] and abs(dc) > 1e-9:
+            st[P + 24] += (dc / pr[PR_TCMD]) ** 2
+            st[GP] = st[GM] = 0.0
+            st[TQP] = st[TQM] = t
+            st[SGEP] = st[SGGP] = st[SGEM] = st[SGGM] = 0.0
+        st[CMD] = T_w_cmd
     # arming: once T_w has held within the band of its command (no command: at once)
     if st[ARMED] == 0.0:
         if T_w_cmd != T_w_cmd:
@@ -411,14 +484,15 @@ def step(st, pr, Phi, Gam, Qd, Phi_a, Q_a, t, T_w, T_p, T_a, T_w_cmd, iv, fresh,
         st[DQ] = st[Q] - st[B]
     # predict over the coming interval
     _ambient_predict(st, Phi_a, Q_a)
-    _predict(st, Phi[iv], Gam[iv], Qd[iv], st[XA])
+    Qd = Qc if st[MODE] == INCONTACT else Qi
+    _predict(st, Phi[iv], Gam[iv], Qd[iv], st[XA], drive if drive == drive else 0.0)
     if st[GAPRUN] > pr[PR_MAXGAP]:
         st[READY] = 0.0  # restart from the next valid readings
     return code
 
 
 @njit(cache=True)
-def run(st, pr, Phi, Gam, Qd, Phi_a, Q_a, t, T_w, T_p, T_a, T_w_cmd, iv, fresh,
+def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
         dq, q, sq, contact, events):
     """:func:`step` over arrays; fills ``dq, q, sq, contact`` and ``events``; returns the event count."""
     n = t.shape[0]
@@ -426,8 +500,8 @@ def run(st, pr, Phi, Gam, Qd, Phi_a, Q_a, t, T_w, T_p, T_a, T_w_cmd, iv, fresh,
     ne = 0
     cap = events.shape[0]
     for k in range(n):
-        c = step(st, pr, Phi, Gam, Qd, Phi_a, Q_a, t[k], T_w[k], T_p[k], T_a[k], T_w_cmd[k], iv[k],
-                 fresh[k], ev)
+        c = step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, t[k], T_w[k], T_p[k], T_a[k], T_w_cmd[k], iv[k],
+                 drive[k], fresh[k], ev)
         dq[k] = st[DQ]
         q[k] = st[Q]
         sq[k] = st[SQ]

@@ -1,11 +1,18 @@
 """The sensor-aware estimator's model: the network of Fig. 3 with the touch heat and the tank as states.
 
-Patch state ``x = [T_w, T_g, q_i, T_p, Ṫ_p]`` (°C, °C, W, °C, K/s), input ``T_a`` (°C)::
+Patch state ``x = [T_w, T_g, q_i, T_p, r_p]`` (°C, °C, W, °C, K/s), inputs ``T_a`` (°C) and
+the Peltier ``drive`` (in [-1, 1])::
 
     C_w dT_w/dt = (T_p - T_w)/R_w(v) - (T_w - T_a)/R_aw - (T_w - T_g)/R_g + w_w   (eqs. 1, 3; Fig. 3)
     C_g dT_g/dt = (T_w - T_g)/R_g + q_i - (T_g - T_a)/R_ag                        (eq. 4; Fig. 3)
-    dq_i/dt = w_q                the touch's heat into the sheet: a random walk (S_q, W²/s)
-    dT_p/dt = Ṫ_p, dṪ_p/dt = w_p    the tank: a constant-velocity model (S_p, K²/s³)
+    dq_i/dt = w_q          the touch's heat into the sheet: a random walk (S_q, W²/s)
+    C_t dT_p/dt = C_t (r_p + β drive) - (T_p - T_w)/R_w(v) - (T_p - T_a)/R_ta      the tank
+    dr_p/dt = w_p          the rest of the tank's rate (Joule heat, the sink): a random walk (S_p)
+
+The tank's response to the drive is the Peltier's, linearised at zero drive:
+``β = n S_m I_max (T_ref + 273.15) / C_tank`` (K/s per unit drive; the Peltier heat of
+``physics.peltier``), unless ``estimator.tank_gain`` gives it. A log without the drive is
+estimated with ``drive = 0``: ``r_p`` then carries the whole rate (a constant-velocity model).
 
 ``q_i`` is the paper's touch heat (``q_i`` of Fig. 3), so the estimate is of the heat the
 touch brings to the sheet, not of its share that reaches the pipe. ``w`` is white process
@@ -38,7 +45,7 @@ from thermoskin.physics.convection import R_w as R_w_of
 Array = NDArray[np.float64]
 
 NX = 5
-"""Patch state size: ``T_w, T_g, q_i, T_p, Ṫ_p``."""
+"""Patch state size: ``T_w, T_g, q_i, T_p, r_p``."""
 I_TW, I_TG, I_Q, I_TP, I_DTP = range(NX)
 
 
@@ -48,8 +55,9 @@ def _expm(M: Array) -> Array:
     return np.asarray(expm(M))
 
 
-def patch_matrices(cfg: Config, R_w: float) -> tuple[Array, Array, Array]:
-    """Continuous ``(A, B, S)`` of the patch state for a water-to-pipe resistance ``R_w`` (K/W)."""
+def patch_matrices(cfg: Config, R_w: float, S_q: float | None = None) -> tuple[Array, Array, Array]:
+    """Continuous ``(A, B, S)`` of the patch state for a water-to-pipe resistance ``R_w`` (K/W)
+    (``S_q``: the touch heat's random-walk density, default ``estimator.S_q``)."""
     sk, es = cfg.skin, cfg.estimator
     Cw, Cg, Rg, Raw, Rag = sk.C_w, sk.C_g, sk.R_g, sk.R_aw, sk.R_ag
     A = np.zeros((NX, NX))
@@ -59,12 +67,25 @@ def patch_matrices(cfg: Config, R_w: float) -> tuple[Array, Array, Array]:
     A[I_TG, I_TW] = 1 / (Rg * Cg)
     A[I_TG, I_TG] = -(1 / Rg + 1 / Rag) / Cg
     A[I_TG, I_Q] = 1 / Cg
+    Ct, Rta = cfg.peltier.C_tank, cfg.peltier.R_tank_air
     A[I_TP, I_DTP] = 1.0
-    B = np.zeros(NX)
-    B[I_TW] = 1 / (Raw * Cw)
-    B[I_TG] = 1 / (Rag * Cg)
-    S = np.diag([es.S_w, 0.0, es.S_q, 0.0, es.S_p])
+    A[I_TP, I_TP] = -(1 / R_w + 1 / Rta) / Ct
+    A[I_TP, I_TW] = 1 / (R_w * Ct)
+    B = np.zeros((NX, 2))
+    B[I_TW, 0] = 1 / (Raw * Cw)
+    B[I_TG, 0] = 1 / (Rag * Cg)
+    B[I_TP, 0] = 1 / (Rta * Ct)
+    B[I_TP, 1] = tank_gain(cfg)
+    S = np.diag([es.S_w, 0.0, es.S_q if S_q is None else S_q, 0.0, es.S_p])
     return A, B, S
+
+
+def tank_gain(cfg: Config) -> float:
+    """``β``, the tank's rate per unit drive (K/s): configured, or the Peltier's linearised."""
+    if cfg.estimator.tank_gain is not None:
+        return cfg.estimator.tank_gain
+    pe = cfg.peltier
+    return pe.n_modules * pe.S_m * pe.I_max * (cfg.skin.T_ref + 273.15) / pe.C_tank
 
 
 def van_loan(A: Array, B: Array, S: Array, t_s: float) -> tuple[Array, Array, Array]:
@@ -101,7 +122,8 @@ def ambient_matrices(tau_a: float, S_a: float) -> tuple[Array, Array]:
 class ModelTables:
     """The discretised model, ready for the kernel.
 
-    ``Phi[i], Gam[i], Q[i]`` for the pump velocity ``v_values[i]``; ``Phi_a, Q_a`` the ambient
+    ``Phi[i], Gam[i], Q[i]`` for the pump velocity ``v_values[i]`` (``Q`` while in contact,
+    ``Q_idle`` while idle: only slow drift of ``q_i``); ``Phi_a, Q_a`` the ambient
     filter; ``R_T`` the thermocouple measurement variance (K²); ``amb_idx`` the ambient
     state the air sensor reads (1 with a lag, 0 without).
     """
@@ -111,6 +133,7 @@ class ModelTables:
     Phi: Array
     Gam: Array
     Q: Array
+    Q_idle: Array
     Phi_a: Array
     Q_a: Array
     R_T: float
@@ -134,15 +157,18 @@ def build_tables(cfg: Config, t_s: float, v_values: tuple[float, ...] | list[flo
     """Discretise the patch model for each velocity and the ambient filter at ``t_s``."""
     vs = tuple(dict.fromkeys(float(v) for v in v_values))
     Phi = np.empty((len(vs), NX, NX))
-    Gam = np.empty((len(vs), NX))
+    Gam = np.empty((len(vs), NX, 2))
     Q = np.empty((len(vs), NX, NX))
+    Q_idle = np.empty((len(vs), NX, NX))
     for i, v in enumerate(vs):
         A, B, S = patch_matrices(cfg, R_w_of(v, cfg.skin))
         Phi[i], Gam[i], Q[i] = van_loan(A, B, S, t_s)
+        A, B, S = patch_matrices(cfg, R_w_of(v, cfg.skin), cfg.estimator.S_q_idle)
+        Q_idle[i] = van_loan(A, B, S, t_s)[2]
     tau_a = cfg.sensor.lag_T_a
     Aa, Sa = ambient_matrices(tau_a, cfg.estimator.S_a)
     Phi_a, _, Q_a = van_loan(Aa, np.zeros(2), Sa, t_s)
-    return ModelTables(t_s=t_s, v_values=vs, Phi=Phi, Gam=Gam, Q=Q, Phi_a=Phi_a, Q_a=Q_a,
+    return ModelTables(t_s=t_s, v_values=vs, Phi=Phi, Gam=Gam, Q=Q, Q_idle=Q_idle, Phi_a=Phi_a, Q_a=Q_a,
                        R_T=measurement_variance(cfg), amb_idx=1 if tau_a > 0.0 else 0)
 
 

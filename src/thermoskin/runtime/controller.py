@@ -3,9 +3,10 @@
 The same object runs against the simulated skin, a serial device, or a benchmark::
 
     v       = pump.step(T_w, T_w_cmd)                 Sec. V: stop while T_w is above its command
-    contact = estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh)   eq. 8, Kalman filter, detector
     T_p_cmd = mpc.step(T_w, T_a, T_w_cmd)             eqs. 9-11
     drive   = inner.step(T_p, T_p_cmd, T_a)           PI on the Peltier drive (Table I)
+    contact = estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)   eq. 8, Kalman filter,
+                                                      detector (it feeds no control decision)
 
 Plain floats in, plain floats out; the results stay as attributes for a recorder.
 """
@@ -48,10 +49,12 @@ class SkinController:
         1 ``T_w``, 2 ``T_p``, 4 ``T_a``); sets ``v, drive, T_p_cmd, contact`` (and the blocks')."""
         v = self.pump.step(T_w, T_w_cmd)
         self.v = v
-        self.contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh)
         T_p_cmd = self.mpc.step(T_w, T_a, T_w_cmd, v > 0.0)
         self.T_p_cmd = T_p_cmd
-        self.drive = self.inner.step(T_p, T_p_cmd, T_a)
+        drive = self.inner.step(T_p, T_p_cmd, T_a)
+        self.drive = drive
+        # last: the estimator models the interval to come with the pump and the drive applied
+        self.contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)
 
     def safe(self) -> None:
         """The safe outputs: Peltier drive 0, pump off."""

@@ -545,6 +545,7 @@ def replay(path: str | os.PathLike[str], config: Any = None) -> tuple[dict[str, 
     T_w, T_p, T_a, v, t = cols["T_w"], cols["T_p"], cols["T_a"], cols["v_cmd"], cols["t"]
     cmd = cols.get("T_w_cmd", [math.nan] * n_all)
     fresh = [7 if f != f else int(f) for f in cols.get("fresh", [7.0] * n_all)]
+    drive = cols.get("control.drive", [math.nan] * n_all)  # the commanded drive, as the loop gave it
     q_live, dq_live, c_live = cols["q_i_hat"], cols["dq_i_hat"], cols["contact"]
     max_q = max_dq = 0.0
     mism = 0
@@ -555,7 +556,7 @@ def replay(path: str | os.PathLike[str], config: Any = None) -> tuple[dict[str, 
         return max(worst, abs(a - b)) if a == a and b == b else math.inf
 
     for i in stepped:
-        c = est.step(t[i], T_w[i], T_p[i], v[i], T_a[i], cmd[i], fresh[i])
+        c = est.step(t[i], T_w[i], T_p[i], v[i], T_a[i], cmd[i], fresh[i], drive[i])
         q, dq = est.q_i_hat, est.dq_i_hat
         for k, x in (("t", t[i]), ("T_w", T_w[i]), ("T_p", T_p[i]), ("v", v[i]), ("T_a", T_a[i]),
                      ("q_i_hat", q), ("dq_i_hat", dq), ("contact", c), ("gap", int(est.gap)),
