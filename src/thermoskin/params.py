@@ -174,7 +174,7 @@ class DetectorParams(_Validated):
     h_rate: float = _p(1.3, "", 0.0, 100.0,
                        doc="... plus this times ln(readings per second): more readings, more "
                            "chances of a false alarm (10 Hz boards: 8.0, 1 kHz: 14.0)")
-    k_off: float = _p(2.0, "sigma", 0.0, 100.0, doc="release threshold in noise standard deviations")
+    k_off: float = _p(1.0, "sigma", 0.0, 100.0, doc="release threshold in noise standard deviations")
     f_off: float = _p(0.35, "", 0.0, 1.0,
                       doc="release threshold as a fraction of the contact's smoothed level")
     tau_level: float = _p(0.1, "s", 0.0, 60.0, lo_open=True,
@@ -184,7 +184,7 @@ class DetectorParams(_Validated):
     h_off: float = _p(0.05, "sigma s", 0.0, 100.0, lo_open=True,
                       doc="release CUSUM threshold")
     t_warmup: float = _p(1.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
-    t_refractory: float = _p(0.5, "s", 0.0, 60.0,
+    t_refractory: float = _p(3.0, "s", 0.0, 60.0,
                              doc="after a release, no onset of the opposite sign for this long")
     t_settle: float = _p(2.0, "s", 0.0, 600.0,
                          doc="after a release, time before the baseline learns again")

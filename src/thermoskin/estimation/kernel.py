@@ -417,6 +417,11 @@ def _detect(st, pr, t, ev):
     st[RUN] = g
     if g > pr[PR_HOFF]:
         _end(st, st[TFB], ev)
+        # the touch has gone: the estimate goes back to its baseline, free to correct itself
+        st[X + 2] = b
+        st[P + 12] += 0.25 * lvl * lvl
+        st[Q] = b
+        st[DQ] = 0.0
         return C_ENDED
     if st[SINCE] >= pr[PR_NMAX]:  # a drift, not a touch: end it and take it as the baseline
         _end(st, t, ev)
