@@ -14,6 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+from mcap.records import Footer
+from mcap.records import Message as McapMessage
+from mcap.stream_reader import StreamReader
 
 from thermoskin.devices.base import Sample
 from thermoskin.logio import read_log
@@ -183,3 +186,111 @@ def test_replay_device(tmp_path: Path) -> None:
     assert got[3].T_w == pytest.approx(24.003) and got[0].fresh == 7 and got[1].fresh == 0
     assert math.isnan(got[7].T_w)
     dev.close()
+
+
+# ----------------------------------------------------------------------------- signals
+
+def read_to_end_with_mcap(path: Path) -> int:
+    """The `mcap` library's own readers: every record up to the footer (chunk CRCs checked),
+    then the summary's message count against the messages its indexed reader yields."""
+    with open(path, "rb") as fh:
+        records = list(StreamReader(fh, validate_crcs=True).records)
+    assert isinstance(records[-1], Footer)
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        n = sum(1 for _ in reader.iter_messages())
+    assert summary is not None and summary.statistics is not None
+    assert n == summary.statistics.message_count
+    return n
+
+
+# Forks one recording child at a time (imports once), interrupts it with a real signal at a
+# random moment while it writes 20-row blocks (as `thermoskin run` drains its loop), reports
+# how each child ended.
+INTERRUPTED = textwrap.dedent("""
+    import os, random, signal, sys, time
+    import numpy as np
+    from thermoskin.runtime.record import LoopRecorder
+    out, n = sys.argv[1], int(sys.argv[2])
+    rng = random.Random(11)
+    B = 20
+    for i in range(n):
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:
+            os.close(r)
+            code = 0
+            try:
+                rec = LoopRecorder(f"{out}/r{i}.mcap", {"i": i}, flush_interval=0.003)
+                try:
+                    os.write(w, b"x")
+                    k = 0
+                    while True:
+                        t = (k + np.arange(B)) * 1e-3
+                        one = np.ones(B)
+                        rec.write_rows({"t": t, "T_w": 24 + t, "T_p": 24.3 * one, "T_a": 20 * one,
+                                        "v": 0.141 * one, "drive": 0.1 * one, "T_w_cmd": 25 * one,
+                                        "T_p_cmd": 24.5 * one, "q_i_hat": 3.6 + t, "dq_i_hat": 0 * one,
+                                        "contact": 0 * one, "gap": 0 * one})
+                        k += B
+                finally:
+                    rec.close()
+            except KeyboardInterrupt:
+                code = 130
+            finally:
+                os._exit(code)
+        os.close(w)
+        os.read(r, 1)
+        os.close(r)
+        time.sleep(rng.uniform(0.0, 0.04))
+        sig = (signal.SIGINT, signal.SIGTERM)[i % 2]
+        os.kill(pid, sig)
+        print(i, int(sig), os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]), flush=True)
+""")
+
+
+def test_signals_never_tear_a_recording(tmp_path: Path) -> None:
+    n = 20
+    r = subprocess.run([sys.executable, "-c", INTERRUPTED, str(tmp_path), str(n)], capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    ends = [tuple(map(int, line.split())) for line in r.stdout.splitlines()]
+    assert len(ends) == n
+    for i, sig, code in ends:
+        # SIGINT: KeyboardInterrupt after the block, the file closed; SIGTERM: the file
+        # finished, then the process ended by the signal as the default action would
+        assert code == (130 if sig == signal.SIGINT else -signal.SIGTERM), (i, sig, code)
+        path = tmp_path / f"r{i}.mcap"
+        m = read_to_end_with_mcap(path)
+        info: dict[str, object] = {}
+        data = read_mcap(path, info=info)
+        assert info["complete"], (i, info)
+        rows = len(data["/skin/sample"])
+        assert rows % 20 == 0  # whole blocks: a signal waits for the block being written
+        assert [s["t"] for s in data["/skin/sample"]] == [k * 1e-3 for k in range(rows)]
+        assert len(data["/control"]) == len(data["/skin/estimate"]) == rows
+        assert m == 1 + 3 * rows
+
+
+def test_torn_writer_ends_the_file_readably(tmp_path: Path) -> None:
+    """An exception inside the MCAP writer (here a topic that cannot be encoded, raised while
+    the writer has half a schema record in its chunk) leaves its buffers torn: the recorder
+    refuses further writes and ends the file after what it had written, without a summary."""
+    path = tmp_path / "torn.mcap"
+    rec = Recorder(path, {"a": 1})
+    for k in range(100):
+        rec.write("/skin/sample", k * 1e-3, {"T_w": 24.0})
+    rec.flush()
+    with pytest.raises(UnicodeEncodeError):
+        rec.write("/bad\ud800", 0.1, {"x": 1})
+    with pytest.raises(RecordingError, match="interrupted inside a record"):
+        rec.write("/skin/sample", 0.1, {"T_w": 24.0})
+    rec.close()
+    with open(path, "rb") as fh:
+        records = list(StreamReader(fh, validate_crcs=True).records)
+    assert isinstance(records[-1], Footer)
+    assert sum(isinstance(x, McapMessage) for x in records) == 101
+    info: dict[str, object] = {}
+    data = read_mcap(path, info=info)
+    assert info["complete"] and len(data["/skin/sample"]) == 100
