@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import signal
@@ -9,6 +10,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +18,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.records import Footer
 from mcap.records import Message as McapMessage
-from mcap.stream_reader import StreamReader
+from mcap.stream_reader import StreamReader, breakup_chunk
 
 from thermoskin.devices.base import Sample
 from thermoskin.logio import read_log
@@ -294,3 +296,186 @@ def test_torn_writer_ends_the_file_readably(tmp_path: Path) -> None:
     info: dict[str, object] = {}
     data = read_mcap(path, info=info)
     assert info["complete"] and len(data["/skin/sample"]) == 100
+
+
+# ----------------------------------------------------------------------------- damage
+
+def sample_value(k: int) -> float:
+    return 24.0 + 1e-4 * k
+
+
+def write_rows(path: Path, n: int, **kw: object) -> None:
+    """``n`` rows: a sample and an estimate each, values known from ``k``."""
+    with Recorder(path, {"n": n}, **kw) as rec:  # type: ignore[arg-type]
+        for k in range(n):
+            t = k * 1e-3
+            rec.write("/skin/sample", t, {"T_w": sample_value(k), "seq": k})
+            rec.write("/skin/estimate", t, {"q_i_hat": 3.6 + 1e-5 * k, "contact": 0})
+
+
+def chunks_with_mcap(path: Path) -> list[tuple[int, int, dict[str, int]]]:
+    """``(start, end, messages by topic)`` of every chunk record, by the `mcap` library
+    (its summary's chunk index and its own chunk decoder)."""
+    with open(path, "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None
+    topics = {c.id: c.topic for c in summary.channels.values()}
+    out = []
+    data = path.read_bytes()
+    for ci in summary.chunk_indexes:
+        rec = next(iter(StreamReader(io.BytesIO(data[ci.chunk_start_offset: ci.chunk_start_offset
+                                                      + ci.chunk_length]), skip_magic=True,
+                                     emit_chunks=True).records))
+        counts: dict[str, int] = {}
+        for m in breakup_chunk(rec, validate_crc=True):
+            if isinstance(m, McapMessage):
+                counts[topics[m.channel_id]] = counts.get(topics[m.channel_id], 0) + 1
+        out.append((ci.chunk_start_offset, ci.chunk_start_offset + ci.chunk_length, counts))
+    return out
+
+
+def flip(src: Path, dst: Path, at: int, n: int = 50, keep: int | None = None) -> None:
+    data = bytearray(src.read_bytes())
+    for i in range(at, min(at + n, len(data))):
+        data[i] ^= 0xFF
+    dst.write_bytes(bytes(data[:keep]))
+
+
+def check_kept(data: dict[str, list[dict[str, object]]], report: object, n: int) -> list[int]:
+    """Every sample read is one that was written, intact; every sample missing lies in a
+    reported span (its times included); the spans' counts are the samples missing.
+    Returns the missing rows."""
+    kept = [round(float(s["t"]) * 1e3) for s in data.get("/skin/sample", [])]  # type: ignore[arg-type]
+    assert kept == sorted(set(kept))
+    for s in data.get("/skin/sample", []):
+        assert s["T_w"] == sample_value(int(s["seq"]))  # type: ignore[call-overload]
+    missing = sorted(set(range(n)) - set(kept))
+    spans = report.spans  # type: ignore[attr-defined]
+    for k in missing:
+        t = k * 1e-3
+        assert any((math.isnan(sp.t_before) or sp.t_before <= t)
+                   and (math.isnan(sp.t_after) or t <= sp.t_after) for sp in spans), k
+    if all(sp.known for sp in spans):
+        assert sum(sp.lost.get("/skin/sample", 0) for sp in spans) == len(missing)
+    return missing
+
+
+def test_damaged_middle_keeps_every_intact_chunk(tmp_path: Path) -> None:
+    """The brief's target: 50 bytes flipped in the middle of a 40 000-row recording (written
+    with the default chunking); at least 90 % of the rows kept, the loss said exactly."""
+    n = 40_000
+    clean, bad = tmp_path / "clean.mcap", tmp_path / "bad.mcap"
+    write_rows(clean, n)
+    chunks = chunks_with_mcap(clean)
+    size = clean.stat().st_size
+    start, end, lost = min(chunks, key=lambda c: abs((c[0] + c[1]) / 2 - size / 2))  # the middle chunk
+    flip(clean, bad, (start + end) // 2)
+    info: dict[str, object] = {}
+    cols = to_columns(bad, info=info)
+    rep = info["report"]
+    assert len(cols["t"]) >= 0.9 * n
+    assert len(cols["t"]) == n - lost["/skin/sample"]
+    (span,) = rep.spans  # type: ignore[attr-defined]
+    assert span.known and span.lost == lost and span.start == start
+    assert rep.data_lost and not rep.cut_off  # type: ignore[attr-defined]
+    missing = check_kept(read_mcap(bad), rep, n)
+    assert len(missing) == lost["/skin/sample"] and missing == list(range(missing[0], missing[-1] + 1))
+    assert span.t_after - span.t_before <= (len(missing) + 1) * 1e-3 + 1e-9  # no wider than the gap
+    # the estimates are joined to their samples by t; NaN only where a row's estimate was lost
+    rows = [round(t * 1e3) for t in cols["t"]]
+    q = cols["q_i_hat"]
+    assert all(q[i] == 3.6 + 1e-5 * k for i, k in enumerate(rows) if q[i] == q[i])
+    assert {rows[i] for i in range(len(rows)) if q[i] != q[i]} <= {missing[0] - 1, missing[-1] + 1}
+
+
+def test_damage_anywhere_costs_only_what_it_touches(tmp_path: Path) -> None:
+    n = 3000
+    clean, bad = tmp_path / "clean.mcap", tmp_path / "bad.mcap"
+    write_rows(clean, n, chunk_size=8192)
+    chunks = chunks_with_mcap(clean)
+    per_chunk = max(c[2].get("/skin/sample", 0) for c in chunks)
+    assert len(chunks) > 20
+    size = clean.stat().st_size
+    losses = 0
+    for at in [*range(8, size - 50, size // 37), size - 60, size - 30]:
+        flip(clean, bad, at)
+        info: dict[str, object] = {}
+        data = read_mcap(bad, info=info)
+        rep = info["report"]
+        missing = check_kept(data, rep, n)
+        assert len(missing) <= 2 * per_chunk, at  # 50 bytes touch at most two chunks
+        hit = [c for c in chunks if c[0] < at + 50 and at < c[1]]
+        assert len(missing) == sum(c[2].get("/skin/sample", 0) for c in hit), at
+        in_hit = Counter[str]()
+        for c in hit:
+            in_hit.update(c[2])
+        in_spans = Counter[str]()
+        for sp in rep.spans:  # type: ignore[attr-defined]
+            assert sp.known, at
+            in_spans.update(sp.lost)
+        assert in_spans == in_hit, at  # every topic's loss, as the mcap library counts the chunks
+        assert rep.data_lost == bool(in_hit), at  # type: ignore[attr-defined]
+        losses += bool(missing)
+        # the lines a user sees: one per span, saying what was lost and when
+        for line, sp in zip(rep.lines(), rep.spans, strict=False):  # type: ignore[attr-defined]
+            assert line.startswith(f"damaged bytes {sp.start}-{sp.end}: ")
+            assert ("no message lost" in line) == (sp.messages == 0 and sp.known)
+    assert losses >= 10  # (the message indexes between chunks are as large as the chunks)
+
+
+def test_damage_in_the_summary_loses_nothing(tmp_path: Path) -> None:
+    clean, bad = tmp_path / "clean.mcap", tmp_path / "bad.mcap"
+    write_rows(clean, 500)
+    footer_at = clean.stat().st_size - 8 - 29
+    flip(clean, bad, footer_at - 60)  # the summary's last records and the footer
+    info: dict[str, object] = {}
+    got = read_mcap(bad, info=info)
+    rep = info["report"]
+    assert len(got["/skin/sample"]) == 500 and not rep.cut_off  # type: ignore[attr-defined]
+    (span,) = rep.spans  # type: ignore[attr-defined]
+    assert span.in_summary and "no message lost" in span.describe()
+
+
+def test_cut_off_says_where_it_ends(tmp_path: Path) -> None:
+    clean, cut = tmp_path / "clean.mcap", tmp_path / "cut.mcap"
+    write_rows(clean, 2000, chunk_size=8192)
+    data = clean.read_bytes()
+    for keep in (len(data) // 3, len(data) // 2 + 7):
+        cut.write_bytes(data[:keep])
+        info: dict[str, object] = {}
+        got = read_mcap(cut, info=info)
+        rep = info["report"]
+        assert rep.cut_off and not rep.damaged and not info["complete"]  # type: ignore[attr-defined]
+        t_last = max(got["/skin/estimate"][-1]["t"], got["/skin/sample"][-1]["t"])
+        assert rep.t_end == pytest.approx(t_last)  # type: ignore[attr-defined]
+        (line,) = rep.lines()  # type: ignore[attr-defined]
+        assert f"it ends at t = {t_last:.3f} s" in line
+    cut.write_bytes(data[:-40])  # in the summary, after the data section's end
+    info = {}
+    assert len(read_mcap(cut, info=info)["/skin/sample"]) == 2000
+    rep = info["report"]
+    assert not rep.cut_off and not rep.data_lost and rep.damaged  # type: ignore[attr-defined]
+    (line,) = rep.lines()  # type: ignore[attr-defined]
+    assert "in the summary" in line and "no message lost" in line
+
+
+def test_lost_channel_definition(tmp_path: Path) -> None:
+    """The chunk defining /skin/sample damaged: a finished file still has it in its summary;
+    a cut-off one cannot decode that channel's messages and says so."""
+    clean, bad = tmp_path / "clean.mcap", tmp_path / "bad.mcap"
+    write_rows(clean, 2000, chunk_size=8192)
+    with open(clean, "rb") as fh:
+        first = next(m for _, ch, m in make_reader(fh).iter_messages() if ch.topic == "/skin/sample")
+    defining = next(c for c in chunks_with_mcap(clean) if c[2].get("/skin/sample") == 1)
+    assert defining[2] == {"/skin/sample": 1}  # a new topic's first message gets a chunk of its own
+    flip(clean, bad, defining[0] + 40, 20)
+    info: dict[str, object] = {}
+    got = read_mcap(bad, info=info)
+    assert len(got["/skin/sample"]) == 1999 and got["/skin/sample"][0]["seq"] == first.sequence
+    rep = info["report"]
+    assert rep.lost_messages == 1 and rep.spans[0].lost == {"/skin/sample": 1}  # type: ignore[attr-defined]
+    flip(clean, bad, defining[0] + 40, 20, keep=clean.stat().st_size // 2)
+    got = read_mcap(bad, info=info)
+    rep = info["report"]
+    assert "/skin/sample" not in got and rep.orphans > 0 and rep.cut_off  # type: ignore[attr-defined]
+    assert any("channel was defined in a damaged part" in line for line in rep.lines())  # type: ignore[attr-defined]

@@ -492,12 +492,12 @@ def export(recording: Path, output: Path) -> None:
 
 
 def _recording_warnings(report: Any) -> None:
-    """One warning line per damaged part and for a cut-off end; exit 4 if damaged."""
+    """One warning line per damaged part and for a cut-off end; exit 4 if damage cost data."""
     for line in report.lines():
         click.echo(f"thermoskin: warning: {report.path}: {line}", err=True)
-    if report.damaged:
-        click.echo(f"thermoskin: {report.path} is damaged: {len(report.spans)} damaged part(s), "
-                   f"{report.lost_messages} messages known lost; the intact parts were used", err=True)
+    if report.data_lost:
+        click.echo(f"thermoskin: {report.path} is damaged: {report.lost_messages} messages lost "
+                   f"in {len(report.spans)} damaged part(s); every intact part was used", err=True)
         sys.exit(4)
 
 

@@ -52,8 +52,9 @@ class ScanError(ValueError):
 class LostSpan:
     """Bytes ``[start, end)`` of the file could not be read.
 
-    The messages lost there lie strictly between ``t_before`` (the last intact message
-    before, s) and ``t_after`` (the first after; NaN: the damage runs to the end).
+    The messages lost there have times from ``t_before`` (the last intact message before,
+    s; NaN: none) to ``t_after`` (the first after; NaN: the damage runs to the end), both
+    included (a sample time's messages may sit on both sides of a chunk boundary).
     ``lost`` counts them by topic; ``known`` is false when a count could not be
     established (a channel never seen again, sequence numbers not consecutive).
     """
@@ -64,6 +65,7 @@ class LostSpan:
     t_after: float
     lost: dict[str, int] = dataclasses.field(default_factory=dict)
     known: bool = True
+    in_summary: bool = False  # after the data section's end record: only indexes were lost
 
     @property
     def messages(self) -> int:
@@ -71,6 +73,9 @@ class LostSpan:
 
     def describe(self) -> str:
         """One line: where, which times, what was lost."""
+        if self.in_summary:
+            return (f"damaged bytes {self.start}-{self.end}: in the summary at the end (indexes "
+                    "only): no message lost")
         a = "the start" if math.isnan(self.t_before) else f"t = {self.t_before:.3f} s"
         b = "the end of the recording" if math.isnan(self.t_after) else f"t = {self.t_after:.3f} s"
         what = ", ".join(f"{n} {topic}" for topic, n in sorted(self.lost.items()) if n)
@@ -87,7 +92,7 @@ class RecordingReport:
 
     path: Path
     size: int = 0
-    finished: bool = False  # the writer closed it (its closing magic is there)
+    finished: bool = False  # the writer closed it (closing magic, or the data section's end)
     footer: bool = False  # the footer was read in order after intact data
     spans: list[LostSpan] = dataclasses.field(default_factory=list)
     messages: int = 0  # messages read (every topic)
@@ -111,6 +116,11 @@ class RecordingReport:
     def damaged(self) -> bool:
         """Some bytes could not be read (each such part is in :attr:`spans`)."""
         return bool(self.spans) or self.orphans > 0
+
+    @property
+    def data_lost(self) -> bool:
+        """Damage cost messages, or may have (a count could not be established)."""
+        return self.orphans > 0 or any(s.messages or not s.known for s in self.spans)
 
     @property
     def lost_messages(self) -> int:
@@ -184,6 +194,7 @@ class Scanner:
         self._need_after: list[LostSpan] = []  # spans waiting for their first message after
         self._recent: set[int] = set()  # channels of the last chunk read
         self._active: dict[int, set[int]] = {}  # span id -> channels of the chunk before it
+        self._data_end = False  # the data section's end record was read: the summary follows
         if bytes(data[:8]) != MAGIC:
             if MAGIC.startswith(bytes(data[:8])):
                 raise ScanError(f"{path}: cut off before its first record ({self.n} bytes): "
@@ -301,13 +312,15 @@ class Scanner:
 
     def _lost(self, o: int, end: int) -> None:
         """Open a lost span over bytes ``[o, end)``."""
-        span = LostSpan(o, end, self.report.t_end, math.nan)
+        span = LostSpan(o, end, self.report.t_end, math.nan, in_summary=self._data_end)
         self.report.spans.append(span)
+        if not self.report.error:
+            self.report.error = f"damaged record at byte {o}"
+        if span.in_summary:
+            return
         self._open.append((span, set(self._last_seq)))
         self._active[id(span)] = self._recent
         self._need_after.append(span)
-        if not self.report.error:
-            self.report.error = f"damaged record at byte {o}"
 
     def _emit(self, msgs: list[tuple[int, int, int, bytes]]) -> list[tuple[str, int, int, bytes]]:
         rep, topics, out = self.report, self.topics, []
@@ -373,6 +386,8 @@ class Scanner:
                     msgs = [(ch, seq, t, bytes(self.b[s + _MSG.size: e]))]
                 elif op == OP_CHANNEL:
                     self.topics[_U16.unpack_from(self.b, s)[0]] = _string(self.b, s + 4)[0]
+                elif op == OP_DATA_END:  # the data is complete; the summary follows
+                    self._data_end = rep.finished = True
                 elif op == OP_FOOTER:
                     rep.footer = e + 8 == n and bytes(self.b[e:]) == MAGIC
                     if not rep.footer:
@@ -407,7 +422,7 @@ class Scanner:
                 if chans & self._active.get(id(span), set()):
                     span.known = False
             for span in spans:
-                if math.isnan(span.t_after):  # nothing after it to compare with
+                if math.isnan(span.t_after) and not span.in_summary:  # nothing after it to compare
                     span.known = False
             return
         where = {ch: span for span, chans in reversed(self._open) for ch in chans}  # the earliest
@@ -417,6 +432,6 @@ class Scanner:
                 span = where.get(ch, spans[0])
                 topic = self.topics.get(ch, f"channel {ch}")
                 span.lost[topic] = span.lost.get(topic, 0) + left
-            elif left < 0:
+            elif left < 0:  # more read than the summary counted: its counts are not to be trusted
                 for span in spans:
-                    span.known = False
+                    span.known = span.in_summary
