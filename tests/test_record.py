@@ -479,3 +479,41 @@ def test_lost_channel_definition(tmp_path: Path) -> None:
     rep = info["report"]
     assert "/skin/sample" not in got and rep.orphans > 0 and rep.cut_off  # type: ignore[attr-defined]
     assert any("channel was defined in a damaged part" in line for line in rep.lines())  # type: ignore[attr-defined]
+
+
+def test_export_keeps_text_fields(tmp_path: Path) -> None:
+    path = tmp_path / "text.mcap"
+    with Recorder(path, None) as rec:
+        for k in range(4):
+            t = k * 1e-3
+            rec.write("/skin/sample", t, {"T_w": 24.0 + k / 8, "mode": 'heat, "fast"' if k % 2 else "cool"})
+            if k != 2:  # no /control at t = 2 ms: the text cell is empty there
+                rec.write("/control", t, {"v_cmd": 0.1, "note": {"k": k}})
+    import csv
+
+    out = export(path, tmp_path / "text.csv")
+    with open(out, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["mode"] for r in rows] == ["cool", 'heat, "fast"', "cool", 'heat, "fast"']
+    assert [r["note"] for r in rows] == ['{"k":0}', '{"k":1}', "", '{"k":3}']
+    assert [float(r["T_w"]) for r in rows] == [24.0, 24.125, 24.25, 24.375]  # full precision
+    assert [float(r["v_cmd"]) if r["v_cmd"] != "nan" else None for r in rows] == [0.1, 0.1, None, 0.1]
+    assert out.read_text().splitlines()[:2] == ["t,T_w,mode,v_cmd,note", '0,24,"cool",0.1,"{""k"":0}"']
+    pq = pytest.importorskip("pyarrow.parquet")
+    import pyarrow as pa
+
+    table = pq.read_table(export(path, tmp_path / "text.parquet"))
+    assert table.schema.field("mode").type == pa.string() and table.schema.field("T_w").type == pa.float64()
+    assert table.column("note").to_pylist() == ['{"k":0}', '{"k":1}', None, '{"k":3}']
+    assert table.column("mode").to_pylist()[1] == 'heat, "fast"'
+
+
+def test_directory_and_missing_recording(tmp_path: Path) -> None:
+    with pytest.raises(RecordingError, match="is a directory"):
+        read_mcap(tmp_path)
+    with pytest.raises(RecordingError, match="does not exist"):
+        to_columns(tmp_path / "none.mcap")
+    empty = tmp_path / "empty.mcap"
+    empty.write_bytes(b"")
+    with pytest.raises(RecordingError, match="nothing was recorded"):
+        read_mcap(empty)

@@ -277,7 +277,7 @@ class Recorder:
 
     def __init__(self, path: str | os.PathLike[str], config: Any = None, *,
                  flush_interval: float = 0.5, fsync: bool = False,
-                 compression: str = "zstd", chunk_size: int = 256 * 1024,
+                 compression: str = "zstd", chunk_size: int = 64 * 1024,
                  guard_signals: bool = True) -> None:
         self.path = Path(path)
         self.flush_interval = float(flush_interval)
