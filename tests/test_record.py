@@ -27,6 +27,7 @@ from thermoskin.runtime.record import (
     Recorder,
     RecordingError,
     ReplayDevice,
+    check,
     export,
     read_mcap,
     to_columns,
@@ -388,10 +389,11 @@ def test_damaged_middle_keeps_every_intact_chunk(tmp_path: Path) -> None:
     assert {rows[i] for i in range(len(rows)) if q[i] != q[i]} <= {missing[0] - 1, missing[-1] + 1}
 
 
-def test_damage_anywhere_costs_only_what_it_touches(tmp_path: Path) -> None:
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_damage_anywhere_costs_only_what_it_touches(tmp_path: Path, compression: str) -> None:
     n = 3000
     clean, bad = tmp_path / "clean.mcap", tmp_path / "bad.mcap"
-    write_rows(clean, n, chunk_size=8192)
+    write_rows(clean, n, chunk_size=8192, compression=compression)
     chunks = chunks_with_mcap(clean)
     per_chunk = max(c[2].get("/skin/sample", 0) for c in chunks)
     assert len(chunks) > 20
@@ -402,6 +404,7 @@ def test_damage_anywhere_costs_only_what_it_touches(tmp_path: Path) -> None:
         info: dict[str, object] = {}
         data = read_mcap(bad, info=info)
         rep = info["report"]
+        assert check(bad) == rep  # reading without decoding finds the same
         missing = check_kept(data, rep, n)
         assert len(missing) <= 2 * per_chunk, at  # 50 bytes touch at most two chunks
         hit = [c for c in chunks if c[0] < at + 50 and at < c[1]]

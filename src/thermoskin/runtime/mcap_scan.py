@@ -162,16 +162,22 @@ def _string(b: bytes, p: int) -> tuple[str, int]:
 
 
 def _inflate(compression: str, data: bytes, size: int) -> bytes:
+    """The chunk's records; a frame declaring another size than the chunk's is damage
+    (checked first: a damaged header must not make us allocate what it claims)."""
     if compression == "":
         return bytes(data)
     if compression == "zstd":
         import zstandard
 
+        if zstandard.frame_content_size(data) not in (size, -1):
+            raise ValueError("zstd frame size differs from the chunk's")
         return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
     if compression == "lz4":
         import lz4.frame
 
-        return lz4.frame.decompress(bytes(data))
+        if lz4.frame.get_frame_info(data)["content_size"] not in (size, 0):
+            raise ValueError("lz4 frame size differs from the chunk's")
+        return lz4.frame.decompress(data)
     raise ValueError(f"unknown compression {compression!r}")
 
 
