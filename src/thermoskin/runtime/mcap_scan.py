@@ -158,14 +158,14 @@ def _fields(b: bytes, p: int, e: int, layout: str) -> int:
 
 def _string(b: bytes, p: int) -> tuple[str, int]:
     n = _U32.unpack_from(b, p)[0]
-    return bytes(b[p + 4: p + 4 + n]).decode("utf-8", "replace"), p + 4 + n
+    return b[p + 4: p + 4 + n].decode("utf-8", "replace"), p + 4 + n
 
 
 def _inflate(compression: str, data: bytes, size: int) -> bytes:
     """The chunk's records; a frame declaring another size than the chunk's is damage
     (checked first: a damaged header must not make us allocate what it claims)."""
     if compression == "":
-        return bytes(data)
+        return data
     if compression == "zstd":
         import zstandard
 
@@ -196,17 +196,17 @@ class Scanner:
         self._last_seq: dict[int, int] = {}  # channel -> last sequence number read
         self._read: dict[int, int] = {}  # channel -> messages read
         self._gap: dict[int, int] = {}  # channel -> messages counted lost from sequence gaps
-        self._open: list[tuple[LostSpan, set[int]]] = []  # spans, channels not seen since
+        self._open: list[tuple[LostSpan, set[int], set[int]]] = []  # span, channels not seen
+        # since, channels of the chunk before it
         self._need_after: list[LostSpan] = []  # spans waiting for their first message after
         self._recent: set[int] = set()  # channels of the last chunk read
-        self._active: dict[int, set[int]] = {}  # span id -> channels of the chunk before it
         self._data_end = False  # the data section's end record was read: the summary follows
-        if bytes(data[:8]) != MAGIC:
-            if MAGIC.startswith(bytes(data[:8])):
+        if data[:8] != MAGIC:
+            if MAGIC.startswith(data[:8]):
                 raise ScanError(f"{path}: cut off before its first record ({self.n} bytes): "
                                 "nothing was recorded")
             raise ScanError(f"{path} is not an MCAP file (bad magic)")
-        self.report.finished = self.n >= 8 + _FOOTER_BYTES and bytes(data[-8:]) == MAGIC
+        self.report.finished = self.n >= 8 + _FOOTER_BYTES and data[-8:] == MAGIC
         self.expected: dict[int, int] | None = None
         if self.report.finished:
             self._read_summary()
@@ -230,11 +230,11 @@ class Scanner:
 
     def _chunk(self, s: int, e: int) -> list[tuple[int, int, int, bytes]] | None:
         """The messages of the chunk body ``[s, e)`` if it inflates, its CRC matches and
-        its records parse; channels and schemas it defines are registered."""
+        its records parse; the channels it defines are registered."""
         b = self.b
         _, _, usize, crc, clen = _CHUNK.unpack_from(b, s)
         p = s + _CHUNK.size
-        comp = bytes(b[p: p + clen]).decode("ascii", "replace")
+        comp = b[p: p + clen].decode("ascii", "replace")
         p += clen
         rlen = _U64.unpack_from(b, p)[0]
         p += 8
@@ -324,8 +324,7 @@ class Scanner:
             self.report.error = f"damaged record at byte {o}"
         if span.in_summary:
             return
-        self._open.append((span, set(self._last_seq)))
-        self._active[id(span)] = self._recent
+        self._open.append((span, set(self._last_seq), self._recent))
         self._need_after.append(span)
 
     def _emit(self, msgs: list[tuple[int, int, int, bytes]]) -> list[tuple[str, int, int, bytes]]:
@@ -354,7 +353,7 @@ class Scanner:
 
     def _account(self, ch: int, seq: int, topic: str) -> None:
         """The first message of ``ch`` after a span: its sequence gap is what the span lost."""
-        for span, chans in self._open:
+        for span, chans, _ in self._open:
             if ch in chans:
                 last = self._last_seq[ch]
                 gap = seq - last - 1
@@ -366,9 +365,9 @@ class Scanner:
                 break
         else:
             return
-        for _, chans in self._open:
+        for _, chans, _ in self._open:
             chans.discard(ch)
-        self._open = [(s, c) for s, c in self._open if c]
+        self._open = [x for x in self._open if x[1]]
 
     def messages(self) -> Iterator[tuple[str, int, int, bytes]]:
         """``(topic, sequence, log_time_ns, payload)`` of every intact message, in file order."""
@@ -389,13 +388,13 @@ class Scanner:
                         rec = None
                 elif op == OP_MESSAGE:
                     ch, seq, t, _ = _MSG.unpack_from(self.b, s)
-                    msgs = [(ch, seq, t, bytes(self.b[s + _MSG.size: e]))]
+                    msgs = [(ch, seq, t, self.b[s + _MSG.size: e])]
                 elif op == OP_CHANNEL:
                     self.topics[_U16.unpack_from(self.b, s)[0]] = _string(self.b, s + 4)[0]
                 elif op == OP_DATA_END:  # the data is complete; the summary follows
                     self._data_end = rep.finished = True
                 elif op == OP_FOOTER:
-                    rep.footer = e + 8 == n and bytes(self.b[e:]) == MAGIC
+                    rep.footer = e + 8 == n and self.b[e:] == MAGIC
                     if not rep.footer:
                         rec = None
                     else:
@@ -424,14 +423,14 @@ class Scanner:
         if not spans:
             return
         if self.expected is None:  # channels busy just before a span and not seen since: unknown
-            for span, chans in self._open:
-                if chans & self._active.get(id(span), set()):
+            for span, chans, active in self._open:
+                if chans & active:
                     span.known = False
             for span in spans:
                 if math.isnan(span.t_after) and not span.in_summary:  # nothing after it to compare
                     span.known = False
             return
-        where = {ch: span for span, chans in reversed(self._open) for ch in chans}  # the earliest
+        where = {ch: span for span, chans, _ in reversed(self._open) for ch in chans}  # the earliest
         for ch, count in self.expected.items():
             left = count - self._read.get(ch, 0) - self._gap.get(ch, 0)
             if left > 0:

@@ -295,11 +295,11 @@ class Recorder:
         self.messages = 0
         self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self._out = _Appender(self._fd)
-        self._guarded = guard_signals
+        self._writer: Writer | None = None
         if guard_signals:
             _GUARD.add(self)
         try:
-            with _GUARD:
+            with _GUARD:  # a signal meanwhile is delivered once the file has its /params
                 self._writer = Writer(self._out, compression=comp, chunk_size=int(chunk_size))  # type: ignore[arg-type]
                 self._writer.start(profile="", library="thermoskin")
                 self._writer.add_metadata("thermoskin", {
@@ -308,9 +308,7 @@ class Recorder:
                 })
                 self.write("/params", 0.0, {"config": _config_object(config)})
         except BaseException:
-            _GUARD.remove(self)
-            os.close(self._fd)
-            self.closed = True
+            self.close()  # the caller gets no recorder to close: a finished file all the same
             raise
 
     def _channel(self, topic: str) -> int:
@@ -344,7 +342,7 @@ class Recorder:
             if new:
                 cid = self._channel(topic)
             seq = self._seq[topic] = self._seq[topic] + 1
-            self._writer.add_message(cid, ns, payload, ns, seq)  # type: ignore[arg-type]
+            self._writer.add_message(cid, ns, payload, ns, seq)  # type: ignore[union-attr]
             self._busy = False
             self.messages += 1
             now = time.monotonic()
@@ -366,7 +364,7 @@ class Recorder:
         with _GUARD:
             if not self._busy:
                 self._busy = True
-                self._writer.flush()
+                self._writer.flush()  # type: ignore[union-attr]
                 self._busy = False
             self._out.commit()
             if self.fsync:
@@ -384,12 +382,12 @@ class Recorder:
         with _GUARD:
             self.closed = True
             try:
-                if not self._busy:
+                if self._writer is not None and not self._busy:
                     self._busy = True
                     self._writer.finish()
                     self._busy = False
                     self._out.commit()
-                else:
+                elif self._writer is not None:
                     self._out.commit()
                     os.write(self._fd, _BARE_END)
                 if self.fsync:
