@@ -520,3 +520,5 @@ def test_directory_and_missing_recording(tmp_path: Path) -> None:
     empty.write_bytes(b"")
     with pytest.raises(RecordingError, match="nothing was recorded"):
         read_mcap(empty)
+    with pytest.raises(RecordingError, match=r"cannot record to .*: Is a directory"):
+        Recorder(tmp_path)

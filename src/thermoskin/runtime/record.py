@@ -286,14 +286,18 @@ class Recorder:
                 "none": CompressionType.NONE}.get(compression)
         if comp is None:
             raise ValueError(f"Recorder: compression {compression!r} must be zstd, lz4 or none")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self._channels: dict[str, int] = {}
         self._seq: dict[str, int] = {}
         self._t_flush = time.monotonic()
         self._busy = False  # inside the MCAP writer (still true after an exception there: torn)
         self.closed = False
         self.messages = 0
-        self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        except OSError as e:
+            self.closed = True
+            raise RecordingError(f"cannot record to {self.path}: {e.strerror or e}") from None
         self._out = _Appender(self._fd)
         self._writer: Writer | None = None
         if guard_signals:
