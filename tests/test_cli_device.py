@@ -171,7 +171,7 @@ def test_interrupted_recording_is_finished(tmp_path: Path) -> None:
     for p in procs:
         assert p.stdout is not None
         assert p.stdout.readline().startswith("thermoskin run")  # recording starts right after
-    time.sleep(1.5)
+    time.sleep(0.8)
     for p, (_, sig, _) in zip(procs, cases, strict=True):
         p.send_signal(sig)
     for p, (name, sig, _) in zip(procs, cases, strict=True):
