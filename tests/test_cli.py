@@ -157,3 +157,74 @@ def test_excitation_then_identify(tmp_path: Path) -> None:
 def test_identify_bad_log_exit_2(sim_log: Path, tmp_path: Path) -> None:
     code, _, err = invoke("identify", str(sim_log), "-o", str(tmp_path / "m.toml"))
     assert code == 2 and "drive" in err and len(err.strip().splitlines()) == 1
+
+
+# ----------------------------------------------------------------------------- export, replay
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("rec")
+    rec = d / "run.mcap"
+    code, _, err = invoke("run", "--scenario", "none", "--duration", "4", "--log", str(d / "run.csv"),
+                          "--plot", str(d / "run.png"), "--record", str(rec))
+    assert code == 0, err
+    return rec
+
+
+def middle_chunk(path: Path) -> tuple[int, int]:
+    """Offset and length of the chunk record nearest the middle (the `mcap` library's index)."""
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None and len(summary.chunk_indexes) >= 3
+    size = path.stat().st_size
+    ci = min(summary.chunk_indexes, key=lambda c: abs(c.chunk_start_offset + c.chunk_length / 2 - size / 2))
+    return ci.chunk_start_offset, ci.chunk_length
+
+
+def test_export_and_replay_exit_codes(recording: Path, tmp_path: Path) -> None:
+    pq = pytest.importorskip("pyarrow.parquet")
+    n = len(read_log(recording.with_suffix(".csv"))["t"])
+    # clean: exit 0, no warning
+    code, stdout, err = invoke("export", str(recording), "-o", str(tmp_path / "x.parquet"))
+    assert code == 0 and "wrote" in stdout and not err
+    assert pq.read_table(tmp_path / "x.parquet").num_rows == n
+    code, stdout, err = invoke("replay", str(recording), "-o", str(tmp_path / "r.csv"))
+    assert code == 0 and "identical" in stdout and not err
+    # 50 bytes flipped inside a chunk: the rest exported, one line saying what was lost, exit 4
+    data = bytearray(recording.read_bytes())
+    start, length = middle_chunk(recording)
+    for i in range(start + length // 2, start + length // 2 + 50):
+        data[i] ^= 0xFF
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data))
+    code, stdout, err = invoke("export", str(bad), "-o", str(tmp_path / "b.parquet"))
+    assert code == 4 and "wrote" in stdout
+    lines = err.strip().splitlines()
+    assert len(lines) == 2 and lines[0].startswith(f"thermoskin: warning: {bad}: damaged bytes {start}-")
+    lost = int(lines[0].split(" /skin/sample")[0].rsplit(" ", 1)[-1])
+    kept = pq.read_table(tmp_path / "b.parquet").num_rows
+    assert lost > 0 and kept == n - lost
+    assert "messages lost" in lines[1]
+    code, stdout, err = invoke("replay", str(bad), "-o", str(tmp_path / "rb.csv"))
+    assert code == 4 and "damaged bytes" in err
+    # cut off (killed recorder): exported up to its end with a warning saying where, exit 0
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(bytes(recording.read_bytes()[:start + length // 2]))
+    code, stdout, err = invoke("export", str(cut), "-o", str(tmp_path / "c.csv"))
+    assert code == 0
+    rows = (tmp_path / "c.csv").read_text().splitlines()
+    assert rows[0].startswith("t,") and 1 < len(rows) - 1 < n
+    (line,) = err.strip().splitlines()
+    assert "cut off" in line and f"it ends at t = {float(rows[-1].split(',')[0]):.3f} s" in line
+    code, stdout, err = invoke("replay", str(cut), "-o", str(tmp_path / "rc.csv"))
+    assert code == 0 and "identical" in stdout and "cut off" in err  # a prefix replays exactly
+
+
+@pytest.mark.parametrize("command", ["export", "replay"])
+def test_export_replay_bad_recording_one_line(tmp_path: Path, command: str) -> None:
+    (tmp_path / "dir.mcap").mkdir()
+    for path, needle in ((tmp_path / "dir.mcap", "is a directory"), (tmp_path / "no.mcap", "does not exist")):
+        code, _, err = invoke(command, str(path), "-o", str(tmp_path / "o.csv"))
+        assert code == 2 and needle in err and len(err.strip().splitlines()) == 1, err

@@ -149,3 +149,43 @@ def test_killed_recording_loses_at_most_a_second(tmp_path: Path) -> None:
     assert info["truncated"] or not info["complete"]
     assert 3.0 - 1.0 - 0.6 <= t[-1] <= 3.1  # at most the last second lost (0.6 s start-up)
     assert np.allclose(np.diff(t), 1e-3)  # contiguous: nothing lost in between
+
+
+def test_interrupted_recording_is_finished(tmp_path: Path) -> None:
+    """SIGINT and SIGTERM to real `thermoskin run --record` processes (in process and the
+    fixed-rate loop): the recording is finished (summary, footer) and the `mcap` library
+    reads it to its end; SIGINT exits 130, SIGTERM still ends the process by the signal."""
+    from mcap.reader import make_reader
+    from mcap.records import Footer
+    from mcap.stream_reader import StreamReader
+
+    cases = [("sim", signal.SIGINT, []), ("sim-term", signal.SIGTERM, []),
+             ("rt", signal.SIGINT, ["--realtime"])]
+    procs = []
+    for name, _, extra in cases:
+        p = subprocess.Popen([*CMD, "run", *extra, "--scenario", "none", "--duration", "60",
+                              "--log", str(tmp_path / f"{name}.csv"), "--plot", str(tmp_path / f"{name}.png"),
+                              "--record", str(tmp_path / f"{name}.mcap")],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+        procs.append(p)
+    for p in procs:
+        assert p.stdout is not None
+        assert p.stdout.readline().startswith("thermoskin run")  # recording starts right after
+    time.sleep(0.8)
+    for p, (_, sig, _) in zip(procs, cases, strict=True):
+        p.send_signal(sig)
+    for p, (name, sig, _) in zip(procs, cases, strict=True):
+        _, err = p.communicate(timeout=30)
+        assert p.returncode == (130 if sig == signal.SIGINT else -signal.SIGTERM), (name, err)
+        path = tmp_path / f"{name}.mcap"
+        with open(path, "rb") as fh:
+            assert isinstance(list(StreamReader(fh, validate_crcs=True).records)[-1], Footer)
+        with open(path, "rb") as fh:
+            reader = make_reader(fh)
+            summary = reader.get_summary()
+            assert summary is not None and summary.statistics is not None
+            assert sum(1 for _ in reader.iter_messages()) == summary.statistics.message_count
+        info: dict = {}
+        t = [ti for _, ti, _ in iter_messages(path, ["/skin/sample"], info)]
+        assert info["complete"] and len(t) > 100, name
+        assert np.allclose(np.diff(t), 1e-3)

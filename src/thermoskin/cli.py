@@ -470,20 +470,35 @@ def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_perio
               help="RUN.parquet or RUN.csv: one row per sample, every signal as a column.")
 @_user_errors
 def export(recording: Path, output: Path) -> None:
-    """Export an MCAP recording (`thermoskin run --record`) to Parquet or CSV."""
+    """Export an MCAP recording (`thermoskin run --record`) to Parquet or CSV.
+
+    Fields that are not numbers become text columns. A damaged recording is exported
+    from every intact part, with one warning line per damaged part saying what was lost,
+    and the exit code is 4 (0 otherwise; 2 for a user error). A cut-off recording (the
+    recorder was killed) is exported up to where it ends, with a warning saying where.
+    """
     from thermoskin.runtime.record import RecordingError
     from thermoskin.runtime.record import export as do_export
 
+    info: dict[str, Any] = {}
     try:
-        info: dict[str, Any] = {}
-        from thermoskin.runtime.record import read_mcap
-
-        read_mcap(recording, ["/params"], info)
-        out = do_export(recording, output)
+        out = do_export(recording, output, info=info)
     except RecordingError as e:
         raise UserError(str(e)) from None
-    note = "" if info.get("complete") else " (the recording was cut short: exported what it holds)"
-    console.print(f"wrote {out}{note}")
+    except OSError as e:
+        raise UserError(f"cannot write {output}: {e.strerror or e}") from None
+    console.print(f"wrote {out}")
+    _recording_warnings(info["report"])
+
+
+def _recording_warnings(report: Any) -> None:
+    """One warning line per damaged part and for a cut-off end; exit 4 if damage cost data."""
+    for line in report.lines():
+        click.echo(f"thermoskin: warning: {report.path}: {line}", err=True)
+    if report.data_lost:
+        click.echo(f"thermoskin: {report.path} is damaged: {report.lost_messages} messages lost "
+                   f"in {len(report.spans)} damaged part(s); every intact part was used", err=True)
+        sys.exit(4)
 
 
 @main.command()
@@ -498,27 +513,34 @@ def replay(recording: Path, output: Path, config_path: Path | None) -> None:
     """Re-run the observer and the detector on a recording; compare with the live estimates.
 
     Exits with code 1 if the replayed q_i_hat or contact differ from the recorded ones
-    (with the recorded configuration they must be identical).
+    (with the recorded configuration they must be identical), and with code 4 if the
+    recording is damaged (replayed over its intact parts; one warning line per damaged
+    part; the estimates after a lost part cannot be reproduced exactly).
     """
     from thermoskin.logio import write_log
     from thermoskin.runtime.record import RecordingError
     from thermoskin.runtime.record import replay as do_replay
 
     cfg = _config(config_path) if config_path is not None else None
+    info: dict[str, Any] = {}
     try:
-        cols, cmp = do_replay(recording, cfg)
+        cols, cmp = do_replay(recording, cfg, info=info)
     except RecordingError as e:
         raise UserError(str(e)) from None
     out = {k: np.asarray(v, dtype=float) for k, v in cols.items()}
     for k in ("contact", "gap", "contact_live"):
         out[k] = out[k].astype(np.int8)
-    write_log(output, out)
+    try:
+        write_log(output, out)
+    except OSError as e:
+        raise UserError(f"cannot write {output}: {e.strerror or e}") from None
     if cmp["events"]:
         console.print(events_table(cmp["events"], title="Replayed contacts"))
     same = "identical to" if cmp["exact"] else "DIFFERENT from"
     console.print(f"replayed {cmp['samples']} samples: q_i_hat and contact {same} the live run "
                   f"(max |q_i_hat difference| {cmp['q_i_hat_max_abs_diff']:.3g} W, "
                   f"{cmp['contact_mismatches']} contact mismatches); wrote {output}")
+    _recording_warnings(info["report"])
     if not cmp["exact"] and cfg is None:
         sys.exit(1)
 

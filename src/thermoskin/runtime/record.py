@@ -15,30 +15,35 @@ Any other topic is accepted with a permissive schema. A message's ``log_time`` a
 is in the ``thermoskin`` metadata record). NaN is written as JSON ``null`` (JSON has no
 NaN) and read back as NaN.
 
-Crash safety: the writer closes its chunk and hands it to the OS at least every
+Crash safety: the writer appends whole chunks (one ``os.write`` each) at least every
 ``flush_interval`` s (default 0.5 s) of writing, so a process that is killed loses at
-most its last second. :func:`read_mcap` reads such a file without its summary and
-footer (sequentially, with :class:`mcap.stream_reader.StreamReader`) and stops quietly
-at the damaged tail.
+most its last second; SIGINT and SIGTERM wait until a write is complete, and SIGTERM
+finishes the file before the process ends (:class:`Recorder`). Reading
+(:func:`iter_messages`, :mod:`~thermoskin.runtime.mcap_scan`) needs no summary or
+footer: it keeps everything up to a cut-off end, skips a damaged part, resumes at the
+next intact chunk (its CRC checked) and reports what was lost.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as _dt
 import json
 import math
 import os
+import signal
+import struct
+import threading
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
-from mcap.records import Channel, Message, Schema
-from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from thermoskin.devices.base import Sample
+from thermoskin.runtime.mcap_scan import RecordingReport, ScanError, Scanner
 
 _NUM = {"type": "number"}
 _NUM_NULL = {"type": ["number", "null"]}
@@ -128,38 +133,187 @@ def _config_object(config: Any) -> Any:
     return config
 
 
+class _SignalGuard:
+    """Defers SIGINT and SIGTERM while a recorder writes, so no signal tears a record.
+
+    Python runs signal handlers in the main thread between bytecodes; the default SIGINT
+    handler raises ``KeyboardInterrupt`` there, which inside the MCAP writer would leave a
+    half-built record in its buffers (written out, torn, at the next flush or at close).
+    While any :class:`Recorder` of this process is open, this guard's handler takes
+    SIGINT and SIGTERM: inside a write (``with _GUARD:``, main thread) it only notes the
+    signal and delivers it when the outermost write ends; outside, at once. Delivery calls
+    the handler that was there before (``KeyboardInterrupt`` for SIGINT); where that was
+    the default action (SIGTERM), the open recordings are finished first (summary, footer),
+    then the process ends by the signal as it would have. Forked children forget the
+    recorders (they never write their parent's file).
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.depth = 0
+        self.pending: list[int] = []
+        self.previous: dict[int, Any] = {}
+        self.recorders: list[Recorder] = []
+        self.main = threading.main_thread().ident
+
+    def __enter__(self) -> None:
+        if threading.get_ident() == self.main:
+            self.depth += 1
+
+    def __exit__(self, *exc: object) -> None:
+        if threading.get_ident() == self.main:
+            self.depth -= 1  # first: a signal from here on is delivered at once
+            if self.pending and not self.depth:
+                sigs, self.pending = self.pending, []
+                for sig in sigs:
+                    self._deliver(sig, None)
+
+    def add(self, rec: Recorder) -> None:
+        """Guard ``rec`` (created in the main thread; elsewhere signals cannot be handled)."""
+        if threading.get_ident() != self.main:
+            return
+        if not self.recorders:
+            for sig in self.SIGNALS:
+                prev = signal.getsignal(sig)
+                if prev in (signal.SIG_IGN, None) or prev == self._handle:
+                    continue
+                self.previous[sig] = prev
+                signal.signal(sig, self._handle)
+        self.recorders.append(rec)
+
+    def remove(self, rec: Recorder) -> None:
+        if rec not in self.recorders:
+            return
+        self.recorders.remove(rec)
+        if not self.recorders and threading.get_ident() == self.main:
+            for sig, prev in self.previous.items():
+                if signal.getsignal(sig) == self._handle:
+                    signal.signal(sig, prev)
+            self.previous.clear()
+
+    def forget(self) -> None:
+        """In a forked child: the recorders are the parent's."""
+        self.recorders.clear()
+        self.pending.clear()
+        self.depth = 0
+        self.main = threading.main_thread().ident
+
+    def _handle(self, sig: int, frame: Any) -> None:
+        if self.depth:
+            if sig not in self.pending:
+                self.pending.append(sig)
+            return
+        self._deliver(sig, frame)
+
+    def _deliver(self, sig: int, frame: Any) -> None:
+        prev = self.previous.get(sig, signal.SIG_DFL)
+        if callable(prev):
+            prev(sig, frame)  # SIGINT: raises KeyboardInterrupt, outside any write
+            return
+        if prev == signal.SIG_IGN:
+            return
+        self.depth += 1  # the default action ends the process: finish the recordings first
+        try:
+            for rec in list(self.recorders):
+                with contextlib.suppress(Exception):
+                    rec.close()
+        finally:
+            signal.signal(sig, signal.SIG_DFL)
+            os.kill(os.getpid(), sig)
+
+
+_GUARD = _SignalGuard()
+os.register_at_fork(after_in_child=_GUARD.forget)
+
+
+class _Appender:
+    """The MCAP writer's output: bytes gather in memory; :meth:`commit` appends them to the
+    file with ``os.write`` (one call for a chunk and its index, short writes resumed), so
+    the file only ever grows by whole records."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        self.pos = 0  # bytes in the file
+        self.buf = bytearray()
+
+    def write(self, data: bytes) -> int:
+        self.buf += data
+        return len(data)
+
+    def tell(self) -> int:
+        return self.pos + len(self.buf)
+
+    def flush(self) -> None:
+        """Nothing: the recorder commits when a chunk is complete."""
+
+    def commit(self) -> None:
+        while self.buf:
+            n = os.write(self.fd, self.buf)
+            del self.buf[:n]
+            self.pos += n
+
+
+#: DataEnd (no CRC) and a footer without summary: what ends a file whose writer was torn.
+_BARE_END = (struct.pack("<BQI", 0x0F, 4, 0) + struct.pack("<BQQQI", 0x02, 20, 0, 0, 0)
+             + b"\x89MCAP0\r\n")
+
+
 class Recorder:
-    """Write topics to an MCAP file with JSON-schema channels; crash-safe to ``flush_interval``.
+    """Write topics to an MCAP file with JSON-schema channels; safe against kills and signals.
 
     ``config`` (a :class:`~thermoskin.params.Config`, a JSON string or a mapping) is
     written once on ``/params``. Use as a context manager or call :meth:`close`.
+
+    A chunk is closed and appended to the file (one ``os.write``) every ``flush_interval``
+    s of writing, when it reaches ``chunk_size`` bytes, and after the first message of a
+    new topic (so a channel's definition sits in a small chunk of its own). A killed
+    process therefore loses at most its last ``flush_interval``, and a damaged part of
+    the file costs at most the chunks it touches. With ``guard_signals`` (and when made in
+    the main thread) SIGINT and SIGTERM wait until a write is complete and SIGTERM
+    finishes the file before it ends the process (see :class:`_SignalGuard`). Use a
+    recorder from the thread that made it.
     """
 
     def __init__(self, path: str | os.PathLike[str], config: Any = None, *,
                  flush_interval: float = 0.5, fsync: bool = False,
-                 compression: str = "zstd") -> None:
+                 compression: str = "zstd", chunk_size: int = 64 * 1024,
+                 guard_signals: bool = True) -> None:
         self.path = Path(path)
         self.flush_interval = float(flush_interval)
         self.fsync = bool(fsync)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
                 "none": CompressionType.NONE}.get(compression)
         if comp is None:
             raise ValueError(f"Recorder: compression {compression!r} must be zstd, lz4 or none")
-        self._fh: IO[bytes] = open(self.path, "wb")  # noqa: SIM115 (closed in close())
-        self._writer = Writer(self._fh, compression=comp)
-        self._writer.start(profile="", library="thermoskin")
-        self._writer.add_metadata("thermoskin", {
-            "started": _dt.datetime.now(_dt.UTC).isoformat(),
-            "time": "log_time = t (s) of the loop clock, in ns",
-        })
         self._channels: dict[str, int] = {}
         self._seq: dict[str, int] = {}
         self._t_flush = time.monotonic()
+        self._busy = False  # inside the MCAP writer (still true after an exception there: torn)
         self.closed = False
         self.messages = 0
-        self.write("/params", 0.0, {"config": _config_object(config)})
-        self.flush()
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        except OSError as e:
+            self.closed = True
+            raise RecordingError(f"cannot record to {self.path}: {e.strerror or e}") from None
+        self._out = _Appender(self._fd)
+        self._writer: Writer | None = None
+        if guard_signals:
+            _GUARD.add(self)
+        try:
+            with _GUARD:  # a signal meanwhile is delivered once the file has its /params
+                self._writer = Writer(self._out, compression=comp, chunk_size=int(chunk_size))  # type: ignore[arg-type]
+                self._writer.start(profile="", library="thermoskin")
+                self._writer.add_metadata("thermoskin", {
+                    "started": _dt.datetime.now(_dt.UTC).isoformat(),
+                    "time": "log_time = t (s) of the loop clock, in ns",
+                })
+                self.write("/params", 0.0, {"config": _config_object(config)})
+        except BaseException:
+            self.close()  # the caller gets no recorder to close: a finished file all the same
+            raise
 
     def _channel(self, topic: str) -> int:
         schema = TOPIC_SCHEMAS.get(topic, _ANY_SCHEMA)
@@ -175,21 +329,31 @@ class Recorder:
         """Record ``data`` (a flat mapping; ``t`` is added if absent) on ``topic`` at time ``t`` s."""
         if self.closed:
             raise RecordingError(f"{self.path}: write after close")
-        cid = self._channels.get(topic)
-        if cid is None:
-            cid = self._channel(topic)
+        if self._busy:
+            raise RecordingError(f"{self.path}: the MCAP writer was interrupted inside a record; "
+                                 "the recording holds what was written before")
+        if not math.isfinite(t):
+            raise RecordingError(f"{self.path}: time t = {t} on {topic} is not finite")
         obj = {"t": t}
         for k, v in data.items():
             obj[k] = _clean(v)
-        if not math.isfinite(t):
-            raise RecordingError(f"{self.path}: time t = {t} on {topic} is not finite")
+        payload = json.dumps(obj, separators=(",", ":")).encode()
         ns = max(0, round(t * 1e9))
-        seq = self._seq[topic] = self._seq[topic] + 1
-        self._writer.add_message(cid, ns, json.dumps(obj, separators=(",", ":")).encode(), ns, seq)
-        self.messages += 1
-        now = time.monotonic()
-        if now - self._t_flush >= self.flush_interval:
-            self.flush(now)
+        with _GUARD:
+            self._busy = True
+            cid = self._channels.get(topic)
+            new = cid is None
+            if new:
+                cid = self._channel(topic)
+            seq = self._seq[topic] = self._seq[topic] + 1
+            self._writer.add_message(cid, ns, payload, ns, seq)  # type: ignore[union-attr]
+            self._busy = False
+            self.messages += 1
+            now = time.monotonic()
+            if new or now - self._t_flush >= self.flush_interval:
+                self.flush(now)
+            elif self._out.buf:  # a chunk reached chunk_size
+                self._out.commit()
 
     def write_sample(self, s: Sample) -> None:
         """Record a device :class:`~thermoskin.devices.base.Sample` on ``/skin/sample``."""
@@ -200,21 +364,41 @@ class Recorder:
         self.write("/events", t, {"kind": kind, "detail": {k: _clean(v) for k, v in detail.items()}})
 
     def flush(self, now: float | None = None) -> None:
-        """Close the chunk in progress and hand it to the OS (and the disk, with ``fsync``)."""
-        self._writer.flush()
-        if self.fsync:
-            os.fsync(self._fh.fileno())
+        """Close the chunk in progress and append it to the file (and the disk, with ``fsync``)."""
+        with _GUARD:
+            if not self._busy:
+                self._busy = True
+                self._writer.flush()  # type: ignore[union-attr]
+                self._busy = False
+            self._out.commit()
+            if self.fsync:
+                os.fsync(self._fd)
         self._t_flush = time.monotonic() if now is None else now
 
     def close(self) -> None:
-        """Write the summary and footer, close the file."""
+        """Write the summary and footer, close the file.
+
+        If the MCAP writer was interrupted inside a record (an exception raised in it),
+        what it had completed is kept and the file is ended without a summary.
+        """
         if self.closed:
             return
-        self.closed = True
-        try:
-            self._writer.finish()
-        finally:
-            self._fh.close()
+        with _GUARD:
+            self.closed = True
+            try:
+                if self._writer is not None and not self._busy:
+                    self._busy = True
+                    self._writer.finish()
+                    self._busy = False
+                    self._out.commit()
+                elif self._writer is not None:
+                    self._out.commit()
+                    os.write(self._fd, _BARE_END)
+                if self.fsync:
+                    os.fsync(self._fd)
+            finally:
+                os.close(self._fd)
+                _GUARD.remove(self)
 
     def __enter__(self) -> Recorder:
         return self
@@ -225,67 +409,89 @@ class Recorder:
 
 # ----------------------------------------------------------------------------- reading
 
+def _load(path: str | os.PathLike[str]) -> tuple[Path, bytes]:
+    p = Path(path)
+    if p.is_dir():
+        raise RecordingError(f"recording {p} is a directory, not an MCAP file")
+    if not p.exists():
+        raise RecordingError(f"recording {p} does not exist")
+    try:
+        return p, p.read_bytes()
+    except OSError as e:
+        raise RecordingError(f"cannot read recording {p}: {e.strerror or e}") from None
+
+
+def scan_messages(path: str | os.PathLike[str]) -> Scanner:
+    """A :class:`~thermoskin.runtime.mcap_scan.Scanner` of the recording at ``path``."""
+    p, data = _load(path)
+    try:
+        return Scanner(p, data)
+    except ScanError as e:
+        raise RecordingError(str(e)) from None
+
+
+def check(path: str | os.PathLike[str]) -> RecordingReport:
+    """Read the whole recording without decoding it: how it ends, what is damaged or lost."""
+    sc = scan_messages(path)
+    for _ in sc.batches():
+        pass
+    return sc.report
+
+
+def _fill(info: dict[str, Any] | None, rep: RecordingReport) -> None:
+    if info is not None:
+        info.update(complete=rep.complete, truncated=not rep.complete, error=rep.error, report=rep)
+
+
 def iter_messages(path: str | os.PathLike[str], topics: Sequence[str] | None = None,
                   info: dict[str, Any] | None = None) -> Iterator[tuple[str, float, dict[str, Any]]]:
-    """``(topic, t, message)`` in file order, tolerant to a truncated file.
+    """``(topic, t, message)`` in file order, past a cut-off end and damaged parts.
 
-    JSON ``null`` values come back as NaN. ``info`` (if given) receives ``complete``
-    (footer read), ``truncated`` and ``error`` (why reading stopped).
+    Every intact chunk is read, also after damage (see :mod:`~thermoskin.runtime.mcap_scan`).
+    JSON ``null`` values come back as NaN. ``info`` (if given) receives, once the
+    messages are exhausted, ``report`` (a :class:`~thermoskin.runtime.mcap_scan.RecordingReport`:
+    lost spans, where a cut-off file ends), ``complete`` (finished and undamaged),
+    ``truncated`` (not complete) and ``error`` (the first problem met).
     """
-    p = Path(path)
-    if not p.is_file():
-        raise RecordingError(f"recording {p} does not exist")
+    sc = scan_messages(path)
     wanted = set(topics) if topics is not None else None
     if info is not None:
-        info.update(complete=False, truncated=False, error="")
-    schemas: dict[int, Schema] = {}
-    channels: dict[int, Channel] = {}
+        info.update(complete=False, truncated=False, error="", report=sc.report)
     nan = math.nan
-    with open(p, "rb") as fh:
-        reader = StreamReader(fh, skip_magic=False)
-        records = reader.records
-        while True:
-            try:
-                rec = next(records)
-            except StopIteration:
-                if info is not None:
-                    info["complete"] = True
-                return
-            except Exception as e:  # a killed writer leaves a partial record: McapError, struct, zstd
-                if info is not None:
-                    info["truncated"] = True
-                    info["error"] = f"{type(e).__name__}: {e}"
-                return
-            if isinstance(rec, Message):
-                ch = channels.get(rec.channel_id)
-                if ch is None or (wanted is not None and ch.topic not in wanted):
-                    continue
-                try:
-                    obj = json.loads(rec.data)
-                except ValueError:
-                    continue
-                if isinstance(obj, dict):
-                    for k, v in obj.items():
-                        if v is None:
-                            obj[k] = nan
-                    yield ch.topic, float(obj.get("t", rec.log_time * 1e-9)), obj
-            elif isinstance(rec, Channel):
-                channels[rec.id] = rec
-            elif isinstance(rec, Schema):
-                schemas[rec.id] = rec
+    loads = json.loads
+    for batch in sc.batches():
+        if wanted is not None:
+            batch = [m for m in batch if m[0] in wanted]
+        if not batch:
+            continue
+        try:  # a chunk's messages in one call; one by one if any is not one JSON value
+            objs = loads(b"[" + b",".join([m[3] for m in batch]) + b"]")
+            if len(objs) != len(batch):
+                raise ValueError("not one value per message")
+        except ValueError:
+            objs = [_loads_or_none(m[3]) for m in batch]
+        for (topic, _, log_time, _), obj in zip(batch, objs, strict=True):
+            if isinstance(obj, dict):
+                for k, v in obj.items():
+                    if v is None:
+                        obj[k] = nan
+                t = obj.get("t")
+                yield topic, float(t) if isinstance(t, int | float) else log_time * 1e-9, obj
+    _fill(info, sc.report)
+
+
+def _loads_or_none(payload: bytes) -> Any:
+    try:
+        return json.loads(payload)
+    except ValueError:
+        return None
 
 
 def read_mcap(path: str | os.PathLike[str], topics: Sequence[str] | None = None,
               info: dict[str, Any] | None = None) -> dict[str, list[dict[str, Any]]]:
-    """Every message by topic, in file order (tolerant to truncation; see :func:`iter_messages`)."""
-    p = Path(path)
-    if not p.is_file():
-        raise RecordingError(f"recording {p} does not exist")
-    with open(p, "rb") as fh:
-        if fh.read(8) != b"\x89MCAP0\r\n":
-            raise RecordingError(f"{p} is not an MCAP file (bad magic)")
+    """Every message by topic, in file order (past damage; see :func:`iter_messages`)."""
     out: dict[str, list[dict[str, Any]]] = {}
-    for topic, _, obj in iter_messages(p, topics, info):
+    for topic, _, obj in iter_messages(path, topics, info):
         out.setdefault(topic, []).append(obj)
     return out
 
@@ -294,69 +500,129 @@ def read_mcap(path: str | os.PathLike[str], topics: Sequence[str] | None = None,
 
 MERGE_TOPICS = ("/skin/estimate", "/control", "/sim/truth", "/loop/timing")
 
+#: A column: floats (NaN where a sample has no value) or, if any value is not a number,
+#: text (``None`` where a sample has no value; objects and lists as JSON).
+Column = list[float] | list[str | None]
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, int | float)
+
+
+def _text(v: Any) -> str | None:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return None
+    if isinstance(v, str):
+        return v
+    return json.dumps(v, separators=(",", ":"))
+
 
 def to_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample",
-               merge: Sequence[str] = MERGE_TOPICS) -> dict[str, list[float]]:
-    """One row per sample of ``sample_topic``; numeric fields of ``merge`` topics joined by ``t``.
+               merge: Sequence[str] = MERGE_TOPICS,
+               info: dict[str, Any] | None = None) -> dict[str, Column]:
+    """One row per sample of ``sample_topic``; the fields of ``merge`` topics joined by ``t``.
 
     A merged message belongs to the sample with the same ``t`` (to the µs); samples without
     one get NaN. A merged field whose name is already taken is named ``<topic leaf>.<field>``
     (``control.drive``: the commanded drive, next to ``drive``, the one the device applied).
+    A field with any value that is not a number (text, an object) is a text column
+    (see :data:`Column`). ``info`` as in :func:`iter_messages`.
     """
-    data = read_mcap(path, [sample_topic, *merge])
+    data = read_mcap(path, [sample_topic, *merge], info)
     samples = data.get(sample_topic, [])
     if not samples:
         raise RecordingError(f"{path}: no messages on {sample_topic}")
     index = {round(s["t"] * 1e6): i for i, s in enumerate(samples)}
-    n = len(samples)
-    cols: dict[str, list[float]] = {}
-
-    def add(name: str, i: int, value: Any) -> None:
-        col = cols.get(name)
-        if col is None:
-            col = cols[name] = [math.nan] * n
-        col[i] = float(value)
-
-    for i, s in enumerate(samples):
-        for k, v in s.items():
-            if isinstance(v, int | float):
-                add(k, i, v)
+    n, nan = len(samples), math.nan
+    keys = dict.fromkeys(k for s in samples for k in s)
+    cols: dict[str, list[Any]] = {k: [s.get(k, nan) for s in samples] for k in keys}
     base = set(cols)
     for topic in merge:
         leaf = topic.rstrip("/").rsplit("/", 1)[-1]
         for m in data.get(topic, []):
-            t = m.get("t", math.nan)
-            i = index.get(round(t * 1e6)) if isinstance(t, int | float) and math.isfinite(t) else None
+            t = m.get("t", nan)
+            i = index.get(round(t * 1e6)) if _is_number(t) and math.isfinite(t) else None
             if i is None:
                 continue
             for k, v in m.items():
-                if k == "t" or not isinstance(v, int | float):
-                    continue
-                add(f"{leaf}.{k}" if k in base else k, i, v)
+                if k != "t":
+                    name = f"{leaf}.{k}" if k in base else k
+                    col = cols.get(name)
+                    if col is None:
+                        col = cols[name] = [nan] * n
+                    col[i] = v
+    for name, col in cols.items():
+        if {type(v) for v in col} <= {float, int, bool}:
+            cols[name] = [float(v) for v in col]
+        else:
+            cols[name] = [_text(v) for v in col]
     return cols
 
 
-def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str], **kw: Any) -> Path:
-    """Export a recording to ``.csv`` (:func:`thermoskin.logio.write_log`) or ``.parquet`` (pyarrow)."""
+def _is_text(col: Column) -> bool:
+    return any(not isinstance(v, float) for v in col)
+
+
+def _write_csv(out: Path, cols: dict[str, Column]) -> Path:
+    """CSV with text columns: numbers at full precision (integers without a point), text
+    quoted, an empty field where a value is missing; written to a temporary file, renamed."""
+    text = {k for k, c in cols.items() if _is_text(c)}
+
+    def cell(name: str, v: Any) -> str:
+        if name in text:
+            return "" if v is None else '"' + v.replace('"', '""') + '"'
+        if v != v:
+            return "nan"
+        return str(int(v)) if v.is_integer() and abs(v) < 2 ** 53 else repr(v)
+
+    def head(name: str) -> str:
+        return '"' + name.replace('"', '""') + '"' if any(c in name for c in ',"\r\n') else name
+
+    names = list(cols)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp")
+    with open(tmp, "w", encoding="utf-8", newline="") as fh:
+        fh.write(",".join(head(k) for k in names) + "\n")
+        for row in zip(*(cols[k] for k in names), strict=True):
+            fh.write(",".join(cell(k, v) for k, v in zip(names, row, strict=True)) + "\n")
+    os.replace(tmp, out)
+    return out
+
+
+def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
+           info: dict[str, Any] | None = None, **kw: Any) -> Path:
+    """Export a recording to ``.csv`` or ``.parquet`` (pyarrow); text fields as text columns.
+
+    A CSV of numbers only is a log (:func:`thermoskin.logio.write_log`); with text columns
+    it is written as :func:`_write_csv` says. ``info`` as in :func:`iter_messages`.
+    """
     out = Path(out_path)
-    cols = to_columns(path_mcap, **kw)
     suffix = out.suffix.lower()
+    if suffix not in (".csv", ".parquet"):
+        raise RecordingError(f"cannot export to {out}: the extension must be .csv or .parquet")
+    if out.is_dir():
+        raise RecordingError(f"cannot export to {out}: it is a directory")
+    cols = to_columns(path_mcap, info=info, **kw)
     if suffix == ".csv":
+        if any(_is_text(c) for c in cols.values()):
+            return _write_csv(out, cols)
         from thermoskin.logio import write_log
 
-        return write_log(out, cols)
-    if suffix == ".parquet":
         try:
-            import pyarrow as pa
-            import pyarrow.parquet as pq
-        except ImportError:
-            raise RecordingError("export to .parquet needs pyarrow (pip install pyarrow); "
-                                 "export to .csv works without it") from None
-        out.parent.mkdir(parents=True, exist_ok=True)
-        table = pa.table({k: pa.array(v, type=pa.float64()) for k, v in cols.items()})
-        pq.write_table(table, out)
-        return out
-    raise RecordingError(f"cannot export to {out}: the extension must be .csv or .parquet")
+            return write_log(out, cols)
+        except ValueError as e:  # a field name a log cannot carry
+            raise RecordingError(f"cannot export to {out}: {e}") from None
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise RecordingError("export to .parquet needs pyarrow (pip install pyarrow); "
+                             "export to .csv works without it") from None
+    out.parent.mkdir(parents=True, exist_ok=True)
+    table = pa.table({k: pa.array(v, type=pa.string() if _is_text(v) else pa.float64())
+                      for k, v in cols.items()})
+    pq.write_table(table, out)
+    return out
 
 
 # ----------------------------------------------------------------------------- replay
@@ -446,7 +712,15 @@ class LoopRecorder:
         self._contact = 0
 
     def write_rows(self, c: Mapping[str, Any]) -> None:
-        """One block of rows as columns (arrays of equal length)."""
+        """One block of rows as columns (arrays of equal length).
+
+        A SIGINT or SIGTERM arriving meanwhile waits for the whole block (no row of a block
+        is missing from the recording while the log has it).
+        """
+        with _GUARD:
+            self._write_rows(c)
+
+    def _write_rows(self, c: Mapping[str, Any]) -> None:
         t = c["t"].tolist()
         n = len(t)
         if not n:
@@ -511,7 +785,8 @@ def config_from_params(obj: Mapping[str, Any]) -> Any:
     return Config(**sections)
 
 
-def replay(path: str | os.PathLike[str], config: Any = None) -> tuple[dict[str, Any], dict[str, Any]]:
+def replay(path: str | os.PathLike[str], config: Any = None,
+           info: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
     """Re-run the observer and the detector on a recording; ``(columns, comparison)``.
 
     The blocks get the inputs the live loop gave them: ``t, T_w, T_p, T_a`` of
@@ -519,7 +794,9 @@ def replay(path: str | os.PathLike[str], config: Any = None) -> tuple[dict[str, 
     used), on every sample that has an ``/skin/estimate`` (the samples the blocks ran
     on), with the recorded configuration (or ``config``). ``columns`` holds those inputs,
     the replayed ``q_i_hat, dq_i_hat, contact, gap`` and the live ones as ``*_live``;
-    ``comparison`` the largest differences and the count of contact mismatches.
+    ``comparison`` the largest differences and the count of contact mismatches. A
+    damaged recording is replayed over its intact parts; ``info`` (as in
+    :func:`iter_messages`) says what was lost.
     """
     from thermoskin.estimator import TouchEstimator
 
@@ -528,7 +805,7 @@ def replay(path: str | os.PathLike[str], config: Any = None) -> tuple[dict[str, 
         if not params:
             raise RecordingError(f"{path}: no /params message; pass the configuration")
         config = config_from_params(params[0].get("config", {}))
-    cols = to_columns(path)
+    cols = to_columns(path, info=info)
     n_all = len(cols["t"])
     c_col = cols.get("contact", [math.nan] * n_all)
     stepped = [i for i in range(n_all) if c_col[i] == c_col[i]]
