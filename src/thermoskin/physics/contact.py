@@ -64,7 +64,8 @@ toucher's step with the sheet temperature over the sample (the mean of its start
 end values keeps the energy exchanged the same on both sides to second order).
 ``step(T_g, G)`` is ``begin`` and ``end`` in one call.
 
-Presets (:func:`toucher`; ``e = sqrt(k rho c)`` of the surface material in W s^0.5/(m² K),
+Presets (:func:`toucher`; ``e = sqrt(k rho c)`` of the material that sets the touch, the
+surface's or, for the water bag, the water's, in W s^0.5/(m² K),
 ``T_s`` the default surface temperature, ``G`` the default contact conductance
 ``h_c(p) A``; every name in :data:`MATERIALS` is also a kind, a 20 mm slab at 22 °C,
 10 cm² at 2 kPa)::
@@ -88,8 +89,8 @@ Presets (:func:`toucher`; ``e = sqrt(k rho c)`` of the surface material in W s^0
 ``material_true``, ``class_true``, ``T_f_true`` the surface temperature at reset,
 ``G_true`` the preset's contact conductance, ``area_true``, ``kind``).
 
-Cost: one step is two passes over the nodes in plain Python (no allocation of arrays),
-about 1-2 µs for the presets (``benchmarks/toucher_step.py``).
+Cost: one step is two passes over the nodes in plain Python (no arrays, no allocation
+but the floats), 0.6-1.5 µs for the presets (``benchmarks/toucher_step.py``).
 """
 
 from __future__ import annotations
@@ -107,7 +108,8 @@ from scipy.optimize import brentq
 # ---------------------------------------------------------------------------------------
 
 CLASSES = ("human", "metal", "glass-ceramic", "plastic", "wood", "foam", "water")
-"""Material classes (Bhattacharjee et al. 2015 sort objects for robot touch by such classes)."""
+"""Material classes (Bhattacharjee, Wade & Kemp, RSS 2015, recognise materials by touch
+from heat transfer in such classes)."""
 
 _INCROPERA_A1 = ("Incropera, DeWitt, Bergman & Lavine, Fundamentals of Heat and Mass Transfer, "
                  "6th ed., Table A.1 (metallic solids, 300 K)")
@@ -192,8 +194,10 @@ SKIN = Material("skin", "human", 0.37, 1109.0, 3391.0,
 
 Its effusivity, 1180 W s^0.5/(m² K), lies within in-vivo measurements: Vendrik & Vos
 (1957, J. Appl. Physiol. 11:211) found ``k rho c = 1.4e-3 cal² cm⁻⁴ s⁻¹ K⁻²`` on the
-forearm (``e`` about 1560); the review of Xu et al. (Burns 43:909, 2017, Table 3) lists
-``k rho c`` of 1.2e6 to 3.2e6 W² s/(m⁴ K²) for skin as one layer (``e`` 1100-1800)."""
+forearm (``e`` about 1560); the review of skin properties in Burns 43:909 (2017, Table 3)
+lists in-vivo ``k rho c`` for skin as one layer mostly between 1.0e6 and 3.2e6
+W² s/(m⁴ K²) (``e`` 1000-1800). The IT'IS values here and below are quoted as we know
+them from the database's tables; no copy of the database was at hand to re-check them."""
 
 RHO_BLOOD = 1050.0
 """Blood density, kg/m³ (IT'IS database v4.1, 'Blood')."""
@@ -203,7 +207,8 @@ T_ARTERIAL = 37.0
 """Arterial (core) blood temperature, °C (Pennes 1948)."""
 Q_MET_SKIN = 1.65 * 1109.0
 """Metabolic heat of skin, W/m³ (IT'IS database v4.1, 'Skin', heat generation 1.65 W/kg).
-Its effect is ``q_met/(w_b rho_b c_b)``, a few tenths of a kelvin at the perfusions here."""
+Its effect is ``q_met/(w_b rho_b c_b)``: 0.2-1 K at the perfusions here, which the
+perfusion found for a resting temperature absorbs."""
 W_B_SKIN = 106e-6 / 60.0 * 1109.0
 """Average skin perfusion, 1/s (IT'IS v4.1: 106 ml/(min kg)), about 2e-3 1/s: the scale
 against which the perfusion found from a resting surface temperature is read."""
@@ -431,6 +436,9 @@ class Toucher:
             A[i, i + 1] -= Ki
             A[i + 1, i] -= Ki
         g = G if G > 0.0 else self.H_env
+        if g <= 0.0 and max(self.S) <= 0.0:
+            raise ValueError(f"{type(self).__name__}({self.kind}): no steady state, the body "
+                             "exchanges heat with nothing")
         A[0, 0] += g
         rhs[0] += g * (T_g if G > 0.0 else self.T_env)
         return [float(v) for v in np.linalg.solve(A, rhs)]
@@ -562,7 +570,7 @@ HUMANS: dict[str, BodyPart] = {
         "finger pad under about 1 N: 1-2 cm² (the brief); depth half a fingertip's thickness")),
     "palm": BodyPart("palm", 60e-4, 1.7e3, 10e-3, note=(
         "palm flat on a surface, about 10 N: 50-80 cm² of the palm's ~90 cm² (about 0.5 % of "
-        "the body surface, Rossiter et al., Burns 22:333, 1996)")),
+        "the body surface, Rossiter, Chapman & Haywood, Burns, 1996)")),
     "hand": BodyPart("hand", 100e-4, 1.5e3, 10e-3, note=(
         "palm and fingers flat, about 15 N: part of the ~140 cm² of palm with digits "
         "(about 0.8 % of the body surface, Rossiter et al. 1996)")),
@@ -805,6 +813,9 @@ class Solid(Toucher):
 
     def reset(self, T_start: float) -> None:
         """Uniform at ``T_start`` °C; a Churchill-Chu film is re-evaluated at that temperature."""
+        if self.reservoir is not None and self.reservoir.liquid.cls == "water" and not 0.5 <= T_start <= 99.0:
+            raise ValueError(f"Solid({self.kind}).reset: T_start = {T_start} °C: the water inside "
+                             "must be liquid (0.5-99 °C)")
         super().reset(T_start)
         if self._film and self.reservoir is not None:
             self.K[-1] = h_natural_water(_film_T(T_start, self.T_ext[-1]), self.reservoir.height) * self.area
@@ -850,11 +861,12 @@ def toucher(kind: str, T_start: float | None = None, area: float | None = None,
         A = part.area if area is None else float(area)
         p = part.pressure if pressure is None else float(pressure)
         G = G_contact(A, p)
-        tch: Toucher = HumanTissue(part, area=A, t_s=t_s, T_env=T_env)
+        hum = HumanTissue(part, area=A, t_s=t_s, T_env=T_env)
         T0 = T_SKIN_DEFAULT if T_start is None else float(T_start)
-        tch.reset(T0)
-        tch.truth = {"toucher_true": "human", "material_true": SKIN.name, "class_true": "human",
-                     "contents_true": None}
+        hum.reset(T0)
+        hum.truth = {"toucher_true": "human", "material_true": SKIN.name, "class_true": "human",
+                     "contents_true": None, "perfusion_true": hum.w_b}
+        tch: Toucher = hum
     else:
         if kind in OBJECTS:
             pre = OBJECTS[kind]
