@@ -526,6 +526,13 @@ def test_toucher_factory_and_truth():
     assert t.area == 50e-4 and t.T_s == pytest.approx(31.0, abs=1e-9)
     assert t.truth["G_true"] == pytest.approx(h_contact(3e3) * 50e-4)
     assert toucher("water_bag").truth["material_true"] == "water"
+    # the persons of finger.py give the resting temperature
+    from thermoskin.physics.finger import PERSONS
+
+    for person in PERSONS.values():
+        t = toucher("finger", person.T_body)
+        assert t.T_s == pytest.approx(person.T_body, abs=1e-9)
+        assert t.truth["perfusion_true"] == t.w_b > 0
     assert toucher("can_cold").truth["contents_true"] == "water"
 
 
@@ -540,6 +547,21 @@ def test_toucher_factory_and_truth():
 def test_toucher_bad_input_is_one_clear_error(args, match):
     with pytest.raises(ValueError, match=match):
         toucher(*args)
+
+
+def test_object_validation():
+    with pytest.raises(ValueError, match="liquid"):
+        toucher("mug_hot", -5.0)
+    s = Solid([(MATERIALS["oak"], 0.01)], A1)
+    with pytest.raises(ValueError, match="no steady state"):
+        s.steady_state()
+    assert s.steady_state(G=0.1, T_g=30.0) == pytest.approx([30.0] * len(s.C))
+    with pytest.raises(ValueError, match="area"):
+        Solid([(MATERIALS["oak"], 0.01)], 0.0)
+    with pytest.raises(ValueError, match="unknown material"):
+        Solid([("granite", 0.01)], A1)
+    with pytest.raises(ValueError, match="body part"):
+        HumanTissue("foot")
 
 
 def test_material_validation():
