@@ -109,7 +109,7 @@ class DeviceCore:
         self.command_timeout = float(command_timeout)
         self.device_id = device_id
         self.skin = SimulatedSkin(cfg)
-        self.sensors = Sensors(cfg.sensor)
+        self.sensors = Sensors(cfg.sensor, self.t_s)
         self.tank = PeltierTank(cfg.peltier, self.t_s,
                                 (cfg.control.drive_min, cfg.control.drive_max))
         self.connected = False

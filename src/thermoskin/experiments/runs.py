@@ -89,19 +89,18 @@ def open_loop_spatial(sc: Scenario, cfg: Config, *, stop_in_contact: bool, inlet
     for tc in sc.touches:
         pos[(t >= tc.t_on) & (t < tc.t_off)] = tc.position
     skin = SpatialSkin(cfg, SpatialParams(inlet=inlet))
-    sensors = Sensors(cfg.sensor)
+    sensors = Sensors(cfg.sensor, t_s)
     pump = PumpLogic(cfg.pump, t_s)
     cmd, T_p = float(sc.T_w_cmd), float(sc.T_w_cmd) + T_P_OFFSET
     skin.reset(cmd, T_a=sc.T_a)
-    noise = sensors.noise("T_w", n).tolist()
     G_l, T_f_l, pos_l = G.tolist(), T_f.tolist(), pos.tolist()
     T_w, T_w_true, T_g, v = (np.zeros(n) for _ in range(4))
-    quantise = sensors.quantise
+    read_w = sensors.board("T_w").read
     for k in range(n):
         Tw = skin.T_w
         T_w_true[k] = Tw
         T_g[k] = skin.T_g
-        m = quantise(Tw + noise[k])
+        m = read_w(Tw)
         T_w[k] = m
         vk = pump.step(m, cmd)
         if stop_in_contact and G_l[k] > 0.0:

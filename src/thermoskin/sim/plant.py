@@ -20,7 +20,8 @@ from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.finger import contact_profile
 from thermoskin.physics.peltier import PeltierTank
 from thermoskin.sim.scenarios import Scenario
-from thermoskin.sim.skin import Sensors, SimulatedSkin
+from thermoskin.sim.sensors import Sensors
+from thermoskin.sim.skin import SimulatedSkin
 
 
 class SimulatedPlant:
@@ -54,29 +55,39 @@ class SimulatedPlant:
         self.tank = PeltierTank(cfg.peltier, t_s,
                                 (cfg.control.drive_min, cfg.control.drive_max))
         self.R_w = FlowResistance(cfg.skin)
-        self.sensors = Sensors(cfg.sensor)
+        self.sensors = Sensors(cfg.sensor, t_s)
         self.T_a = float(scenario.T_a)
-        # thermocouple noise drawn in advance (plain lists: no allocation per sample)
-        self._noise = {ch: self.sensors.noise(ch, self.n).tolist() for ch in Sensors.CHANNELS}
         self.k = 0
         self.reset()
 
     def reset(self) -> None:
-        """Everything at ambient: the tank, the sink, the pipe and the sheet."""
+        """Everything at ambient: the tank, the sink, the pipe and the sheet; sensors from their seed."""
         T_a = self.T_a
         self.k = 0
+        self._k_read = -1
+        self._reading = (math.nan, math.nan, math.nan)
+        self.fresh = 0
+        self.sensors.reset()
         self.tank.reset(T_a, T_a, T_a)
         self.skin.reset(T_a, T_a=T_a, G_c=self.G_c[0], T_f=self.T_f[0])
 
     def measure(self) -> tuple[float, float, float]:
-        """``(T_w, T_p, T_a)`` as the thermocouples read them now (°C)."""
-        k, q, nz = self.k, self.sensors.quantise, self._noise
-        return (q(self.skin.T_w + nz["T_w"][k]), q(self.tank.T_p + nz["T_p"][k]),
-                q(self.T_a + nz["T_a"][k]))
+        """``(T_w, T_p, T_a)`` as the thermocouples read them now (°C); ``fresh`` their bit mask.
+
+        The sensors advance once per sample: a second call in the same sample repeats the first.
+        """
+        if self._k_read != self.k:
+            sens = self.sensors
+            self._reading = sens.read(self.skin.T_w, self.tank.T_p, self.T_a)
+            self.fresh = sens.fresh
+            self._k_read = self.k
+        return self._reading
 
     def apply(self, drive: float, v: float) -> None:
         """Hold ``drive`` and ``v`` over one sample and advance."""
         k = self.k
+        if self._k_read != k:
+            self.measure()  # the sensors see every sample
         skin, tank = self.skin, self.tank
         q_p = (tank.T_p - skin.T_w) / self.R_w(v)
         if self.spatial:

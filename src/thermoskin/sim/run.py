@@ -25,7 +25,8 @@ from thermoskin.control.pump import PumpLogic
 from thermoskin.params import Config
 from thermoskin.physics.finger import contact_profile
 from thermoskin.sim.scenarios import Scenario, get_scenario
-from thermoskin.sim.skin import Sensors, SimulatedSkin
+from thermoskin.sim.sensors import Sensors
+from thermoskin.sim.skin import SimulatedSkin
 
 COLUMNS = ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd", "T_w_true", "T_g", "q_i", "contact_true", "n_fingers")
 
@@ -44,7 +45,7 @@ def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = Non
     G_c, T_f, n_fingers = contact_profile(sc.touches, t)
 
     skin = SimulatedSkin(cfg)
-    sensors = Sensors(cfg.sensor)
+    sensors = Sensors(cfg.sensor, t_s)
     pump = PumpLogic(cfg.pump, t_s)
     cmd = float(sc.T_w_cmd)
     v_const = cfg.pump.v_on if sc.pump == "on" else 0.0
@@ -55,20 +56,19 @@ def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = Non
     else:
         skin.reset_equilibrium(T_p[0], v_const, T_a[0], G_c[0], T_f[0])
 
-    noise_w = sensors.noise("T_w", n).tolist()
     T_p_l, T_a_l, G_l, T_f_l = T_p.tolist(), T_a.tolist(), G_c.tolist(), T_f.tolist()
     T_w_true = [0.0] * n
     T_g = [0.0] * n
     T_w_meas = [0.0] * n
     v_col = [0.0] * n
-    step, pump_step, quantise = skin.step, pump.step, sensors.quantise
+    step, pump_step, read_w = skin.step, pump.step, sensors.board("T_w").read
     every = max(1, n // 100)
     next_report = every if progress is not None else n + 1
     for k in range(n):
         Tw = skin.T_w
         T_w_true[k] = Tw
         T_g[k] = skin.T_g
-        m = quantise(Tw + noise_w[k])
+        m = read_w(Tw)
         T_w_meas[k] = m
         v = pump_step(m, cmd) if logic else v_const
         v_col[k] = v
