@@ -56,13 +56,15 @@ class SimulatedPlant:
                                 (cfg.control.drive_min, cfg.control.drive_max))
         self.R_w = FlowResistance(cfg.skin)
         self.sensors = Sensors(cfg.sensor, t_s)
-        self.T_a = float(scenario.T_a)
+        self.T_a_true = np.asarray(scenario.T_a_at(t), dtype=float)
+        """The true ambient at each sample (the scenario's profile), °C."""
+        self._T_a = self.T_a_true.tolist()
         self.k = 0
         self.reset()
 
     def reset(self) -> None:
         """Everything at ambient: the tank, the sink, the pipe and the sheet; sensors from their seed."""
-        T_a = self.T_a
+        T_a = self._T_a[0]
         self.k = 0
         self._k_read = -1
         self._reading = (math.nan, math.nan, math.nan)
@@ -78,7 +80,7 @@ class SimulatedPlant:
         """
         if self._k_read != self.k:
             sens = self.sensors
-            self._reading = sens.read(self.skin.T_w, self.tank.T_p, self.T_a)
+            self._reading = sens.read(self.skin.T_w, self.tank.T_p, self._T_a[self.k])
             self.fresh = sens.fresh
             self._k_read = self.k
         return self._reading
@@ -89,11 +91,12 @@ class SimulatedPlant:
         if self._k_read != k:
             self.measure()  # the sensors see every sample
         skin, tank = self.skin, self.tank
+        T_a = self._T_a[k]
         q_p = (tank.T_p - skin.T_w) / self.R_w(v)
         if self.spatial:
-            skin.step(tank.T_p, v, self.T_a, self.G_c[k], self.T_f[k],
+            skin.step(tank.T_p, v, T_a, self.G_c[k], self.T_f[k],
                       position=self.position[k])  # type: ignore[call-arg]
         else:
-            skin.step(tank.T_p, v, self.T_a, self.G_c[k], self.T_f[k])
-        tank.step(drive, self.T_a, q_p)
+            skin.step(tank.T_p, v, T_a, self.G_c[k], self.T_f[k])
+        tank.step(drive, T_a, q_p)
         self.k = k + 1
