@@ -6,18 +6,17 @@ link to the slave side (a stale link is replaced, the link is removed on exit) a
 for a HELLO. Its clock starts at the first HELLO; from then on, every ``t_s`` (1 ms, paced
 by the wall clock with absolute deadlines) it
 
-1. measures: thermocouple readings of ``T_w, T_p, T_a`` are taken every ``tc_period``
-   (default 0.1 s, a MAX31856-class board); in between the last reading is repeated with
-   its fresh bit clear and its update counter unchanged;
+1. measures: the thermocouple boards of the simulated plant read ``T_w, T_p, T_a``
+   (``sim.sensors``: each converts every ``tc_period``, default 0.1 s, a MAX31856-class
+   board, with the configured jitter and lag); between conversions the last reading is
+   repeated with its fresh bit clear and its update counter unchanged;
 2. sends a SAMPLE (and a FAULT when a fault it can detect appears);
-3. advances the skin (:class:`~thermoskin.sim.skin.SimulatedSkin`, exact ZOH) and the
-   tank one step with the last COMMAND (drive, pump velocity), the scenario's touches
-   (:func:`~thermoskin.physics.finger.contact_at`, repeating every ``scenario.duration``)
-   and the scenario's ``T_a``.
-
-The tank: :class:`thermoskin.physics.peltier.PeltierTank` (with the configured drive
-limits), losing ``q_out = (T_p - T_w)/R_w(v)`` to the skin's water, started at
-``scenario.T_p(0)``.
+3. advances the simulated plant (:class:`~thermoskin.sim.plant.SimulatedPlant`: the skin,
+   exact ZOH, and the Peltier tank, :class:`~thermoskin.physics.peltier.PeltierTank` with
+   the configured drive limits, losing ``q_out = (T_p - T_w)/R_w(v)`` to the skin's water)
+   one step with the last COMMAND (drive, pump velocity), the scenario's touches and
+   ambient repeating every ``scenario.duration``. It starts in the network's equilibrium
+   for ``scenario.T_p(0)`` with the pump running.
 
 Until the first COMMAND after a HELLO, and while no COMMAND came for ``command_timeout``
 s (the watchdog), the device holds drive 0 and the pump off. SAFE latches the same
@@ -31,8 +30,8 @@ Faults, ``KIND@SECONDS`` since the host connected:
 - ``serial-drop``: the device stops sending and stops listening (a cut cable).
 - ``tc-stuck``: ``T_w`` freezes at its last reading while still flagged fresh.
 
-``tc-open``, ``nan-burst`` and ``overtemp`` force a conversion at their onset, so they show
-in the very sample at their time (the host's fault-to-safe delay is measured from there);
+``tc-open``, ``nan-burst`` and ``overtemp`` force a reading of their channels at their
+onset, so they show in the very sample at their time (the host's fault-to-safe delay is measured from there);
 ``tc-stuck`` shows at the regular conversions. :attr:`DeviceCore.t_safe` is the device
 time at which the first SAFE of the session took effect (NaN if none).
 """
@@ -57,16 +56,15 @@ import numpy as np
 
 from thermoskin.devices import protocol as proto
 from thermoskin.params import Config
-from thermoskin.physics.finger import contact_at
-from thermoskin.physics.peltier import PeltierTank
+from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import DEFAULT_SCENARIO, SCENARIOS, Scenario, get_scenario
-from thermoskin.sim.skin import Sensors, SimulatedSkin
 
 FAULT_KINDS = ("tc-open", "nan-burst", "overtemp", "serial-drop", "tc-stuck")
 OVERTEMP_C = 45.0
 """``T_p`` reading under the ``overtemp`` fault, °C."""
-_FORCED = frozenset({"tc-open", "nan-burst", "overtemp"})
-"""Faults that force a conversion at their onset (seen in the very next sample)."""
+_FORCED = {"tc-open": proto.CH_W, "nan-burst": proto.CH_W | proto.CH_P | proto.CH_A,
+           "overtemp": proto.CH_P}
+"""Faults that force a reading of their channels at their onset (seen in that very sample)."""
 DEVICE_ID = 0x7E57_0001
 """Device id the emulator reports in HELLO_ACK."""
 
@@ -96,22 +94,37 @@ class FaultSpec:
 
 
 class DeviceCore:
-    """What the device does, without I/O or wall clock: messages in, one step per ``t_s``."""
+    """What the device does, without I/O or wall clock: messages in, one step per ``t_s``.
+
+    The physics and the thermocouple boards are the simulated plant
+    (:class:`~thermoskin.sim.plant.SimulatedPlant`: Peltier tank, the scenario's touches and
+    ambient repeating every ``scenario.duration``, the ``[sensor]`` boards); ``tc_period``
+    (s) sets the three boards' conversion periods and ``jitter`` (s) their jitter (``None``:
+    the configuration's). The faults are the device's own, applied to the plant's readings.
+    """
 
     def __init__(self, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec] = (),
-                 tc_period: float = 0.1, command_timeout: float = 0.5, device_id: int = DEVICE_ID) -> None:
+                 tc_period: float | None = 0.1, command_timeout: float = 0.5,
+                 device_id: int = DEVICE_ID, jitter: float | None = None) -> None:
+        sensor: dict[str, float] = {}
+        if tc_period is not None:
+            sensor.update(period_T_w=tc_period, period_T_p=tc_period, period_T_a=tc_period)
+        if jitter is not None:
+            sensor["jitter"] = jitter
+        cfg = cfg.replace(sensor=sensor) if sensor else cfg
         self.cfg = cfg
         self.t_s = cfg.sampling.t_s
         self.scenario = scenario
         self.faults = sorted(faults, key=lambda f: f.t)
-        self.n_tc = max(1, round(tc_period / self.t_s))
-        self.tc_period = self.n_tc * self.t_s
+        s = cfg.sensor
+        self.tc_period = max(s.period_T_w, s.period_T_p, s.period_T_a) or self.t_s
+        """The longest conversion period of the boards (reported in HELLO_ACK), s."""
         self.command_timeout = float(command_timeout)
         self.device_id = device_id
-        self.skin = SimulatedSkin(cfg)
-        self.sensors = Sensors(cfg.sensor, self.t_s)
-        self.tank = PeltierTank(cfg.peltier, self.t_s,
-                                (cfg.control.drive_min, cfg.control.drive_max))
+        self.plant = SimulatedPlant(cfg, scenario, repeat=True)
+        self.skin = self.plant.skin
+        self.tank = self.plant.tank
+        self.sensors = self.plant.sensors
         self.connected = False
         self.k = 0
         self.seq = 0
@@ -120,11 +133,7 @@ class DeviceCore:
         self._reset_physics()
 
     def _reset_physics(self) -> None:
-        sc = self.scenario
-        T_p0 = float(sc.T_p(0.0))
-        self.tank.reset(T_p0, None, sc.T_a)
-        self.skin.reset_equilibrium(T_p0, self.cfg.pump.v_on, sc.T_a)
-        self.sensors.reset()
+        self.plant.reset("equilibrium", v=self.cfg.pump.v_on)
         self.drive = 0.0
         self.v = 0.0
         self.cmd_drive = 0.0
@@ -135,6 +144,8 @@ class DeviceCore:
         self.active: set[str] = set()
         self.readings = [math.nan, math.nan, math.nan]
         self.counters = [0, 0, 0]
+        self.truth = (0.0, 0, 0.0, 0, math.nan)
+        """``(t, contact_true, q_i, n_fingers, T_g)`` of the last sample sent."""
         self._overrun = False
 
     # -- messages --------------------------------------------------------------------------
@@ -189,35 +200,40 @@ class DeviceCore:
         """Measure, report (SAMPLE and new FAULTs), then advance the physics by ``t_s``."""
         t = self.k * self.t_s
         out: list[proto.Message] = []
-        force = False
+        force = 0
         for f in self.faults:
             if f.t <= t + 1e-12 and f.kind not in self.active:
                 self.active.add(f.kind)
-                force = force or f.kind in _FORCED
+                force |= _FORCED.get(f.kind, 0)
                 if f.kind == "tc-open":
                     out.append(proto.Fault(0, proto.F_TC_OPEN, 0, math.nan))
         active = self.active
-        fresh = 0
-        if force or self.k % self.n_tc == 0:
-            sens = self.sensors
-            T_w = sens.measure_one("T_w", self.skin.T_w)
-            T_p = sens.measure_one("T_p", self.tank.T_p)  # type: ignore[attr-defined]
-            T_a = sens.measure_one("T_a", self.scenario.T_a)
+        plant = self.plant
+        T_w, T_p, T_a = plant.measure()
+        fresh = plant.fresh | force
+        q_i, T_g, _, _ = plant.truth()
+        contact, n_fingers = plant.contact()
+        self.truth = (t, contact, q_i, n_fingers, T_g)
+        if fresh:
             if active:
                 if "tc-stuck" in active:
                     T_w = self.readings[0]
                 if "tc-open" in active:
                     T_w = math.nan
                 if "overtemp" in active:
-                    T_p = sens.quantise(OVERTEMP_C + (T_p - self.tank.T_p))  # type: ignore[attr-defined]
+                    T_p = self.sensors.quantise(OVERTEMP_C + (T_p - plant.T_p_true))
                 if "nan-burst" in active:
                     T_w = T_p = T_a = math.nan
-            self.readings = [T_w, T_p, T_a]
-            c = self.counters
-            c[0] = (c[0] + 1) & 0xFFFF
-            c[1] = (c[1] + 1) & 0xFFFF
-            c[2] = (c[2] + 1) & 0xFFFF
-            fresh = proto.CH_W | proto.CH_P | proto.CH_A
+            r, c = self.readings, self.counters
+            if fresh & proto.CH_W:
+                r[0] = T_w
+                c[0] = (c[0] + 1) & 0xFFFF
+            if fresh & proto.CH_P:
+                r[1] = T_p
+                c[1] = (c[1] + 1) & 0xFFFF
+            if fresh & proto.CH_A:
+                r[2] = T_a
+                c[2] = (c[2] + 1) & 0xFFFF
 
         # commands in force over the next step
         status = 0
@@ -246,13 +262,7 @@ class DeviceCore:
                                self.cmd_seq))
 
         # physics over [t, t + t_s)
-        sc = self.scenario
-        G_c, T_f, _ = contact_at(sc.touches, t % sc.duration)
-        skin = self.skin
-        T_p_true = self.tank.T_p  # type: ignore[attr-defined]
-        q_out = (T_p_true - skin.T_w) / skin.R_w(v)
-        self.tank.step(drive, sc.T_a, q_out)  # type: ignore[attr-defined]
-        skin.step(T_p_true, v, sc.T_a, G_c, T_f)
+        plant.apply(drive, v)
         self.k += 1
         return out
 

@@ -45,10 +45,7 @@ class SimDevice:
 
     def truth(self) -> tuple[float, float, float, float]:
         """``(q_i, T_g, T_w, T_p)`` of the simulator at the current step (W, °C)."""
-        p = self.plant
-        skin = p.skin
-        q_i = skin.G_c * (skin.T_f - skin.T_g) if skin.G_c else 0.0
-        return q_i, skin.T_g, skin.T_w, p.tank.T_p
+        return self.plant.truth()
 
     def write_command(self, drive: float, v: float) -> None:
         """Hold ``drive``, ``v`` (or the safe outputs) over one sample and advance."""
