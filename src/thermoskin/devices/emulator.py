@@ -1,8 +1,9 @@
 """The device emulator: the simulated skin behind a pseudo-terminal speaking the link protocol.
 
-``thermoskin device-emulator --link PATH [--scenario NAME] [--fault KIND@SECONDS]`` (or
-``python -m thermoskin.devices.emulator``) opens a pty pair, makes ``PATH`` a symbolic
-link to the slave side (a stale link is replaced, the link is removed on exit) and waits
+``thermoskin device-emulator --link PATH [--scenario NAME] [--fault KIND@SECONDS]
+[--tc-period S] [--jitter S] [--truth TRUTH.csv]`` (or ``python -m
+thermoskin.devices.emulator``) opens a pty pair, makes ``PATH`` a symbolic link to the
+slave side (a stale link is replaced, the link is removed on exit) and waits
 for a HELLO. Its clock starts at the first HELLO; from then on, every ``t_s`` (1 ms, paced
 by the wall clock with absolute deadlines) it
 
@@ -17,6 +18,12 @@ by the wall clock with absolute deadlines) it
    one step with the last COMMAND (drive, pump velocity), the scenario's touches and
    ambient repeating every ``scenario.duration``. It starts in the network's equilibrium
    for ``scenario.T_p(0)`` with the pump running.
+
+``--truth TRUTH.csv`` writes the simulator's truth, one row per sample sent,
+``t,contact_true,q_i,n_fingers,T_g`` with ``t`` the sample's device time (as the host
+logs it), flushed every half second and complete when the emulator stops (SIGINT,
+SIGTERM). ``--tc-period`` sets the three boards' conversion periods (default 0.1 s, or
+the config's ``[sensor]`` periods if it sets any), ``--jitter`` their jitter.
 
 Until the first COMMAND after a HELLO, and while no COMMAND came for ``command_timeout``
 s (the watchdog), the device holds drive 0 and the pump off. SAFE latches the same
@@ -267,6 +274,53 @@ class DeviceCore:
         return out
 
 
+TRUTH_COLUMNS = ("t", "contact_true", "q_i", "n_fingers", "T_g")
+"""Columns of the emulator's truth file (``--truth``)."""
+
+
+class TruthWriter:
+    """The emulator's truth, one CSV row per sample sent: ``t,contact_true,q_i,n_fingers,T_g``.
+
+    ``t`` is the sample's device time (``t_us`` of its SAMPLE, s since the HELLO), which the
+    host logs as its ``t``; ``contact_true`` 0/1, ``q_i`` W (the touch's heat into the
+    sheet, contact applied from ``t`` on), ``n_fingers``, ``T_g`` °C. Rows are formatted as
+    they come and written and flushed every ``flush_s`` (wall clock) and on :meth:`close`.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], flush_s: float = 0.5) -> None:
+        self.path = Path(path)
+        self._f = self.path.open("w", encoding="ascii", newline="\n")
+        self._f.write(",".join(TRUTH_COLUMNS) + "\n")
+        self._f.flush()
+        self._rows: list[str] = []
+        self.flush_s = float(flush_s)
+        self._t_flush = time.monotonic()
+        self.rows = 0
+
+    def add(self, t: float, contact: int, q_i: float, n_fingers: int, T_g: float) -> None:
+        """One sample's row (formatted now, written at the next flush)."""
+        self._rows.append(f"{t:.6f},{contact},{q_i:.9g},{n_fingers},{T_g:.9g}\n")
+
+    def maybe_flush(self, now: float) -> None:
+        """Write and flush if ``flush_s`` passed since the last flush (``now``: monotonic, s)."""
+        if now - self._t_flush >= self.flush_s:
+            self.flush(now)
+
+    def flush(self, now: float | None = None) -> None:
+        if self._rows:
+            self._f.write("".join(self._rows))
+            self.rows += len(self._rows)
+            self._rows.clear()
+        self._f.flush()
+        self._t_flush = time.monotonic() if now is None else now
+
+    def close(self) -> None:
+        """Every row so far to the file, then close it."""
+        if not self._f.closed:
+            self.flush()
+            self._f.close()
+
+
 class PtyEmulator:
     """:class:`DeviceCore` behind a pseudo-terminal, paced at ``t_s`` by the wall clock.
 
@@ -279,9 +333,12 @@ class PtyEmulator:
     MAX_LAG = 0.05
     """Behind its deadlines by more than this (s), the emulator re-anchors its pacing."""
 
-    def __init__(self, link: str | os.PathLike[str], core: DeviceCore) -> None:
+    def __init__(self, link: str | os.PathLike[str], core: DeviceCore,
+                 truth: TruthWriter | None = None) -> None:
         self.link = Path(link)
         self.core = core
+        self.truth = truth
+        """Where each sample sent also writes its truth row (``None``: nowhere)."""
         self.decoder = proto.Decoder()
         self._stop = threading.Event()
         self.ready = threading.Event()
@@ -394,6 +451,7 @@ class PtyEmulator:
             return
         t0 = self._t0
         k = 0
+        truth = self.truth
         lat = self.lateness
         n_lat = lat.size
         while not stop.is_set():
@@ -418,6 +476,9 @@ class PtyEmulator:
                 for m in msgs:
                     self._send(m)
                 self._flush()
+                if truth is not None:
+                    truth.add(*core.truth)
+                    truth.maybe_flush(now)
             k += 1
             self._read()
 
@@ -434,18 +495,38 @@ class PtyEmulator:
 
 
 def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = (),
-         tc_period: float = 0.1, cfg: Config | None = None, verbose: bool = True) -> int:
-    """Run the emulator until SIGINT/SIGTERM; 0 on a clean stop, 2 on bad arguments or link."""
+         tc_period: float | None = None, cfg: Config | None = None, verbose: bool = True,
+         jitter: float | None = None, truth: str | os.PathLike[str] | None = None) -> int:
+    """Run the emulator until SIGINT/SIGTERM; 0 on a clean stop, 2 on bad arguments or link.
+
+    ``tc_period`` (s) sets the three boards' conversion periods; ``None``: the config's
+    ``[sensor]`` periods if any is set, else 0.1 s. ``jitter`` (s): their jitter (``None``:
+    the config's). ``truth``: a CSV file for the truth (:class:`TruthWriter`), complete up
+    to the last sample sent when the emulator stops.
+    """
+    cfg = cfg or Config()
+    s = cfg.sensor
+    if tc_period is None and not (s.period_T_w or s.period_T_p or s.period_T_a):
+        tc_period = 0.1
     try:
         sc = get_scenario(scenario)
         specs = [FaultSpec.parse(f) for f in faults]
-        if not (tc_period > 0 and math.isfinite(tc_period)):
-            raise ValueError(f"tc_period = {tc_period} s must be > 0")
+        if tc_period is not None and not (tc_period > 0 and math.isfinite(tc_period)):
+            raise ValueError(f"--tc-period {tc_period} s must be > 0")
+        if jitter is not None and not (jitter >= 0 and math.isfinite(jitter)):
+            raise ValueError(f"--jitter {jitter} s must be >= 0")
+        core = DeviceCore(cfg, sc, specs, tc_period=tc_period, jitter=jitter)
     except (KeyError, ValueError) as e:
         print(f"device-emulator: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
         return 2
-    core = DeviceCore(cfg or Config(), sc, specs, tc_period=tc_period)
-    emu = PtyEmulator(link, core)
+    writer = None
+    if truth is not None:
+        try:
+            writer = TruthWriter(truth)
+        except OSError as e:
+            print(f"device-emulator: cannot write the truth file {truth}: {e.strerror or e}", file=sys.stderr)
+            return 2
+    emu = PtyEmulator(link, core, writer)
     old: dict[int, object] = {}
 
     def _stop(signum: int, frame: object) -> None:
@@ -461,14 +542,19 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
             print(f"device-emulator: cannot create the link {link}: {e}", file=sys.stderr)
             return 2
         if verbose:
+            j = core.cfg.sensor.jitter
             print(f"device-emulator: {link} -> {emu.slave_name} (scenario {sc.name}, "
                   f"thermocouples every {core.tc_period * 1e3:g} ms"
-                  + (f", faults {', '.join(faults)}" if faults else "") + "); waiting for the host",
+                  + (f" +- {j * 1e3:g} ms" if j else "")
+                  + (f", faults {', '.join(faults)}" if faults else "")
+                  + (f", truth to {truth}" if truth is not None else "") + "); waiting for the host",
                   file=sys.stderr, flush=True)
         try:
             emu.serve()
         finally:
             emu.close_link()
+            if writer is not None:
+                writer.close()
         if verbose:
             tm = emu.timing()
             if tm.get("samples"):
@@ -478,10 +564,14 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
                 if core.t_safe == core.t_safe:
                     print(f"device-emulator: SAFE from the host took effect at t = {core.t_safe:.3f} s",
                           file=sys.stderr)
+                if writer is not None:
+                    print(f"device-emulator: {writer.rows} truth rows in {truth}", file=sys.stderr)
             else:
                 print("device-emulator: stopped (no host connected)", file=sys.stderr)
         return 0
     finally:
+        if writer is not None:
+            writer.close()
         for sig, handler in old.items():
             signal.signal(sig, handler)  # type: ignore[arg-type]
 
@@ -493,9 +583,13 @@ def _cli(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--scenario", default=DEFAULT_SCENARIO, help=f"one of {', '.join(SCENARIOS)}")
     ap.add_argument("--fault", action="append", default=[], metavar="KIND@SECONDS",
                     help=f"inject a fault; KIND one of {', '.join(FAULT_KINDS)}")
-    ap.add_argument("--tc-period", type=float, default=0.1, help="thermocouple update period, s")
+    ap.add_argument("--tc-period", type=float, default=None,
+                    help="conversion period of the three thermocouple boards, s (default 0.1)")
+    ap.add_argument("--jitter", type=float, default=None, help="conversion-instant jitter, s (default 0)")
+    ap.add_argument("--truth", default=None, metavar="TRUTH.csv",
+                    help="write the truth: t,contact_true,q_i,n_fingers,T_g per sample")
     a = ap.parse_args(argv)
-    return main(a.link, a.scenario, a.fault, a.tc_period)
+    return main(a.link, a.scenario, a.fault, a.tc_period, jitter=a.jitter, truth=a.truth)
 
 
 if __name__ == "__main__":
