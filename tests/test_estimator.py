@@ -15,14 +15,21 @@ from thermoskin.sim.scenarios import SCENARIOS
 CFG = load_config()
 
 
-def test_without_a_command_it_is_the_offline_pipeline() -> None:
+def test_streaming_is_the_offline_pipeline() -> None:
     log = simulate(SCENARIOS["one-finger"].with_duration(20.0), CFG)
     est = TouchEstimator(CFG)
-    c = [est.step(*(float(log[k][i]) for k in ("t", "T_w", "T_p", "v", "T_a")))
+    c = [est.step(*(float(log[k][i]) for k in ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd")))
          for i in range(len(log["t"]))]
     ref = observe(log, CFG)
     np.testing.assert_array_equal(np.asarray(c), ref.columns["contact"])
     assert est.armed and np.any(c)
+
+
+def test_without_a_command_it_is_armed_at_once() -> None:
+    log = simulate(SCENARIOS["one-finger"].with_duration(8.0), CFG)
+    est = TouchEstimator(CFG)
+    est.step(0.0, float(log["T_w"][0]), float(log["T_p"][0]), float(log["v"][0]), float(log["T_a"][0]))
+    assert est.armed
 
 
 def test_arms_only_after_the_set_point_is_held() -> None:

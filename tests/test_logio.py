@@ -267,3 +267,421 @@ def test_sample_time() -> None:
     assert sample_time([0.0, 0.5, 1.0, 1.5]) == pytest.approx(0.5)
     with pytest.raises(ValueError):
         sample_time([1.0])
+
+
+# ------------------------------------------------------------------------- precision, formats, streaming
+
+from thermoskin.logio import FLAG_COLUMNS, LogReader, LogWriter, check_time  # noqa: E402
+
+
+def _digits(text: str) -> str:
+    """Significant digits of a decimal number's text (sign, point, exponent and leading zeros dropped)."""
+    mant = text.lower().lstrip("+-").split("e")[0].replace(".", "")
+    return mant.lstrip("0").rstrip("0") or "0"
+
+
+def _awkward(n: int, seed: int = 3) -> np.ndarray:
+    """Finite doubles of every magnitude (random bit patterns) plus hand-picked hard cases."""
+    rng = np.random.default_rng(seed)
+    bits = rng.integers(0, 2**63, n, dtype=np.int64)
+    x = bits.view(np.float64).copy()
+    x[~np.isfinite(x)] = 1.5
+    x *= np.where(rng.random(n) < 0.5, -1.0, 1.0)
+    hard = [0.1, 1 / 3, 20.03125, 2**-1074, 2.2250738585072014e-308, 1.7976931348623157e308, -0.0, 0.0,
+            1e22, 1e16, 2**53 + 2.0, 123456789012.5, 1e-7, 9.999999999999999e22, 5e-324]
+    x[: len(hard)] = hard
+    return x
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.shape == b.shape and bool(np.all(a.view(np.int64) == b.view(np.int64)))
+
+
+def _exact_cols(n: int) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(5)
+    cols = {
+        "t": 100.0 + np.arange(n) * 1e-3,  # 100.00100000000001...: not short decimals
+        "T_w": np.round((24 + rng.normal(0, 0.05, n)) * 64) / 64,  # thermocouple steps of 1/64 K
+        "T_p": 20 + rng.normal(0, 0.1, n),
+        "v": np.where(rng.random(n) < 0.5, 0.141, 0.0),
+        "T_a": np.full(n, 20.03125),
+        "x": _awkward(n),
+        "contact": (rng.random(n) < 0.3).astype(float),
+        "sign": rng.integers(-1, 2, n).astype(float),
+    }
+    cols["T_w"][5:9] = np.nan
+    return cols
+
+
+@pytest.mark.parametrize("ext", [".csv", ".parquet"])
+def test_round_trip_bit_exact(tmp_path: Path, ext: str) -> None:
+    cols = _exact_cols(3000)
+    p = write_log(tmp_path / f"exact{ext}", cols)
+    log = read_log(p, nan_columns=("T_w",))
+    assert list(log) == list(cols)
+    for k, a in cols.items():
+        assert _same_bits(log[k], a), k  # NaN and -0.0 included
+
+
+def test_csv_text_is_shortest_round_trip(tmp_path: Path) -> None:
+    cols = _exact_cols(2000)
+    p = write_log(tmp_path / "exact.csv", cols)
+    lines = p.read_text().splitlines()
+    assert lines[0] == ",".join(cols)
+    rows = [ln.split(",") for ln in lines[1:]]
+    names = list(cols)
+    for j, name in enumerate(names):
+        fields = [r[j] for r in rows]
+        for text, x in zip(fields, cols[name], strict=True):
+            if np.isnan(x):
+                assert text.lower() == "nan"
+                continue
+            assert float(text) == x and np.signbit(float(text)) == np.signbit(x), (name, text, x)
+            # Python's repr is the shortest decimal that reads back to x (David Gay's algorithm)
+            assert len(_digits(text)) <= len(_digits(repr(float(x)))), (name, text, repr(float(x)))
+    assert "20.03125" in lines[1].split(",")[4]
+
+
+def test_flags_written_as_integers(tmp_path: Path) -> None:
+    n = 6
+    cols = {
+        "t": np.arange(n) * 0.5,
+        "contact": np.array([0, 1, 1, 0, 0, 1], dtype=float),
+        "gap": np.zeros(n, dtype=np.int8),
+        "n_fingers": np.array([0, 1, 2, 3, 2, 1], dtype=float),
+        "fresh": np.full(n, 7.0),
+        "sign": np.array([-1, 0, 1, 1, 0, -1], dtype=float),
+        "patch": np.arange(n, dtype=float),
+        "contact_true": np.array([True, False] * 3),
+        "q": np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.5]),  # not a flag: floats stay floats
+        "seq": np.arange(n, dtype=np.int64),  # integer arrays are integers whatever their name
+    }
+    assert {"contact", "gap", "contact_true", "n_fingers", "fresh", "sign", "patch"} <= FLAG_COLUMNS
+    p = write_log(tmp_path / "flags.csv", cols)
+    rows = [ln.split(",") for ln in p.read_text().splitlines()[1:]]
+    for j, name in enumerate(cols):
+        if name in ("t", "q"):
+            continue
+        assert all(r[j].lstrip("-").isdigit() for r in rows), (name, [r[j] for r in rows])
+    assert [r[5] for r in rows] == ["-1", "0", "1", "1", "0", "-1"]
+    assert [r[8] for r in rows][-1] == "6.5"
+    log = read_log(p, required=("t",))
+    for k, a in cols.items():
+        np.testing.assert_array_equal(log[k], np.asarray(a, dtype=float), err_msg=k)
+
+
+def test_flag_with_nan_stays_readable(tmp_path: Path) -> None:
+    cols = {"t": np.arange(4.0), "contact": np.array([0.0, np.nan, 1.0, 0.5])}
+    p = write_log(tmp_path / "f.csv", cols)
+    assert _same_bits(read_log(p, required=("t",), nan_columns=("contact",))["contact"], cols["contact"])
+
+
+@pytest.mark.parametrize("name", ["log.txt", "log", "log.csv.gz", "log.pq"])
+def test_unknown_extension(tmp_path: Path, name: str) -> None:
+    p = tmp_path / name
+    p.write_text(HEADER + "\n" + "\n".join(_rows()) + "\n")
+    msg = _error(p)
+    assert "must end in .csv or .parquet" in msg
+    with pytest.raises(LogError, match=r"must end in \.csv or \.parquet") as info:
+        write_log(p, {"t": np.arange(3.0)})
+    assert name in str(info.value)
+    with pytest.raises(LogError, match="unknown log format"):
+        LogWriter(tmp_path / "w.json", ["t"])
+
+
+def test_extension_case_insensitive(tmp_path: Path) -> None:
+    p = _write(tmp_path, [HEADER, *_rows()], name="LOG.CSV")
+    assert read_log(p)["t"].size == 5
+
+
+def test_bom_header(tmp_path: Path) -> None:
+    p = tmp_path / "bom.csv"
+    p.write_bytes(b"\xef\xbb\xbf" + ("\n".join([HEADER, *_rows()]) + "\n").encode())
+    assert list(read_log(p)) == HEADER.split(",")
+
+
+# ------------------------------------------------------------------------- streaming
+
+
+def _uniform_rows(n: int, t0: int = 10_000) -> list[str]:
+    """Rows of equal width (t = 10.000 ... in ms steps), so that swapping two keeps the blocks."""
+    return [f"{(t0 + i) / 1000:.3f},24.0,20.0,0.141,20.0,3.6,{i % 2}" for i in range(n)]
+
+
+def test_reader_chunks_and_boundaries(tmp_path: Path) -> None:
+    cols = _exact_cols(25_000)
+    p = write_log(tmp_path / "c.csv", cols)
+    with LogReader(p, nan_columns=("T_w",), chunk_rows=2000) as r:
+        assert r.names == list(cols) and r.n_rows is None
+        chunks = list(r)
+        assert r.n_rows == r.rows == 25_000
+        assert r.t_s == pytest.approx(1e-3)
+        with pytest.raises(RuntimeError, match="iterated once"):
+            list(r)
+    sizes = [c["t"].size for c in chunks]
+    assert len(chunks) > 5 and max(sizes) < 4 * 2000, sizes  # chunks of about chunk_rows rows
+    for k, a in cols.items():
+        got = np.concatenate([c[k] for c in chunks])
+        assert _same_bits(got, a), k
+        assert all(c[k].dtype == np.float64 and c[k].flags.writeable for c in chunks)
+
+
+@pytest.mark.parametrize("ext", [".csv", ".parquet"])
+def test_writer_in_uneven_chunks(tmp_path: Path, ext: str) -> None:
+    cols = _exact_cols(5000)
+    p = tmp_path / f"w{ext}"
+    with LogWriter(p, list(cols), flush_rows=700, row_group_rows=900) as w:
+        i = 0
+        for size in [1, 2, 997, 0, 3000, 1000]:
+            w.write({k: a[i : i + size] for k, a in cols.items()})
+            i += size
+        assert w.rows == 5000
+    with LogReader(p, nan_columns=("T_w",), chunk_rows=1024) as r:
+        if ext == ".parquet":
+            assert r.n_rows == 5000
+        got = list(r)
+    for k, a in cols.items():
+        assert _same_bits(np.concatenate([c[k] for c in got]), a), k
+
+
+def test_error_in_a_later_chunk(tmp_path: Path) -> None:
+    rows = _uniform_rows(20_000)
+    rows[15_000] = rows[15_000].replace(",0.141,", ",fast,")  # line 15002
+    p = _write(tmp_path, [HEADER, *rows])
+    seen = 0
+    with pytest.raises(LogError) as info, LogReader(p, chunk_rows=2000) as r:
+        for c in r:
+            seen += c["t"].size
+    msg = str(info.value)
+    assert "line 15002" in msg and "'v'" in msg and "'fast'" in msg and "\n" not in msg
+    assert 10_000 <= seen <= 15_000  # the chunks before the bad one were given
+
+
+@pytest.mark.parametrize("fault", ["repeat", "gap", "nan"])
+def test_time_fault_at_a_chunk_boundary(tmp_path: Path, fault: str) -> None:
+    rows = _uniform_rows(10_000)
+    p = _write(tmp_path, [HEADER, *rows])
+    with LogReader(p, chunk_rows=1000) as r:
+        first = next(iter(r))["t"].size  # where the second chunk starts, as a row index
+    k = first  # row k opens chunk 2, file line k + 2
+    if fault == "repeat":
+        rows[k] = rows[k - 1]
+    elif fault == "gap":  # a sample lost: 2 ms before row k (then t repeats: reported second)
+        rows[k] = rows[k + 1]
+    else:
+        rows[k] = "nan   " + rows[k][6:]  # same width: the blocks stay as they were
+    p = _write(tmp_path, [HEADER, *rows])
+    with LogReader(p, chunk_rows=1000) as r:
+        it = iter(r)
+        assert next(it)["t"].size == first  # the first chunk is unchanged and given
+        with pytest.raises(LogError) as info:
+            next(it)
+    msg = str(info.value)
+    assert f"line {k + 2}" in msg and "'t'" in msg, msg
+    want = {"repeat": "not strictly increasing", "gap": "non-uniform", "nan": "finite number"}[fault]
+    assert want in msg, msg
+
+
+def test_uniform_optional(tmp_path: Path) -> None:
+    rng = np.random.default_rng(7)
+    t = np.cumsum(rng.uniform(0.8e-3, 1.2e-3, 3000))  # 20 % jitter
+    cols = {"t": t, "T_w": np.full(3000, 24.0), "T_p": np.full(3000, 20.0), "v": np.zeros(3000),
+            "T_a": np.full(3000, 20.0)}
+    p = write_log(tmp_path / "jitter.csv", cols)
+    assert "non-uniform" in _error(p)
+    assert _same_bits(read_log(p, uniform=False)["t"], t)
+    t[100] = t[99]  # still strictly increasing required
+    write_log(p, cols)
+    assert "line 102" in _error(p, uniform=False)
+
+
+def test_check_time() -> None:
+    t = np.arange(10) * 0.01
+    assert check_time(t) is None
+    t2 = np.delete(t, 6)  # interval 0.02 ends at index 6
+    k, why = check_time(t2)  # type: ignore[misc]
+    assert k == 6 and "non-uniform" in why and "0.02 s" in why
+    assert check_time(t2, uniform=False) is None
+    k, why = check_time(np.array([0.0, 1.0, 1.0]))  # type: ignore[misc]
+    assert k == 2 and "not strictly increasing" in why
+    k, why = check_time(np.array([0.5, 0.6]), t_prev=0.5)  # type: ignore[misc]
+    assert k == 0 and "0.5 after 0.5" in why
+    k, why = check_time(np.array([0.52, 0.53]), t_prev=0.5, t_s=0.01)  # type: ignore[misc]
+    assert k == 0 and "non-uniform" in why  # 0.02 s across the boundary
+    assert check_time(np.array([0.51005, 0.52]), t_prev=0.5, t_s=0.01) is None  # within 1 %
+    assert check_time(np.array([0.5, 0.52]), t_s=0.01, rtol=1.5) is None
+
+
+# ------------------------------------------------------------------------- Parquet
+
+
+def _parquet(tmp_path: Path, table: dict[str, object], name: str = "p.parquet") -> Path:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    p = tmp_path / name
+    pq.write_table(pa.table(table), p)
+    return p
+
+
+def test_parquet_read_types_and_nulls(tmp_path: Path) -> None:
+    p = _parquet(tmp_path, {
+        "t": [0.0, 0.5, 1.0], "T_w": [24.0, None, 24.5], "T_p": [20.0, 20.0, 20.0],
+        "v": [0.1, 0.1, 0.1], "T_a": [20.0, 20.0, 20.0], "contact": [0, 1, 0], "ok": [True, False, True],
+    })
+    log = read_log(p)
+    assert np.isnan(log["T_w"][1]) and log["T_w"][2] == 24.5
+    np.testing.assert_array_equal(log["contact"], [0.0, 1.0, 0.0])
+    np.testing.assert_array_equal(log["ok"], [1.0, 0.0, 1.0])
+    assert all(a.dtype == np.float64 for a in log.values())
+
+
+@pytest.mark.parametrize(("col", "value", "want"), [
+    ("q_i_hat", None, "row 3, column 'q_i_hat': null value"),
+    ("q_i_hat", float("nan"), "row 3, column 'q_i_hat': NaN value"),
+    ("t", float("nan"), "row 3, column 't': NaN value"),
+    ("T_w", float("inf"), "row 3, column 'T_w': infinite value"),
+])
+def test_parquet_bad_values(tmp_path: Path, col: str, value: object, want: str) -> None:
+    table: dict[str, list[object]] = {c: [float(i) for i in range(5)] for c in HEADER.split(",")}
+    table[col][2] = value
+    msg = _error(_parquet(tmp_path, table))  # type: ignore[arg-type]
+    assert want in msg, msg
+
+
+def test_parquet_errors(tmp_path: Path) -> None:
+    p = _parquet(tmp_path, {"t": [0.0, 1.0], "T_w": ["a", "b"]}, "s.parquet")
+    assert "column 'T_w' has type string" in _error(p, required=("t",))
+    p = _parquet(tmp_path, {"t": [0.0, 1.0], "T_w": [1.0, 2.0]}, "m.parquet")
+    assert "missing required column(s) T_p, v, T_a" in _error(p)
+    p = _parquet(tmp_path, {"t": [0.0, 2.0, 1.0]}, "n.parquet")
+    assert "row 3, column 't': time not strictly increasing" in _error(p, required=())
+    p = _parquet(tmp_path, {"t": [0.0]}, "one.parquet")
+    assert "at least 2 samples" in _error(p, required=())
+    p = _parquet(tmp_path, {"t": np.zeros(0)}, "zero.parquet")
+    assert "no data rows" in _error(p, required=())
+
+
+def test_parquet_truncated_or_unclosed(tmp_path: Path) -> None:
+    cols = _exact_cols(3000)
+    p = write_log(tmp_path / "full.parquet", cols)
+    cut = tmp_path / "cut.parquet"
+    cut.write_bytes(p.read_bytes()[: p.stat().st_size // 2])
+    msg = _error(cut, nan_columns=("T_w",))
+    assert "not a readable Parquet file" in msg and "closed" in msg
+    w = LogWriter(tmp_path / "open.parquet", list(cols), row_group_rows=1000)
+    w.write(cols)  # three row groups on disk, no footer yet
+    assert "not a readable Parquet file" in _error(tmp_path / "open.parquet")
+    w.close()
+    assert _same_bits(read_log(tmp_path / "open.parquet", nan_columns=("T_w",))["x"], cols["x"])
+    bogus = tmp_path / "bogus.parquet"
+    bogus.write_text(HEADER + "\n")
+    assert "not a readable Parquet file" in _error(bogus)
+
+
+# ------------------------------------------------------------------------- writer, live CSV
+
+
+def test_writer_checks_chunks(tmp_path: Path) -> None:
+    with LogWriter(tmp_path / "w.csv", ["t", "a"]) as w:
+        with pytest.raises(ValueError, match="missing"):
+            w.write({"t": np.zeros(2)})
+        with pytest.raises(ValueError, match="unexpected"):
+            w.write({"t": np.zeros(2), "a": np.zeros(2), "b": np.zeros(2)})
+        with pytest.raises(ValueError, match="different lengths"):
+            w.write({"t": np.zeros(2), "a": np.zeros(3)})
+        w.write({"t": np.arange(2.0), "a": np.ones(2)})
+    with pytest.raises(ValueError, match="after close"):
+        w.write({"t": np.arange(2.0), "a": np.ones(2)})
+    assert (tmp_path / "w.csv").read_text() == "t,a\n0.0,1.0\n1.0,1.0\n"
+    with pytest.raises(ValueError, match="column name"):
+        LogWriter(tmp_path / "x.csv", ["t", "a,b"])
+
+
+@pytest.mark.parametrize("ext", [".csv", ".parquet"])
+def test_atomic_writer_leaves_nothing_on_error(tmp_path: Path, ext: str) -> None:
+    target = tmp_path / f"a{ext}"
+    write_log(target, {"t": np.arange(3.0)})
+    before = target.read_bytes()
+    with pytest.raises(RuntimeError), LogWriter(target, ["t"], atomic=True) as w:
+        w.write({"t": np.arange(10.0)})
+        raise RuntimeError("crash")
+    assert target.read_bytes() == before
+    assert sorted(os.listdir(tmp_path)) == [target.name]
+
+
+def test_plain_writer_keeps_rows_on_error(tmp_path: Path) -> None:
+    p = tmp_path / "keep.csv"
+    with pytest.raises(RuntimeError), LogWriter(p, ["t", "T_w", "T_p", "v", "T_a"]) as w:
+        w.write({k: np.arange(4.0) for k in ("t", "T_w", "T_p", "v", "T_a")})
+        raise RuntimeError("crash")
+    assert read_log(p)["t"].size == 4
+
+
+def test_csv_readable_while_written(tmp_path: Path) -> None:
+    names = ["t", "T_w", "T_p", "v", "T_a"]
+    p = tmp_path / "live.csv"
+    w = LogWriter(p, names, flush_s=0.0)
+    assert p.read_text() == ",".join(names) + "\n"  # the header is there at once
+    for i in range(3):
+        t = np.arange(i * 1000, (i + 1) * 1000) / 1000
+        w.write({"t": t, "T_w": 24 + t / 64, "T_p": np.full(1000, 20.0), "v": np.zeros(1000), "T_a": t})
+        log = read_log(p)  # another reader, while the writer is open
+        assert log["t"].size == (i + 1) * 1000
+        assert _same_bits(log["T_w"], 24 + log["t"] / 64)
+    w.close()
+
+
+def test_partial_last_line(tmp_path: Path) -> None:
+    rows = _uniform_rows(50)
+    p = tmp_path / "cut.csv"
+    for cut in (rows[0][:9], rows[0][:-2]):  # a row still being written, or cut by a kill
+        p.write_text(HEADER + "\n" + "\n".join(rows) + "\n" + cut)
+        assert "line 52" in _error(p)
+        with LogReader(p, live=True) as r:
+            assert sum(c["t"].size for c in r) == 50
+
+
+CHILD = """
+import sys, time
+import numpy as np
+from thermoskin.logio import LogWriter
+w = LogWriter(sys.argv[1], ["t", "T_w", "T_p", "v", "T_a"], flush_s=0.0)
+n = 500
+for i in range(10**6):
+    t = np.arange(i * n, (i + 1) * n) / 1000
+    w.write({"t": t, "T_w": 24 + t / 64, "T_p": 20 + np.sin(t), "v": np.zeros(n), "T_a": t * 3.3})
+    print(i + 1, flush=True)
+    time.sleep(0.005)
+"""
+
+
+def _check_live_rows(log: dict[str, np.ndarray], at_least: int) -> None:
+    n = log["t"].size
+    assert n >= at_least
+    t = np.arange(n) / 1000
+    want = {"t": t, "T_w": 24 + t / 64, "T_p": 20 + np.sin(t), "v": np.zeros(n), "T_a": t * 3.3}
+    for k in want:
+        assert _same_bits(log[k], want[k]), k
+
+
+def test_csv_of_a_killed_writer(tmp_path: Path) -> None:
+    import signal
+    import subprocess
+    import sys
+
+    p = tmp_path / "run.csv"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    proc = subprocess.Popen([sys.executable, "-c", CHILD, str(p)], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stdout is not None
+        flushed = 0
+        while flushed < 4:
+            flushed = int(proc.stdout.readline())
+        _check_live_rows(read_log(p, live=True), 4 * 500)  # while it writes on
+        flushed = int(proc.stdout.readline())
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+    finally:
+        proc.kill()
+    _check_live_rows(read_log(p, live=True), flushed * 500)

@@ -227,7 +227,7 @@ def test_warm_start_keeps_iterations_small() -> None:
 
 def test_fallback_clips_unconstrained_solution() -> None:
     ctl = ControlParams()
-    mpc = Mpc(SKIN, ctl, T_S)
+    mpc = Mpc(SKIN, ctl, T_S, fast=False)                # the QP every sample, so daqp fails
 
     class Failing:
         def update(self, **kw):
@@ -255,10 +255,11 @@ def test_hold_on_nan_and_on_stopped_pump() -> None:
     assert mpc.step(float("nan"), 20.0, 24.0) == 22.0
     assert mpc.step(25.0, 20.0, 24.0, pump_on=False) == 22.0
     assert mpc.n_held == 2 and mpc.n_solves == 0
-    solver = Mpc(SKIN, ControlParams(), T_S)            # default: keep solving
-    solver.reset(24.07)
-    assert solver.step(24.5, 20.0, 24.0, pump_on=False) < 24.07
-    assert solver.n_solves == 1
+    for fast in (False, True):
+        solver = Mpc(SKIN, ControlParams(), T_S, fast=fast)     # default: keep solving
+        solver.reset(24.07)
+        assert solver.step(24.5, 20.0, 24.0, pump_on=False) < 24.07
+        assert (solver.n_solves, solver.n_fast) == ((0, 1) if fast else (1, 0))
 
 
 def test_rejects_bad_options() -> None:
@@ -268,3 +269,179 @@ def test_rejects_bad_options() -> None:
         Mpc(SKIN, ControlParams(), T_S, on_stop="stop")
     with pytest.raises(ValueError):
         Mpc(SKIN, ControlParams(), 0.0)
+
+
+# --- fast path: the unconstrained optimum when it is feasible, the QP otherwise ---------------
+
+def pipe_plant_loop(mpc: Mpc, cmds: list[tuple[int, float]], n: int, seed: int = 5,
+                    tau_p: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The MPC on pipe and sheet nodes (Fig. 3, explicit Euler) fed by a tank lagging
+    ``T_p_cmd`` by ``tau_p``, thermocouple noise 0.02 K (fixed seed), from ambient 20 °C.
+
+    ``cmds``: ``(from_sample, T_w_cmd)``. Returns per sample ``T_p_cmd``, whether daqp was
+    called and its iteration count.
+    """
+    rng = np.random.default_rng(seed)
+    T_a = 20.0
+    T_w = T_g = T_p = T_a
+    mpc.reset(T_a)
+    out = np.empty(n)
+    qp = np.zeros(n, dtype=bool)
+    iters = np.zeros(n, dtype=np.int64)
+    T_w_cmd = cmds[0][1]
+    for k in range(n):
+        for k0, c in cmds:
+            if k == k0:
+                T_w_cmd = c
+        n0 = mpc.n_solves
+        T_p_cmd = mpc.step(T_w + rng.normal(0.0, 0.02), T_a, T_w_cmd)
+        out[k] = T_p_cmd
+        qp[k] = mpc.n_solves > n0
+        iters[k] = mpc.iterations
+        T_p += T_S / tau_p * (T_p_cmd - T_p)
+        q_p = (T_p - T_w) / R_W
+        q_wg = (T_w - T_g) / SKIN.R_g
+        T_w, T_g = (T_w + T_S * (q_p - (T_w - T_a) / SKIN.R_aw - q_wg) / SKIN.C_w,
+                    T_g + T_S * (q_wg - (T_g - T_a) / SKIN.R_ag) / SKIN.C_g)
+    return out, qp, iters
+
+
+# warming from ambient (saturates at T_p_max), holding 24, up to 28 (saturates), down to 22
+# (T_p falls to T_p_min), holding 22
+SCHEDULE = [(0, 24.0), (2500, 28.0), (4000, 22.0)]
+N_SCHEDULE = 6000
+
+
+@pytest.mark.parametrize("cost", COSTS)
+def test_fast_path_equals_qp_every_sample_in_closed_loop(cost: str) -> None:
+    ctl = ControlParams(cost=cost)
+    fast, fast_qp, fast_it = pipe_plant_loop(Mpc(SKIN, ctl, T_S), SCHEDULE, N_SCHEDULE)
+    full_mpc = Mpc(SKIN, ctl, T_S, fast=False)
+    full, full_qp, full_it = pipe_plant_loop(full_mpc, SCHEDULE, N_SCHEDULE)
+    assert full_qp.all()
+    # two independent closed loops, one command sequence
+    assert np.abs(fast - full).max() <= 1e-9
+    at_max = fast >= ctl.T_p_max - 1e-9
+    at_min = fast <= ctl.T_p_min + 1e-9
+    for phase in (at_max[:2500], at_max[2500:4000], at_min[4000:]):       # saturated phases
+        assert phase.sum() >= 10
+    assert fast_qp[at_max | at_min].all()           # every saturated sample went to daqp
+    if cost == "absolute":
+        # eq. 9 as printed pulls the horizon's tail towards 0 °C, below T_p_min: a bound is
+        # always active at the end of the horizon, u* never feasible, daqp every sample
+        assert fast_qp.all()
+    else:
+        assert (~fast_qp).sum() >= 0.9 * N_SCHEDULE                       # mostly unconstrained
+    # warm start coherent: daqp starts from the working set an every-sample solve leaves,
+    # so it takes the same number of iterations wherever both call it
+    np.testing.assert_array_equal(fast_it[fast_qp], full_it[fast_qp])
+    assert full_mpc.n_fallback == 0
+
+
+def box_ls(A: np.ndarray, r0: np.ndarray, ctl: ControlParams) -> np.ndarray:
+    return lsq_linear(A, -r0, bounds=(ctl.T_p_min, ctl.T_p_max), method="bvls",
+                      tol=1e-14, lsmr_tol=None).x
+
+
+def test_fast_path_matches_box_least_squares_along_a_closed_loop() -> None:
+    """``T_p_cmd`` and the whole sequence ``u`` against lsq_linear, fast and QP samples."""
+    ctl = ControlParams()
+    mpc = Mpc(SKIN, ctl, T_S)
+    # residual = A u + r0(state): A by superposition once, r0 from one simulation per state
+    A, _ = ls_form(20.0, 20.0, 24.0, 20.0, "rate", ctl)
+    zeros = np.zeros(ctl.H)
+    rng = np.random.default_rng(2)
+    T_a, T_w, T_p = 20.0, 20.0, 20.0
+    mpc.reset(T_a)
+    checked = {True: 0, False: 0}
+    for k in range(3200):
+        T_w_cmd = 24.0 if k < 2500 else 28.0
+        prev = mpc.T_p_prev
+        T_w_meas = T_w + rng.normal(0.0, 0.02)
+        n0 = mpc.n_solves
+        T_p_cmd = mpc.step(T_w_meas, T_a, T_w_cmd)
+        if k % 400 == 3 or 2500 <= k < 2505:            # a bvls solve is costly: a few
+            ref = box_ls(A, residual(zeros, T_w_meas, T_a, T_w_cmd, prev, "rate", ctl), ctl)
+            assert abs(T_p_cmd - ref[0]) < 1e-6
+            np.testing.assert_allclose(mpc.u, ref, atol=1e-6, rtol=0)
+            checked[mpc.n_solves > n0] += 1
+        T_p += T_S / 0.2 * (T_p_cmd - T_p)
+        T_w = eq10_step(T_w, T_p, T_a)
+    assert checked[True] >= 5 and checked[False] >= 5
+
+
+def test_feasibility_test_agrees_with_the_least_squares_optimum() -> None:
+    """``Mpc.feasible`` against the unconstrained LS optimum (lstsq) checked on the box."""
+    ctl = ControlParams()
+    mpc = Mpc(SKIN, ctl, T_S)
+    A, _ = ls_form(20.0, 20.0, 24.0, 20.0, "rate", ctl)    # state-independent
+    A_pinv = np.linalg.pinv(A)                              # (SVD)
+    zeros = np.zeros(ctl.H)
+    rng = np.random.default_rng(4)
+    verdicts, margins = [], []
+    for _ in range(60):
+        T_w0 = rng.uniform(15.0, 32.0)
+        T_a = rng.uniform(15.0, 30.0)
+        T_w_cmd = T_w0 + rng.normal(0.0, 1.5)
+        prev = rng.uniform(8.0, 36.0)
+        u_star = -A_pinv @ residual(zeros, T_w0, T_a, T_w_cmd, prev, "rate", ctl)
+        np.testing.assert_allclose(mpc.unconstrained(T_w0, T_a, T_w_cmd, prev), u_star,
+                                   atol=1e-9, rtol=0)
+        margin = min(u_star.min() - ctl.T_p_min, ctl.T_p_max - u_star.max())
+        if abs(margin) < 1e-6:
+            continue                                  # on the boundary: either verdict is right
+        ok = mpc.feasible(T_w0, T_a, T_w_cmd, prev)
+        assert ok == (margin > 0), (T_w0, T_a, T_w_cmd, prev, margin)
+        verdicts.append(ok)
+        margins.append(margin)
+    verdicts_a = np.array(verdicts)
+    margins_a = np.array(margins)
+    assert verdicts_a.sum() >= 10 and (~verdicts_a).sum() >= 10
+    assert ((margins_a > 0) & (margins_a < 3.0)).sum() >= 3    # close calls, feasible
+
+
+def test_warm_start_after_the_fast_path_is_a_cold_one() -> None:
+    """After a saturated solve and fast-path samples, daqp starts from an empty working set:
+    the next QP takes the iterations of a freshly reset controller, and the same solution."""
+    ctl = ControlParams()
+    mpc = Mpc(SKIN, ctl, T_S)
+    mpc.reset(20.0)
+    mpc.step(20.0, 20.0, 28.0)                        # heat: upper bounds active
+    assert mpc.n_solves == 1 and mpc.u.max() >= ctl.T_p_max - 1e-6
+    mpc.step(24.0, 20.0, 24.0)                        # at the command: fast path
+    assert mpc.n_fast == 1
+    state = (30.0, 20.0, 22.0, 24.0)                  # cool: lower bounds active
+    u = mpc.solve(*state).copy()
+    fresh = Mpc(SKIN, ctl, T_S)
+    u_fresh = fresh.solve(*state)
+    assert mpc.iterations == fresh.iterations
+    np.testing.assert_allclose(u, u_fresh, atol=1e-12, rtol=0)
+    np.testing.assert_allclose(u, lsq_reference(*state, "rate", ctl), atol=1e-6, rtol=0)
+    assert u.min() <= ctl.T_p_min + 1e-6
+
+
+def test_qp_is_rarely_needed_while_holding_a_set_point() -> None:
+    """The whole loop body on the simulated skin with touches: from ambient the command sits
+    at T_p_max and daqp runs; once 24 °C is held it is almost never needed."""
+    from thermoskin.params import load_config
+    from thermoskin.runtime.controller import SkinController
+    from thermoskin.sim.plant import SimulatedPlant
+    from thermoskin.sim.scenarios import SCENARIOS
+
+    cfg = load_config()
+    sc = SCENARIOS["one-finger"].with_duration(16.0)  # touches at 5 and 13 s
+    plant = SimulatedPlant(cfg, sc)
+    ctrl = SkinController(cfg)
+    ctrl.reset(sc.T_a)
+    t_s = cfg.sampling.t_s
+    qp = np.zeros(plant.n, dtype=bool)
+    for k in range(plant.n):
+        T_w, T_p, T_a = plant.measure()
+        n0 = ctrl.mpc.n_solves
+        ctrl.step(k * t_s, T_w, T_p, T_a, sc.T_w_cmd)
+        qp[k] = ctrl.mpc.n_solves > n0
+        plant.apply(ctrl.drive, ctrl.v)
+    held = slice(int(6.0 / t_s), plant.n)             # after the warm-up, touches included
+    assert qp[: int(2.0 / t_s)].mean() > 0.2          # warming: bounds active
+    assert qp[held].mean() <= 0.01
+    assert abs(plant.skin.T_w - sc.T_w_cmd) < 0.3

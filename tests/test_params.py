@@ -219,7 +219,7 @@ def test_round_trip(tmp_path: Path) -> None:
     cfg = Config().replace(
         skin={"R_g": 7.25, "C_g": 3.3e-5, "R_w_flowing": 0.21, "water": "table1", "T_ref": 30.0},
         observer={"n_init": 17, "max_gap_s": 0.5},
-        detector={"sigma": 0.004},
+        detector={"h_on": 0.2}, estimator={"S_q": 2.5},
         sensor={"seed": 12345, "quantum_T": 0.0},
     )
     p = tmp_path / "out.toml"

@@ -53,15 +53,14 @@ def test_heat_flow_grows_with_fingers() -> None:
 def stream(log: dict[str, np.ndarray], cfg) -> Observation:  # type: ignore[no-untyped-def]
     """The live path: ``TouchEstimator.step`` per sample, as the loop body calls it."""
     est = TouchEstimator(cfg)
-    obs = est.observer
     n = len(log["t"])
     cols = {k: np.zeros(n) for k in ("q_i_hat", "dq_i_hat", "contact", "gap")}
-    rows = zip(*(log[k].tolist() for k in ("t", "T_w", "T_p", "v", "T_a")), strict=True)
-    for i, (t, T_w, T_p, v, T_a) in enumerate(rows):
-        cols["contact"][i] = est.step(t, T_w, T_p, v, T_a)
-        cols["q_i_hat"][i], cols["dq_i_hat"][i], cols["gap"][i] = obs.q_i_hat, obs.dq_i_hat, obs.gap
-    est.detector.finish(float(log["t"][-1]))
-    return Observation(columns=cols, events=est.detector.events)
+    rows = zip(*(log[k].tolist() for k in ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd")), strict=True)
+    for i, (t, T_w, T_p, v, T_a, cmd) in enumerate(rows):
+        cols["contact"][i] = est.step(t, T_w, T_p, v, T_a, cmd)
+        cols["q_i_hat"][i], cols["dq_i_hat"][i], cols["gap"][i] = est.q_i_hat, est.dq_i_hat, est.gap
+    est.finish(float(log["t"][-1]))
+    return Observation(columns=cols, events=est.events)
 
 
 def test_streaming_equals_vectorised() -> None:
@@ -70,11 +69,10 @@ def test_streaming_equals_vectorised() -> None:
     log["T_w"][8000:8040] = np.nan  # a loose thermocouple
     a = observe(log, CFG)
     b = stream(log, CFG)
-    for k in ("q_i_hat", "dq_i_hat"):
-        np.testing.assert_allclose(b.columns[k], a.columns[k], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(b.columns["q_i_hat"], a.columns["q_i_hat"], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(b.columns["dq_i_hat"], a.columns["dq_i_hat"])  # one kernel
     np.testing.assert_array_equal(b.columns["contact"], a.columns["contact"])
     np.testing.assert_array_equal(b.columns["gap"], a.columns["gap"])
     assert len(a.events) == len(b.events) >= 2
     for ea, eb in zip(a.events, b.events, strict=True):
-        for k, x in ea.as_dict().items():
-            assert getattr(eb, k) == pytest.approx(x, abs=1e-9), k
+        assert ea == eb

@@ -19,7 +19,7 @@ from rich.console import Console
 from rich.table import Table
 
 from thermoskin import __version__
-from thermoskin.detector import ContactEvent
+from thermoskin.estimator import ContactEvent
 from thermoskin.params import Config, ConfigError, load_config
 
 F = TypeVar("F", bound=Callable[..., Any])

@@ -8,7 +8,7 @@ range. A TOML file overrides any subset of a preset::
     R_g = 12.0
     R_w_flowing = 0.25   # K/W, replaces the convection model while the pump runs
 
-Tables: ``[skin] [sampling] [observer] [detector] [sensor] [pump] [peltier] [control]
+Tables: ``[skin] [sampling] [observer] [estimator] [detector] [sensor] [pump] [peltier] [control]
 [safety]``.
 """
 
@@ -129,27 +129,52 @@ class ObserverParams(_Validated):
 
 
 @dataclass(frozen=True)
+class EstimatorParams(_Validated):
+    """The sensor-aware touch estimator (``estimation.model``): a Kalman filter on the network.
+
+    Spectral densities of the model's white process noises; they set how fast the estimate
+    follows a change (``S_q``) and how much the model trusts itself between readings.
+    """
+
+    section = "estimator"
+    S_q: float = _p(1.0, "W^2/s", 0.0, 1e6, lo_open=True,
+                    doc="random-walk density of the touch heat q_i: the estimate's bandwidth")
+    S_p: float = _p(10.0, "K^2/s^3", 0.0, 1e6, lo_open=True,
+                    doc="acceleration density of the tank temperature T_p (constant-velocity model)")
+    S_a: float = _p(1e-3, "K^2/s", 0.0, 1e6, lo_open=True,
+                    doc="random-walk density of the ambient temperature T_a")
+    S_w: float = _p(1e-8, "K^2/s", 0.0, 1e6, doc="model error on the pipe node")
+    max_gap_s: float = _p(2.0, "s", 0, 3600.0, lo_open=True,
+                          doc="a pipe reading missing for longer restarts the estimate")
+
+
+@dataclass(frozen=True)
 class DetectorParams(_Validated):
-    """Contact detector on the observer's residual."""
+    """Two-sided contact detector on the estimator's standardised touch heat."""
 
     section = "detector"
-    k_drift: float = _p(3.0, "sigma", 0.0, 100.0,
-                        doc="CUSUM drift allowance: evidence accrues while r - b exceeds it")
-    h_on: float = _p(0.15, "sigma s", 0.0, 100.0, lo_open=True,
+    k_drift: float = _p(2.0, "sigma", 0.0, 100.0,
+                        doc="CUSUM drift allowance: evidence accrues while |dq| exceeds it")
+    h_on: float = _p(0.12, "sigma s", 0.0, 100.0, lo_open=True,
                      doc="CUSUM threshold: onset once the accrued evidence exceeds it")
     k_off: float = _p(2.0, "sigma", 0.0, 100.0, doc="release threshold in noise standard deviations")
-    f_off: float = _p(0.35, "", 0.0, 1.0, doc="release once below this fraction of the peak")
-    t_off: float = _p(0.05, "s", 0.0, 5.0, doc="time below the release threshold to confirm")
+    f_off: float = _p(0.35, "", 0.0, 1.0,
+                      doc="release threshold as a fraction of the contact's smoothed level")
+    tau_level: float = _p(0.1, "s", 0.0, 60.0, lo_open=True,
+                          doc="smoothing of the contact's level for the release threshold")
+    k_rel: float = _p(1.0, "sigma", 0.0, 100.0,
+                      doc="release CUSUM drift: evidence accrues while the estimate is this far below")
+    h_off: float = _p(0.05, "sigma s", 0.0, 100.0, lo_open=True,
+                      doc="release CUSUM threshold")
     t_warmup: float = _p(2.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
-    t_refractory: float = _p(0.6, "s", 0.0, 60.0, doc="no onset and no learning after release")
-    t_settle: float = _p(5.0, "s", 0.0, 600.0,
-                         doc="after a release, time before the dq_i_hat baseline learns again")
+    t_refractory: float = _p(0.5, "s", 0.0, 60.0,
+                             doc="after a release, no onset of the opposite sign for this long")
+    t_settle: float = _p(2.0, "s", 0.0, 600.0,
+                         doc="after a release, time before the baseline learns again")
     tau_baseline: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,
                              doc="time constant of the no-touch baseline")
     tau_sigma: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,
                           doc="time constant of the noise estimate")
-    sigma: float | None = _p(None, "W", 0, lo_open=True, optional=True,
-                             doc="fixed residual noise level; measured when absent")
     arm_band: float = _p(0.5, "K", 0.0, 50.0, lo_open=True,
                          doc="in a loop with a command: detection starts once |T_w - T_w_cmd| ...")
     t_arm: float = _p(3.0, "s", 0.0, 600.0, doc="... has stayed within arm_band this long")
@@ -282,6 +307,7 @@ class Config:
     skin: SkinParams = field(default_factory=SkinParams)
     sampling: SamplingParams = field(default_factory=SamplingParams)
     observer: ObserverParams = field(default_factory=ObserverParams)
+    estimator: EstimatorParams = field(default_factory=EstimatorParams)
     detector: DetectorParams = field(default_factory=DetectorParams)
     sensor: SensorParams = field(default_factory=SensorParams)
     pump: PumpParams = field(default_factory=PumpParams)
@@ -308,8 +334,9 @@ class Config:
 
 
 _SECTION_TYPES = {"skin": SkinParams, "sampling": SamplingParams, "observer": ObserverParams,
-                  "detector": DetectorParams, "sensor": SensorParams, "pump": PumpParams,
-                  "peltier": PeltierParams, "control": ControlParams, "safety": SafetyParams}
+                  "estimator": EstimatorParams, "detector": DetectorParams, "sensor": SensorParams,
+                  "pump": PumpParams, "peltier": PeltierParams, "control": ControlParams,
+                  "safety": SafetyParams}
 
 PRESETS: dict[str, Config] = {
     "paper": Config(),

@@ -1,39 +1,47 @@
-"""Observer then detector over a whole log: the offline path of ``thermoskin observe``."""
+"""The estimator over a whole log: the offline path of ``thermoskin observe``.
+
+It runs the same compiled kernel as the live loop (:class:`~thermoskin.estimator.TouchEstimator`),
+on the log's own sampling interval, with the log's ``T_w_cmd`` (if it has one: the detector
+is then armed the way the loop armed it) and the log's ``fresh`` column (if it has one;
+otherwise each channel's update rate is read from the data, :mod:`thermoskin.estimation.freshness`).
+On a log written by ``thermoskin run`` it therefore reproduces the live estimates and events.
+"""
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.detector import ContactDetector, ContactEvent
-from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.estimation.freshness import infer_fresh
+from thermoskin.estimator import ContactEvent, Observation, TouchEstimator
 from thermoskin.params import Config
 
 INPUT_COLUMNS = ("t", "T_w", "T_p", "v", "T_a")
 
-
-@dataclass
-class Observation:
-    """Per-sample outputs (``q_i_hat, dq_i_hat, contact, gap``) and the detected events."""
-
-    columns: dict[str, NDArray[np.float64]]
-    events: list[ContactEvent]
+__all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "observe", "sample_interval"]
 
 
-def observe(log: dict[str, NDArray[np.float64]], cfg: Config,
-            t_s: float | None = None) -> Observation:
-    """Run the observer (vectorised) and the detector over ``log`` (columns of MODEL.md).
+def sample_interval(t: NDArray[np.float64]) -> float:
+    """The log's sampling interval: the median step of ``t`` (s)."""
+    t = np.asarray(t, dtype=float)
+    if len(t) < 2:
+        raise ValueError("a log needs at least 2 samples to have a sampling interval")
+    return float(np.median(np.diff(t)))
 
-    ``t_s`` defaults to the configured sampling time; pass the log's own interval for a
-    log sampled at another rate.
+
+def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None = None) -> Observation:
+    """Estimate and detect over ``log`` (columns of the shared schema).
+
+    ``t_s`` defaults to the log's own sampling interval, so a log at 100 Hz is estimated at
+    100 Hz; where that interval is the configured ``sampling.t_s`` (within 0.1 %, the
+    rounding of a written time column), the configured value itself, as the live loop used.
     """
-    t_s = cfg.sampling.t_s if t_s is None else t_s
-    obs = ThermalExchangeObserver(cfg.skin, cfg.observer, t_s)
-    o = obs.run(log["T_w"], log["T_p"], log["v"], log["T_a"])
-    det = ContactDetector(cfg.detector, t_s)
-    contact = det.run(np.asarray(log["t"], dtype=float), o.r, o.dq_i_hat, o.gap | ~o.ready)
-    cols = {"q_i_hat": o.q_i_hat, "dq_i_hat": o.dq_i_hat, "contact": contact,
-            "gap": o.gap.astype(np.int8)}
-    return Observation(columns=cols, events=det.events)
+    t = np.asarray(log["t"], dtype=float)
+    if t_s is None:
+        t_s = sample_interval(t)
+        if abs(t_s - cfg.sampling.t_s) <= 1e-3 * cfg.sampling.t_s:
+            t_s = cfg.sampling.t_s
+    fresh, _ = infer_fresh(log)
+    est = TouchEstimator(cfg, t_s=t_s)
+    return est.run(t, log["T_w"], log["T_p"], log["v"], log["T_a"],
+                   T_w_cmd=log.get("T_w_cmd"), fresh=fresh)

@@ -43,10 +43,38 @@ and writing the input term as ``rho = D u - d``, ``J/2 = 0.5 u'Pu + q'u + const`
     P = W1 Gam'Gam + W2 D'D,     q = W1 Gam'(Phi T_w + s T_a - 1 T_w_cmd) - W2 D'd
 
 ``P`` and the bounds never change; ``q`` is linear in ``theta = (T_w, T_a, T_w_cmd, T_p_prev)``,
-so ``q = F theta`` with ``F`` (H x 4) precomputed. Each sample costs one small mat-vec, an
+so ``q = F theta`` with ``F`` (H x 4) precomputed. A QP sample costs one small mat-vec, an
 ``update(f=q)`` of a persistent ``daqp.Model`` (set up once: ``P`` factored once, the
-active set of the previous sample reused as warm start) and one ``solve``. The output is the
-first element, ``T_p_cmd = u_0``.
+active set of the previous solve reused as warm start) and one ``solve``; most samples
+need none of it (fast path, below). The output is the first element, ``T_p_cmd = u_0``.
+
+Fast path (``fast=True``, default). ``P`` is positive definite, so the QP is strictly
+convex and its unconstrained minimiser ``u* = -P^-1 q = K theta`` (``K = -P^-1 F``,
+H x 4, precomputed) minimises the cost over all of ``R^H``. If ``u*`` lies in the box of
+eq. 11 it is feasible and no feasible point costs less, so it *is* the constrained
+minimiser (the KKT conditions hold with all multipliers zero), and unique. If any element
+leaves the box, the constrained minimiser differs from ``u*``, and the QP is needed:
+checking ``u*_0`` alone is not enough, since a bound active later in the horizon moves
+``u_0``. Each sample therefore tests the whole sequence against both bounds and returns
+``u*_0`` (four products on plain floats) when it passes; only otherwise is daqp called.
+The test (``Mpc.feasible``): first a sufficient interval bound on plain floats (the
+column ranges of ``K`` times the state's distance from ``T_p_prev``; it settles nearly
+every sample while a set-point is held), and when that is inconclusive the exact one,
+``g = Gx (theta, 1) <= 0`` with ``Gx = [K, -T_p_max; -K, T_p_min]`` (2H x 5), one
+preallocated mat-vec (which also yields ``q`` for daqp) and one reduction. It is exact up
+to rounding (a few 1e-15 K), far inside daqp's own primal tolerance (1e-6). With
+``cost="absolute"`` the input term pulls the horizon's tail towards 0 °C, below
+``T_p_min``, so ``u*`` is never feasible and daqp runs every sample.
+
+Warm start across the two paths. daqp starts each solve from the working set its last
+solve ended with. Solving every sample, a sample whose optimum is unconstrained ends with
+an empty working set; the fast path skips daqp, whose workspace would still hold the last
+QP's (non-empty) working set. So on the first fast-path sample after a QP solve the
+working set is cleared (``update(sense=0)``, once per switch, not per sample): at every
+QP call daqp then starts from exactly the state it would have had if it had solved every
+sample. The solution is unique either way; the reset keeps the iteration counts, and so
+the timing and the rounding, those of the every-sample solve. ``fast=False`` (or setting
+the attribute) solves the QP every sample, for comparison.
 
 Pump stopped. While ``T_w`` is above its command the pump stops (``v = 0``) and ``T_p`` no
 longer reaches the pipe: the MPC has no authority. ``on_stop="solve"`` (default) keeps
@@ -111,14 +139,16 @@ class Mpc:
     """The MPC of eqs. 9-11 on a persistent, warm-started daqp workspace.
 
     ``step(T_w, T_a, T_w_cmd)`` returns ``T_p_cmd``, the first of the ``H`` optimal inputs.
-    After each step: ``status`` (daqp exit flag, 1 = optimal; 0 for a held or fallback
-    sample), ``iterations``, ``solve_time`` (daqp's own, s), ``u`` (the last full input
-    sequence), ``n_solves``, ``n_fallback``, ``n_held``.
+    After each step: ``status`` (daqp exit flag, 1 = optimal, also for a fast-path sample;
+    0 for a held or fallback sample), ``iterations`` and ``solve_time`` (daqp's own, s; 0
+    on the fast path), ``u`` (the last full input sequence), ``n_solves`` (QP calls),
+    ``n_fast`` (fast-path samples), ``n_fallback``, ``n_held``. ``fast=False`` solves the
+    QP every sample.
     """
 
     def __init__(self, skin: SkinParams, control: ControlParams, t_s: float = 1.0e-3, *,
                  R_w: float | None = None, v_on: float = 0.141, loss: str = "network",
-                 cost: str | None = None, on_stop: str = "solve") -> None:
+                 cost: str | None = None, on_stop: str = "solve", fast: bool = True) -> None:
         if not (t_s > 0 and math.isfinite(t_s)):
             raise ValueError(f"Mpc: t_s = {t_s} s must be > 0")
         if control.T_p_min >= control.T_p_max:
@@ -145,10 +175,35 @@ class Mpc:
         self.T_p_min = float(control.T_p_min)
         self.T_p_max = float(control.T_p_max)
         self.P, self.F = self._condense()
-        # unconstrained optimum u = -P^-1 F theta, for the fallback
-        self._K_unc = -np.linalg.solve(self.P, self.F)
-        self._theta = np.zeros(4)
-        self._q = np.zeros(H)
+        # unconstrained optimum u* = K theta, K = -P^-1 F: the fast path and the fallback
+        self._K_unc = K = -np.linalg.solve(self.P, self.F)
+        self._k0 = tuple(float(x) for x in K[0])            # u*_0 on plain floats
+        # one mat-vec on theta1 = (T_w, T_a, T_w_cmd, T_p_prev, 1): the box test
+        # g = Gx theta1 <= 0 (rows K_i theta - T_p_max, then T_p_min - K_i theta), then q
+        Gq = np.zeros((3 * H, 5))
+        Gq[:H, :4] = K
+        Gq[:H, 4] = -self.T_p_max
+        Gq[H:2 * H, :4] = -K
+        Gq[H:2 * H, 4] = self.T_p_min
+        Gq[2 * H:, :4] = self.F
+        self._Gq = Gq
+        self._Fq = Gq[2 * H:]                               # q = Fq theta1 (a view)
+        self._gq = np.zeros(3 * H)
+        self._g = self._gq[:2 * H]
+        self._q = self._gq[2 * H:]                          # daqp's f, a view
+        self._theta1 = np.ones(5)
+        # the interval bound of feasible(): column ranges of K (T_w, T_a, T_w_cmd), row sums
+        s_row = K.sum(axis=1)
+        self._interval = (*(float(x) for x in K[:, :3].max(axis=0)),
+                          *(float(x) for x in K[:, :3].min(axis=0)),
+                          float(s_row.max()), float(s_row.min()))
+        self._ub_inner = self.T_p_max - 1e-9
+        self._lb_inner = self.T_p_min + 1e-9
+        self._theta_fast = (0.0, 0.0, 0.0, 0.0)
+        self._no_sense = np.zeros(H, dtype=np.intc)         # an empty working set
+        self._ws_set = False                                # daqp's working set may be non-empty
+        self._u_fast = False                                # the last u is u* (not stored)
+        self.fast = bool(fast)
         self._lb = np.full(H, self.T_p_min)
         self._ub = np.full(H, self.T_p_max)
         self._model = daqp.Model()
@@ -156,11 +211,12 @@ class Mpc:
         if flag < 0:
             raise RuntimeError(f"Mpc: daqp setup failed (exit flag {flag})")
         self.T_p_prev = 0.5 * (self.T_p_min + self.T_p_max)
-        self.u = np.full(H, self.T_p_prev)
+        self._u = np.full(H, self.T_p_prev)
         self.status = 0
         self.iterations = 0
         self.solve_time = 0.0
         self.n_solves = 0
+        self.n_fast = 0
         self.n_fallback = 0
         self.n_held = 0
         self.reset()
@@ -198,13 +254,82 @@ class Mpc:
         if T_p_prev is None:
             T_p_prev = 0.5 * (self.T_p_min + self.T_p_max)
         self.T_p_prev = min(max(float(T_p_prev), self.T_p_min), self.T_p_max)
-        self.u = np.full(self.H, self.T_p_prev)
+        self._u = np.full(self.H, self.T_p_prev)
+        self._u_fast = False
         self.status = 0
         self.iterations = 0
         self.solve_time = 0.0
-        self.n_solves = self.n_fallback = self.n_held = 0
+        self.n_solves = self.n_fast = self.n_fallback = self.n_held = 0
         # drop the active set of earlier solves
-        self._model.update(sense=np.zeros(self.H, dtype=np.int32))
+        self._model.update(sense=self._no_sense)
+        self._ws_set = False
+
+    @property
+    def u(self) -> np.ndarray:
+        """The last full input sequence (``u*`` after a fast-path sample, computed here)."""
+        if self._u_fast:
+            return self._K_unc @ np.array(self._theta_fast)
+        return self._u
+
+    def feasible(self, T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float) -> bool:
+        """Whether ``u* = K theta`` lies within eq. 11 over the whole horizon (no allocation).
+
+        First a sufficient interval bound on plain floats: with ``d = theta - T_p_prev`` and
+        the row sums ``s_i = sum_j K_ij``, ``u*_i = T_p_prev s_i + sum_{j<3} K_ij d_j`` lies
+        within ``T_p_prev [min s, max s] + sum_j d_j [min_i K_ij, max_i K_ij]``; if that
+        interval is inside the box by 1e-9 K (a margin over rounding), ``u*`` is. Otherwise
+        the exact test, ``Gx (theta, 1) <= 0`` over all ``2 H`` rows.
+        """
+        return (self._in_interval(T_w, T_a, T_w_cmd, T_p_prev)
+                or self._box_test(T_w, T_a, T_w_cmd, T_p_prev))
+
+    def _in_interval(self, T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float) -> bool:
+        """The sufficient interval bound of ``feasible`` (plain floats)."""
+        d0 = T_w - T_p_prev
+        d1 = T_a - T_p_prev
+        d2 = T_w_cmd - T_p_prev
+        hi0, hi1, hi2, lo0, lo1, lo2, s_hi, s_lo = self._interval
+        if T_p_prev >= 0.0:
+            up = T_p_prev * s_hi
+            dn = T_p_prev * s_lo
+        else:
+            up = T_p_prev * s_lo
+            dn = T_p_prev * s_hi
+        if d0 >= 0.0:
+            up += d0 * hi0
+            dn += d0 * lo0
+        else:
+            up += d0 * lo0
+            dn += d0 * hi0
+        if d1 >= 0.0:
+            up += d1 * hi1
+            dn += d1 * lo1
+        else:
+            up += d1 * lo1
+            dn += d1 * hi1
+        if d2 >= 0.0:
+            up += d2 * hi2
+            dn += d2 * lo2
+        else:
+            up += d2 * lo2
+            dn += d2 * hi2
+        return up <= self._ub_inner and dn >= self._lb_inner
+
+    def _box_test(self, T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float) -> bool:
+        """The exact test ``Gx (theta, 1) <= 0``; the same mat-vec leaves ``q`` in ``_q``."""
+        th = self._theta1
+        th[0] = T_w
+        th[1] = T_a
+        th[2] = T_w_cmd
+        th[3] = T_p_prev
+        np.dot(self._Gq, th, out=self._gq)
+        return bool(self._g.max() <= 0.0)
+
+    def unconstrained(self, T_w: float, T_a: float, T_w_cmd: float,
+                      T_p_prev: float | None = None) -> np.ndarray:
+        """The unconstrained minimiser ``u* = -P^-1 q`` for a state (a copy)."""
+        prev = self.T_p_prev if T_p_prev is None else T_p_prev
+        return self._K_unc @ np.array([T_w, T_a, T_w_cmd, prev], dtype=float)
 
     def q(self, T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float | None = None) -> np.ndarray:
         """The QP's linear term for a state (a copy; ``step`` uses an internal buffer)."""
@@ -217,24 +342,30 @@ class Mpc:
 
         Updates the warm start and the solve attributes like ``step``.
         """
-        th = self._theta
+        th = self._theta1
         th[0] = T_w
         th[1] = T_a
         th[2] = T_w_cmd
         th[3] = self.T_p_prev if T_p_prev is None else T_p_prev
-        np.dot(self.F, th, out=self._q)
+        np.dot(self._Fq, th, out=self._q)
+        return self._qp()
+
+    def _qp(self) -> np.ndarray:
+        """The warm-started daqp solve for the ``q`` and ``theta`` in the buffers."""
         model = self._model
         model.update(f=self._q)
         x, _, flag, info = model.solve()
+        self._ws_set = True
+        self._u_fast = False
         self.n_solves += 1
         self.status = flag
         self.iterations = info["iterations"]
         self.solve_time = info["solve_time"]
         if flag <= 0 or not math.isfinite(x[0]):
             self.n_fallback += 1
-            x = np.clip(self._K_unc @ th, self.T_p_min, self.T_p_max)
-            model.update(sense=np.zeros(self.H, dtype=np.int32))
-        self.u = x
+            x = np.clip(self._K_unc @ self._theta1[:4], self.T_p_min, self.T_p_max)
+            model.update(sense=self._no_sense)
+        self._u = x
         return x
 
     def step(self, T_w: float, T_a: float, T_w_cmd: float, pump_on: bool = True) -> float:
@@ -245,7 +376,29 @@ class Mpc:
             self.status = 0
             self.iterations = 0
             return self.T_p_prev
-        x = self.solve(T_w, T_a, T_w_cmd)
+        if not self.fast:
+            x = self.solve(T_w, T_a, T_w_cmd)
+        else:
+            prev = self.T_p_prev
+            # after a QP sample the interval bound is skipped (a bound was just active)
+            if ((not self._ws_set and self._in_interval(T_w, T_a, T_w_cmd, prev))
+                    or self._box_test(T_w, T_a, T_w_cmd, prev)):
+                # u* within eq. 11: the optimum
+                if self._ws_set:                            # as a solve would have left it
+                    self._model.update(sense=self._no_sense)
+                    self._ws_set = False
+                k0, k1, k2, k3 = self._k0
+                u0 = k0 * T_w + k1 * T_a + k2 * T_w_cmd + k3 * prev
+                u0 = min(max(u0, self.T_p_min), self.T_p_max)   # rounding only
+                self._theta_fast = (T_w, T_a, T_w_cmd, prev)
+                self._u_fast = True
+                self.n_fast += 1
+                self.status = 1
+                self.iterations = 0
+                self.solve_time = 0.0
+                self.T_p_prev = u0
+                return u0
+            x = self._qp()                                  # q left by the box test
         u0 = float(x[0])
         # daqp meets the bounds to its primal tolerance (1e-6): make eq. 11 exact
         u0 = min(max(u0, self.T_p_min), self.T_p_max)

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.detector import ContactEvent
+from thermoskin.estimator import ContactEvent
 from thermoskin.evaluation import match_events
 from thermoskin.experiments.scenarios import PERIOD_S
 from thermoskin.physics.finger import Touch

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.detector import ContactEvent
+from thermoskin.estimator import ContactEvent
 from thermoskin.params import Config
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.controller import SkinController
@@ -32,7 +32,7 @@ from thermoskin.sim.scenarios import Scenario
 TRUTH = ("q_i", "T_g", "T_w_true", "T_p_true", "contact_true", "n_fingers")
 #: Recorded columns, in order: measured, commands, estimates, then the simulator's truth.
 COLUMNS = ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd", "T_p_cmd", "drive", "q_i_hat", "dq_i_hat",
-           "contact", "gap", *TRUTH)
+           "contact", "gap", "fresh", *TRUTH)
 
 
 @dataclass
@@ -76,9 +76,9 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     n, t_s = plant.n, cfg.sampling.t_s
     rec = {k: np.zeros(n) for k in COLUMNS}
     cols = [rec[k] for k in COLUMNS]
-    (c_t, c_Tw, c_Tp, c_v, c_Ta, c_cmd, c_Tpc, c_drv, c_qi, c_dq, c_con, c_gap, c_q, c_Tg,
+    (c_t, c_Tw, c_Tp, c_v, c_Ta, c_cmd, c_Tpc, c_drv, c_qi, c_dq, c_con, c_gap, c_fr, c_q, c_Tg,
      c_Twt, c_Tpt, _, _) = cols
-    obs, det = ctrl.observer, ctrl.detector
+    est = ctrl.estimator
     sup = sv.Supervisor(cfg)
     check = sup.check
     truth = plant.truth
@@ -110,10 +110,11 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
             cmd = cmd_at(t)
             setpoint_changes.pop(0)
         T_w, T_p, T_a = plant.measure()
+        fresh = plant.fresh
         if check(t, T_w, T_p, T_a):
             ctrl.safe()  # safe outputs first; the plant gets them below
         else:
-            ctrl.step(t, T_w, T_p, T_a, cmd)
+            ctrl.step(t, T_w, T_p, T_a, cmd, fresh)
         q_i, T_g, T_w_true, T_p_true = truth()
         c_t[k] = t
         c_Tw[k] = T_w
@@ -123,18 +124,19 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
         c_cmd[k] = cmd
         c_Tpc[k] = ctrl.T_p_cmd
         c_drv[k] = ctrl.drive
-        c_qi[k] = obs.q_i_hat
-        c_dq[k] = obs.dq_i_hat
+        c_qi[k] = est.q_i_hat
+        c_dq[k] = est.dq_i_hat
         c_con[k] = ctrl.contact
-        c_gap[k] = obs.gap
+        c_gap[k] = est.gap
+        c_fr[k] = fresh
         c_q[k] = q_i
         c_Tg[k] = T_g
         c_Twt[k] = T_w_true
         c_Tpt[k] = T_p_true
-        if det.started and on_start is not None:
+        if est.started and on_start is not None:
             on_start(t)
-        if det.ended and on_event is not None:
-            on_event(det.events[-1])
+        if est.ended and on_event is not None:
+            on_event(est.events[-1])
         plant.apply(ctrl.drive, ctrl.v)
         if sup.code:
             n_run = k + 1
@@ -144,19 +146,19 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
         if on_block is not None and k + 1 - k_sent >= block:
             send(k + 1)
     send(n_run, sup.code)
-    n_events = len(det.events)
-    det.finish((n_run - 1) * t_s)
-    if on_event is not None and len(det.events) > n_events:
-        on_event(det.events[-1])
+    n_events = len(est.events)
+    est.finish((n_run - 1) * t_s)
+    if on_event is not None and len(est.events) > n_events:
+        on_event(est.events[-1])
     wall = time.perf_counter() - wall0
     if progress is not None:
         progress(1.0)
     rec["contact_true"] = (np.asarray(plant.G_c) > 0).astype(np.int8)
     rec["n_fingers"] = np.asarray(plant.n_fingers, dtype=np.int8)
-    for k in ("contact", "gap"):
+    for k in ("contact", "gap", "fresh"):
         rec[k] = rec[k].astype(np.int8)
     if n_run < n:
         rec = {k: x[:n_run] for k, x in rec.items()}
     summary = {"fault": sup.code, "fault_name": sv.FAULTS[sup.code], "detail": sup.detail,
                "t_fault": sup.t_fault, "fault_value": sup.value, "t_safe": sup.t_fault}
-    return LoopResult(columns=rec, events=det.events, scenario=scenario, wall_s=wall, summary=summary)
+    return LoopResult(columns=rec, events=est.events, scenario=scenario, wall_s=wall, summary=summary)

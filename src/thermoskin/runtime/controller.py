@@ -3,7 +3,7 @@
 The same object runs against the simulated skin, a serial device, or a benchmark::
 
     v       = pump.step(T_w, T_w_cmd)                 Sec. V: stop while T_w is above its command
-    contact = estimator.step(t, T_w, T_p, v, T_a, T_w_cmd)   observer (eq. 8) -> detector
+    contact = estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh)   eq. 8, Kalman filter, detector
     T_p_cmd = mpc.step(T_w, T_a, T_w_cmd)             eqs. 9-11
     drive   = inner.step(T_p, T_p_cmd, T_a)           PI on the Peltier drive (Table I)
 
@@ -22,14 +22,11 @@ from thermoskin.params import Config
 class SkinController:
     """Observer, detector, MPC, inner loop and pump logic of one skin."""
 
-    __slots__ = ("T_p_cmd", "contact", "detector", "drive", "estimator", "inner", "mpc",
-                 "observer", "pump", "v")
+    __slots__ = ("T_p_cmd", "contact", "drive", "estimator", "inner", "mpc", "pump", "v")
 
     def __init__(self, cfg: Config) -> None:
         t_s = cfg.sampling.t_s
         self.estimator = TouchEstimator(cfg)
-        self.observer = self.estimator.observer
-        self.detector = self.estimator.detector
         self.pump = PumpLogic(cfg.pump, t_s)
         self.mpc = Mpc(cfg.skin, cfg.control, t_s, v_on=cfg.pump.v_on)
         self.inner = InnerLoop(cfg.control, t_s)
@@ -45,11 +42,13 @@ class SkinController:
         self.T_p_cmd = self.drive = 0.0
         self.contact = 0
 
-    def step(self, t: float, T_w: float, T_p: float, T_a: float, T_w_cmd: float) -> None:
-        """One sample of measurements; sets ``v, drive, T_p_cmd, contact`` (and the blocks')."""
+    def step(self, t: float, T_w: float, T_p: float, T_a: float, T_w_cmd: float,
+             fresh: int = 7) -> None:
+        """One sample of measurements (``fresh``: bitmask of the channels with a new reading,
+        1 ``T_w``, 2 ``T_p``, 4 ``T_a``); sets ``v, drive, T_p_cmd, contact`` (and the blocks')."""
         v = self.pump.step(T_w, T_w_cmd)
         self.v = v
-        self.contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd)
+        self.contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh)
         T_p_cmd = self.mpc.step(T_w, T_a, T_w_cmd, v > 0.0)
         self.T_p_cmd = T_p_cmd
         self.drive = self.inner.step(T_p, T_p_cmd, T_a)

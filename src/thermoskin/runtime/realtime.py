@@ -61,7 +61,7 @@ from thermoskin.sim.scenarios import Scenario
 #: The fields of a ring row, in order: the log columns of ``closed_loop.COLUMNS`` (truth NaN
 #: on hardware), then the device's flags, the loop's timing and the fault code.
 ROW = (*COLUMNS,
-       "fresh", "stale", "stuck", "status", "seq", "v_dev", "drive_dev", "late", "lag", "busy", "fault")
+       "stale", "stuck", "status", "seq", "v_dev", "drive_dev", "late", "lag", "busy", "fault")
 NF = len(ROW)
 _ROW = struct.Struct(f"<{NF}d")
 _HDR = struct.Struct("<qqq")  # rows written (loop), stop request (parent), reserved
@@ -225,13 +225,14 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
                 dev.safe()  # safe state before anything else
                 t_safe_host = mono()
                 drive = v = 0.0
-                q_i_hat, dq, contact, gap = ctrl.observer.q_i_hat, ctrl.observer.dq_i_hat, 0, 1
+                est = ctrl.estimator
+                q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, 0, 1
                 T_p_cmd = ctrl.T_p_cmd
             else:
-                ctrl.step(s.t, s.T_w, s.T_p, s.T_a, cmd)
+                ctrl.step(s.t, s.T_w, s.T_p, s.T_a, cmd, s.fresh)
                 drive, v = sup.gate(ctrl.drive, ctrl.v)
-                obs = ctrl.observer
-                q_i_hat, dq, contact, gap = obs.q_i_hat, obs.dq_i_hat, ctrl.contact, obs.gap
+                est = ctrl.estimator
+                q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, ctrl.contact, est.gap
                 T_p_cmd = ctrl.T_p_cmd
             if truth is not None:
                 q_i, T_g, T_wt, T_pt = truth()
@@ -247,7 +248,7 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
             if end > t_avail + t_s:
                 overruns += 1
             pack(buf, _HDR_BYTES + (k % cap) * row_bytes, s.t, s.T_w, s.T_p, v, s.T_a, cmd, T_p_cmd,
-                 drive, q_i_hat, dq, contact, gap, q_i, T_g, T_wt, T_pt, c_true, n_f, s.fresh, s.stale,
+                 drive, q_i_hat, dq, contact, gap, s.fresh, q_i, T_g, T_wt, T_pt, c_true, n_f, s.stale,
                  s.stuck, s.status, s.seq, s.v, s.drive, late, start - t_avail, end - start, code)
             k += 1
             count_pack(buf, 0, k)
@@ -287,9 +288,9 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
                        detail=sup.detail, t_fault=sup.t_fault, fault_value=sup.value,
                        t_safe=(t_safe_host - t0 + t_first) if t_safe_host == t_safe_host else nan,
                        t_end=s.t if s is not None else nan)
-        det = ctrl.detector
-        det.finish(summary["t_end"] if math.isfinite(summary["t_end"]) else (k - 1) * t_s)
-        summary["events"] = list(det.events)
+        est = ctrl.estimator
+        est.finish(summary["t_end"] if math.isfinite(summary["t_end"]) else (k - 1) * t_s)
+        summary["events"] = list(est.events)
         dec = getattr(dev, "decoder", None)
         if dec is not None:
             st = dec.stats

@@ -539,26 +539,35 @@ def replay(path: str | os.PathLike[str], config: Any = None) -> tuple[dict[str, 
         if k not in cols:
             raise RecordingError(f"{path}: the recording has no {k!r} (recorded by an older version?)")
     est = TouchEstimator(config)
-    obs, det = est.observer, est.detector
     out: dict[str, list[float]] = {k: [] for k in ("t", "T_w", "T_p", "v", "T_a", "q_i_hat", "dq_i_hat",
-                                                   "contact", "gap", "q_i_hat_live", "contact_live")}
+                                                   "contact", "gap", "q_i_hat_live", "dq_i_hat_live",
+                                                   "contact_live")}
     T_w, T_p, T_a, v, t = cols["T_w"], cols["T_p"], cols["T_a"], cols["v_cmd"], cols["t"]
     cmd = cols.get("T_w_cmd", [math.nan] * n_all)
-    q_live, c_live = cols["q_i_hat"], cols["contact"]
-    max_dq = 0.0
+    fresh = [7 if f != f else int(f) for f in cols.get("fresh", [7.0] * n_all)]
+    q_live, dq_live, c_live = cols["q_i_hat"], cols["dq_i_hat"], cols["contact"]
+    max_q = max_dq = 0.0
     mism = 0
+
+    def diff(a: float, b: float, worst: float) -> float:
+        if a == b or (a != a and b != b):
+            return worst
+        return max(worst, abs(a - b)) if a == a and b == b else math.inf
+
     for i in stepped:
-        c = est.step(t[i], T_w[i], T_p[i], v[i], T_a[i], cmd[i])
+        c = est.step(t[i], T_w[i], T_p[i], v[i], T_a[i], cmd[i], fresh[i])
+        q, dq = est.q_i_hat, est.dq_i_hat
         for k, x in (("t", t[i]), ("T_w", T_w[i]), ("T_p", T_p[i]), ("v", v[i]), ("T_a", T_a[i]),
-                     ("q_i_hat", obs.q_i_hat), ("dq_i_hat", obs.dq_i_hat), ("contact", c),
-                     ("gap", int(obs.gap)), ("q_i_hat_live", q_live[i]), ("contact_live", c_live[i])):
+                     ("q_i_hat", q), ("dq_i_hat", dq), ("contact", c), ("gap", int(est.gap)),
+                     ("q_i_hat_live", q_live[i]), ("dq_i_hat_live", dq_live[i]),
+                     ("contact_live", c_live[i])):
             out[k].append(x)
-        a, b = obs.q_i_hat, q_live[i]
-        if not (a == b or (a != a and b != b)):
-            max_dq = max(max_dq, abs(a - b)) if a == a and b == b else math.inf
+        max_q = diff(q, q_live[i], max_q)
+        max_dq = diff(dq, dq_live[i], max_dq)
         if c != c_live[i]:
             mism += 1
-    det.finish(t[stepped[-1]])
-    comparison = {"samples": len(stepped), "q_i_hat_max_abs_diff": max_dq, "contact_mismatches": mism,
-                  "exact": max_dq == 0.0 and mism == 0, "events": list(det.events)}
+    est.finish(t[stepped[-1]])
+    comparison = {"samples": len(stepped), "q_i_hat_max_abs_diff": max_q,
+                  "dq_i_hat_max_abs_diff": max_dq, "contact_mismatches": mism,
+                  "exact": max_q == 0.0 and max_dq == 0.0 and mism == 0, "events": list(est.events)}
     return out, comparison

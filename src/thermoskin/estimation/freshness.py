@@ -1,0 +1,63 @@
+"""Which samples of a log carry a new reading, per thermocouple channel.
+
+A thermocouple board converts every 100 ms or so and the loop (or the logger) repeats its
+last reading in between; a repeated reading is no new information. A log written by
+``thermoskin run`` says which samples were fresh (its ``fresh`` column: bit 1 ``T_w``, 2
+``T_p``, 4 ``T_a``). For any other log the channel's update rate is read from the data: a
+channel whose value changes on at least half the samples updates every sample (a fresh
+reading equal to the last one is then common, about one in ten with 0.02 K of noise and
+1/128 K steps); otherwise a sample is fresh where the value changed. A fresh reading that
+happens to equal the previous one is then taken as stale: the estimator just predicts one
+interval longer, with no bias.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+
+CHANNELS = ("T_w", "T_p", "T_a")
+BITS = {"T_w": 1, "T_p": 2, "T_a": 4}
+ALL_FRESH = 7
+#: A channel whose readings change on at least this fraction of samples updates every sample.
+EVERY_SAMPLE = 0.5
+
+
+def channel_fresh(x: NDArray[np.float64]) -> tuple[NDArray[np.bool_], float]:
+    """Fresh samples of one channel and its median update period in samples."""
+    x = np.asarray(x, dtype=float)
+    n = len(x)
+    if n == 0:
+        return np.zeros(0, dtype=bool), 1.0
+    changed = np.empty(n, dtype=bool)
+    changed[0] = True
+    prev, cur = x[:-1], x[1:]
+    changed[1:] = (cur != prev) & ~(np.isnan(cur) & np.isnan(prev))
+    frac = float(np.mean(changed[1:])) if n > 1 else 1.0
+    if frac >= EVERY_SAMPLE:
+        return np.ones(n, dtype=bool), 1.0
+    idx = np.flatnonzero(changed)
+    period = float(np.median(np.diff(idx))) if len(idx) > 2 else float(n)
+    return changed, period
+
+
+def infer_fresh(log: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.int64], dict[str, float]]:
+    """The ``fresh`` bitmask per sample (the log's own column if it has one) and each channel's
+    update period in samples (1 = every sample)."""
+    n = len(log["t"])
+    if "fresh" in log:
+        f = np.nan_to_num(np.asarray(log["fresh"], dtype=float), nan=0.0).astype(np.int64)
+        periods = {}
+        for ch in CHANNELS:
+            idx = np.flatnonzero(f & BITS[ch])
+            periods[ch] = float(np.median(np.diff(idx))) if len(idx) > 2 else float(n)
+        return f, periods
+    out = np.zeros(n, dtype=np.int64)
+    periods = {}
+    for ch in CHANNELS:
+        fr, per = channel_fresh(log[ch])
+        out |= np.where(fr, BITS[ch], 0)
+        periods[ch] = per
+    return out, periods

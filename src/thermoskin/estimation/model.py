@@ -1,0 +1,152 @@
+"""The sensor-aware estimator's model: the network of Fig. 3 with the touch heat and the tank as states.
+
+Patch state ``x = [T_w, T_g, q_i, T_p, Ṫ_p]`` (°C, °C, W, °C, K/s), input ``T_a`` (°C)::
+
+    C_w dT_w/dt = (T_p - T_w)/R_w(v) - (T_w - T_a)/R_aw - (T_w - T_g)/R_g + w_w   (eqs. 1, 3; Fig. 3)
+    C_g dT_g/dt = (T_w - T_g)/R_g + q_i - (T_g - T_a)/R_ag                        (eq. 4; Fig. 3)
+    dq_i/dt = w_q                the touch's heat into the sheet: a random walk (S_q, W²/s)
+    dT_p/dt = Ṫ_p, dṪ_p/dt = w_p    the tank: a constant-velocity model (S_p, K²/s³)
+
+``q_i`` is the paper's touch heat (``q_i`` of Fig. 3), so the estimate is of the heat the
+touch brings to the sheet, not of its share that reaches the pipe. ``w`` is white process
+noise with spectral densities ``S`` (``w_w`` for model error on the pipe node, ``S_w``).
+
+Each sample the state is advanced over ``t_s`` with ``v`` and ``T_a`` held (zero-order hold),
+exactly (Van Loan, *Computing integrals involving the matrix exponential*, 1978)::
+
+    Phi = e^{A t_s},   Gamma = ∫_0^{t_s} e^{A s} B ds,   Q_d = ∫_0^{t_s} e^{A s} S e^{A' s} ds
+
+from one matrix exponential each: ``exp([[A, B], [0, 0]] t_s)`` and
+``exp([[-A, S], [0, A']] t_s)``. ``R_w`` (eq. 1) depends on the pump's velocity, so the
+tables are built per distinct ``v``.
+
+The ambient filter ``x_a = [T_a, T_as]`` (true air, air sensor): ``dT_a/dt = w_a`` (S_a,
+K²/s), ``tau_a dT_as/dt = T_a - T_as`` (a bead in still air lags the air by ``tau_a``);
+the sensor reads ``T_as``. With ``tau_a = 0`` the sensor reads ``T_a`` itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thermoskin.params import Config
+from thermoskin.physics.convection import R_w as R_w_of
+
+Array = NDArray[np.float64]
+
+NX = 5
+"""Patch state size: ``T_w, T_g, q_i, T_p, Ṫ_p``."""
+I_TW, I_TG, I_Q, I_TP, I_DTP = range(NX)
+
+
+def _expm(M: Array) -> Array:
+    from scipy.linalg import expm
+
+    return np.asarray(expm(M))
+
+
+def patch_matrices(cfg: Config, R_w: float) -> tuple[Array, Array, Array]:
+    """Continuous ``(A, B, S)`` of the patch state for a water-to-pipe resistance ``R_w`` (K/W)."""
+    sk, es = cfg.skin, cfg.estimator
+    Cw, Cg, Rg, Raw, Rag = sk.C_w, sk.C_g, sk.R_g, sk.R_aw, sk.R_ag
+    A = np.zeros((NX, NX))
+    A[I_TW, I_TW] = -(1 / R_w + 1 / Raw + 1 / Rg) / Cw
+    A[I_TW, I_TG] = 1 / (Rg * Cw)
+    A[I_TW, I_TP] = 1 / (R_w * Cw)
+    A[I_TG, I_TW] = 1 / (Rg * Cg)
+    A[I_TG, I_TG] = -(1 / Rg + 1 / Rag) / Cg
+    A[I_TG, I_Q] = 1 / Cg
+    A[I_TP, I_DTP] = 1.0
+    B = np.zeros(NX)
+    B[I_TW] = 1 / (Raw * Cw)
+    B[I_TG] = 1 / (Rag * Cg)
+    S = np.diag([es.S_w, 0.0, es.S_q, 0.0, es.S_p])
+    return A, B, S
+
+
+def van_loan(A: Array, B: Array, S: Array, t_s: float) -> tuple[Array, Array, Array]:
+    """Exact ZOH discretisation ``(Phi, Gamma, Q_d)`` of ``dx = A x dt + B u dt + dw``,
+    ``E[dw dw'] = S dt``."""
+    n = A.shape[0]
+    B2 = B.reshape(n, -1)
+    m = B2.shape[1]
+    M = np.zeros((n + m, n + m))
+    M[:n, :n] = A
+    M[:n, n:] = B2
+    E = _expm(M * t_s)
+    Phi, Gam = E[:n, :n], E[:n, n:]
+    F = np.zeros((2 * n, 2 * n))
+    F[:n, :n] = -A
+    F[:n, n:] = S
+    F[n:, n:] = A.T
+    G = _expm(F * t_s)
+    Q = G[n:, n:].T @ G[:n, n:]
+    Q = 0.5 * (Q + Q.T)
+    return Phi, (Gam[:, 0] if B.ndim == 1 else Gam), Q
+
+
+def ambient_matrices(tau_a: float, S_a: float) -> tuple[Array, Array]:
+    """Continuous ``(A, S)`` of the ambient filter ``[T_a, T_as]``."""
+    A = np.zeros((2, 2))
+    if tau_a > 0.0:
+        A[1, 0] = 1.0 / tau_a
+        A[1, 1] = -1.0 / tau_a
+    return A, np.diag([S_a, 0.0])
+
+
+@dataclass(frozen=True)
+class ModelTables:
+    """The discretised model, ready for the kernel.
+
+    ``Phi[i], Gam[i], Q[i]`` for the pump velocity ``v_values[i]``; ``Phi_a, Q_a`` the ambient
+    filter; ``R_T`` the thermocouple measurement variance (K²); ``amb_idx`` the ambient
+    state the air sensor reads (1 with a lag, 0 without).
+    """
+
+    t_s: float
+    v_values: tuple[float, ...]
+    Phi: Array
+    Gam: Array
+    Q: Array
+    Phi_a: Array
+    Q_a: Array
+    R_T: float
+    amb_idx: int
+
+    def index(self, v: float) -> int:
+        """Row of the tables for velocity ``v`` (exact match; KeyError otherwise)."""
+        try:
+            return self.v_values.index(v)
+        except ValueError:
+            raise KeyError(f"no model tables for v = {v!r} m/s") from None
+
+
+def measurement_variance(cfg: Config) -> float:
+    """Thermocouple variance assumed by the estimator: ``noise_T² + quantum_T²/12`` (K²)."""
+    s = cfg.sensor
+    return s.noise_T**2 + s.quantum_T**2 / 12.0 + 1e-12
+
+
+def build_tables(cfg: Config, t_s: float, v_values: tuple[float, ...] | list[float]) -> ModelTables:
+    """Discretise the patch model for each velocity and the ambient filter at ``t_s``."""
+    vs = tuple(dict.fromkeys(float(v) for v in v_values))
+    Phi = np.empty((len(vs), NX, NX))
+    Gam = np.empty((len(vs), NX))
+    Q = np.empty((len(vs), NX, NX))
+    for i, v in enumerate(vs):
+        A, B, S = patch_matrices(cfg, R_w_of(v, cfg.skin))
+        Phi[i], Gam[i], Q[i] = van_loan(A, B, S, t_s)
+    tau_a = cfg.sensor.lag_T_a
+    Aa, Sa = ambient_matrices(tau_a, cfg.estimator.S_a)
+    Phi_a, _, Q_a = van_loan(Aa, np.zeros(2), Sa, t_s)
+    return ModelTables(t_s=t_s, v_values=vs, Phi=Phi, Gam=Gam, Q=Q, Phi_a=Phi_a, Q_a=Q_a,
+                       R_T=measurement_variance(cfg), amb_idx=1 if tau_a > 0.0 else 0)
+
+
+def sheet_equilibrium(cfg: Config, T_w: float, T_a: float) -> float:
+    """No-touch sheet temperature for a pipe at ``T_w`` (``dT_g/dt = 0``, ``q_i = 0``)."""
+    Rg, Rag = cfg.skin.R_g, cfg.skin.R_ag
+    return (T_w / Rg + T_a / Rag) / (1.0 / Rg + 1.0 / Rag)

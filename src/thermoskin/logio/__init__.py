@@ -1,0 +1,127 @@
+"""Logs in the shared schema: CSV (a header row) or Parquet, chosen by the file extension.
+
+Columns are named as in ``docs/model.md``: ``t`` (s), ``T_w, T_p, T_a`` (°C), ``v`` (m/s),
+``q_i_hat`` (W), ``contact`` (0/1), ... One row per sample, ``t`` strictly increasing and, by
+default, uniformly sampled. Every value is a float64; a log written here and read back gives
+the same float64 values bit for bit (CSV: shortest round-trip decimal form).
+
+- :func:`read_log` / :func:`write_log`: a whole log in memory (small logs); ``write_log`` is
+  atomic (temporary file, then rename).
+- :class:`LogReader` / :class:`LogWriter`: streaming, in chunks; memory bounded whatever
+  the log's length. A CSV being written is readable up to its last flush; a Parquet file
+  only once closed.
+
+Bad input raises :class:`LogError` (a ``ValueError``) with a one-line message naming the
+file, the line (CSV, 1-based, the header is line 1) or row (Parquet), the column and the
+value. ``nan``, ``NaN``, ``NA`` and an empty field are read as NaN in the temperature and
+velocity columns (a loose thermocouple gives NaN bursts; the observer handles those);
+elsewhere, and in ``t`` always, every value must be a finite number.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from thermoskin.logio.common import (
+    CHUNK_ROWS,
+    DEFAULT_REQUIRED,
+    FLAG_COLUMNS,
+    NAN_STRINGS,
+    UNIFORM_RTOL,
+    Array,
+    LogError,
+    as_column,
+    check_names,
+    check_time,
+    log_format,
+    nan_allowed,
+    sample_time,
+)
+from thermoskin.logio.stream import LogReader, LogWriter
+
+__all__ = [
+    "CHUNK_ROWS",
+    "DEFAULT_REQUIRED",
+    "FLAG_COLUMNS",
+    "NAN_STRINGS",
+    "UNIFORM_RTOL",
+    "LogError",
+    "LogReader",
+    "LogWriter",
+    "check_time",
+    "log_format",
+    "nan_allowed",
+    "read_log",
+    "sample_time",
+    "write_log",
+]
+
+#: Rows handed to the writer at a time by :func:`write_log` (bounds the formatting buffers).
+_WRITE_SLICE = 262_144
+
+
+def read_log(
+    path: str | os.PathLike[str],
+    required: Iterable[str] = DEFAULT_REQUIRED,
+    nan_columns: Iterable[str] | None = None,
+    *,
+    uniform: bool = True,
+    live: bool = False,
+) -> dict[str, Array]:
+    """Read a whole log into ``{column: float64 array}`` (in the file's column order).
+
+    ``t`` is always required. ``nan_columns`` lists the columns where NaN (CSV: ``nan``,
+    ``NaN``, ``NA``, empty) is accepted; by default the ``T_*`` and ``v`` columns.
+    ``uniform=False`` accepts jitter in ``t`` (still strictly increasing); ``live=True``
+    leaves out a CSV's last line if it has no line end yet (a log still being written, or
+    whose writer was killed). Raises :class:`LogError` on any user error. See
+    :class:`LogReader` for long logs.
+    """
+    with LogReader(path, required, nan_columns, uniform=uniform, live=live) as reader:
+        chunks = list(reader)
+        names = reader.names
+    if len(chunks) == 1:
+        return chunks[0]
+    return {n: np.concatenate([c[n] for c in chunks]) for n in names}
+
+
+def write_log(
+    path: str | os.PathLike[str],
+    columns: Mapping[str, ArrayLike],
+    float_format: str | None = None,
+) -> Path:
+    """Write ``columns`` as a log (CSV or Parquet by the extension), atomically; return the path.
+
+    Floats keep full precision (CSV: shortest round-trip form); integer arrays and flag
+    columns (:data:`FLAG_COLUMNS`) holding integers are written as integers. The parent
+    folder is created if needed; the log is written to a temporary file in the same folder
+    and renamed, so a crash never leaves half a log. ``float_format`` is obsolete (ignored,
+    with a ``DeprecationWarning``): values are never rounded any more.
+    """
+    if float_format is not None:
+        warnings.warn("write_log: float_format is ignored; logs keep full precision",
+                      DeprecationWarning, stacklevel=2)
+    names = list(columns)
+    check_names(names, "write_log")
+    log_format(path)
+    arrays = {}
+    for n in names:
+        a = np.asarray(columns[n])
+        a = as_column(a)
+        if a.ndim != 1:
+            raise ValueError(f"write_log: column {n!r} is not 1-D (shape {a.shape})")
+        arrays[n] = a
+    if len({a.size for a in arrays.values()}) != 1:
+        sizes = ", ".join(f"{n}={a.size}" for n, a in arrays.items())
+        raise ValueError(f"write_log: columns of different lengths: {sizes}")
+    n_rows = arrays[names[0]].size
+    with LogWriter(path, names, atomic=True, flush_rows=_WRITE_SLICE) as w:
+        for i in range(0, n_rows, _WRITE_SLICE):
+            w.write({n: a[i : i + _WRITE_SLICE] for n, a in arrays.items()})
+    return Path(path)

@@ -1,0 +1,156 @@
+"""Parquet logs (pyarrow): one float64 column per signal, in row groups.
+
+A Parquet file is readable only once its writer has closed it (the footer, written last,
+holds the schema and the row groups' places): a run killed while writing leaves a file that
+:class:`ParquetSource` refuses with a one-line :class:`LogError`. Write CSV when the log must
+be readable while it grows or after a crash. Errors in a Parquet log name the data row
+(1-based), there being no text lines.
+
+Columns are written as float64 (flags too: exact for integers up to 2**53, and Parquet's
+dictionary and run-length encodings store them compactly); reading accepts any integer,
+float or boolean column, and reads a null as NaN where NaN is allowed.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from thermoskin.logio.common import Array, LogError, short, writable
+
+#: Rows per row group (8 columns: 16 MiB before compression).
+ROW_GROUP_ROWS = 262_144
+#: Encoding: a dictionary for the columns of few values (flags, set-points, 1/64 K steps),
+#: given up after 64 KiB of dictionary for the others (8192 distinct values), which are then
+#: byte-stream-split; zstd over all. Measured on the 1 h benchmark log: smaller than polars'
+#: default file (16 vs 24 MiB) and faster to write than pyarrow's defaults.
+DICTIONARY_PAGE_BYTES = 1 << 16
+COMPRESSION = "zstd"
+
+
+def _arrow_errors() -> tuple[type[BaseException], ...]:
+    import pyarrow as pa
+
+    return (pa.ArrowException, OSError)
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+class ParquetSource:
+    """An open Parquet log: schema checked on opening, then :meth:`batches` of float64 columns."""
+
+    def __init__(self, path: Path) -> None:
+        import pyarrow.parquet as pq
+
+        self.path = path
+        try:
+            # pre_buffer (pyarrow's default) keeps every row group read so far: memory would
+            # grow with the log's length
+            self._file = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
+            schema = self._file.schema_arrow
+        except _arrow_errors() as exc:
+            raise LogError(
+                f"{path}: not a readable Parquet file ({_first_line(exc)}); "
+                "a Parquet log is readable only once its writer has closed it"
+            ) from exc
+        self.names: list[str] = list(schema.names)
+        self.n_rows: int | None = self._file.metadata.num_rows
+        try:
+            self._check_schema(schema)
+        except LogError:
+            self.close()
+            raise
+
+    def _check_schema(self, schema: Any) -> None:
+        import pyarrow as pa
+
+        path = self.path
+        if not self.names:
+            raise LogError(f"{path}: empty file (no columns)")
+        dups = [n for n, c in Counter(self.names).items() if c > 1]
+        if dups:
+            raise LogError(f"{path}: duplicate column name(s): {', '.join(dups)}")
+        for field in schema:
+            ty = field.type
+            if not (pa.types.is_integer(ty) or pa.types.is_floating(ty) or pa.types.is_boolean(ty)):
+                raise LogError(f"{path}: column {field.name!r} has type {ty}, expected numbers")
+
+    def close(self) -> None:
+        self._file.close()
+
+    def batches(self, chunk_rows: int) -> Iterator[tuple[list[Array], list[np.ndarray | None]]]:
+        """Float64 columns (nulls as NaN) per batch, with each column's null mask (None if no null)."""
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        try:
+            for batch in self._file.iter_batches(batch_size=chunk_rows, use_threads=True):
+                cols: list[Array] = []
+                nulls: list[np.ndarray | None] = []
+                for col in batch.columns:
+                    f = pc.cast(col, pa.float64())
+                    nulls.append(col.is_null().to_numpy(zero_copy_only=False) if col.null_count else None)
+                    cols.append(writable(f.to_numpy(zero_copy_only=False)))
+                yield cols, nulls
+        except _arrow_errors() as exc:
+            raise LogError(f"{self.path}: cannot read the Parquet data ({_first_line(exc)})") from exc
+
+
+def bad_value_message(path: Path, row: int, name: str, value: float, is_null: bool) -> str:
+    """One-line message for a bad value at 0-based data ``row`` of a Parquet log."""
+    if is_null:
+        what = "null value"
+    elif np.isnan(value):
+        what = "NaN value"
+    else:
+        what = f"infinite value {short(float(value))}"
+    hint = " (t must be a finite number on every row)" if name == "t" else (
+        "" if what.startswith("infinite") else " (NaN is allowed only in temperature and velocity columns)"
+    )
+    return f"{path}: row {row + 1}, column {name!r}: {what}{hint}"
+
+
+class ParquetSink:
+    """Appends chunks to a Parquet file, one row group per ``row_group_rows`` rows."""
+
+    def __init__(self, path: Path, names: list[str], row_group_rows: int = ROW_GROUP_ROWS) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        self.names = names
+        self.row_group_rows = row_group_rows
+        self._schema = pa.schema([(n, pa.float64()) for n in names])
+        self._writer: Any = pq.ParquetWriter(
+            path, self._schema, compression=COMPRESSION, use_byte_stream_split=True,
+            dictionary_pagesize_limit=DICTIONARY_PAGE_BYTES,
+        )
+        self._buf: list[list[np.ndarray]] = []
+        self._rows = 0
+
+    def write(self, cols: list[np.ndarray]) -> None:
+        self._buf.append([np.asarray(a, dtype=np.float64) for a in cols])
+        self._rows += len(cols[0])
+        if self._rows >= self.row_group_rows:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the buffered rows as one row group (not readable before :meth:`close`)."""
+        import pyarrow as pa
+
+        if not self._rows:
+            return
+        cols = [np.concatenate([c[j] for c in self._buf]) for j in range(len(self.names))]
+        self._buf, self._rows = [], 0
+        table = pa.Table.from_arrays([pa.array(c) for c in cols], schema=self._schema)
+        self._writer.write_table(table, row_group_size=len(cols[0]))
+
+    def close(self) -> None:
+        self.flush()
+        self._writer.close()
