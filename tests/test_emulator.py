@@ -13,14 +13,16 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 import serial
 
 from thermoskin.devices import protocol as proto
 from thermoskin.devices.base import ChannelTracker, Device, DeviceError, Sample
-from thermoskin.devices.emulator import DeviceCore, FaultSpec, PtyEmulator, main
+from thermoskin.devices.emulator import TRUTH_COLUMNS, DeviceCore, FaultSpec, PtyEmulator, TruthWriter, main
 from thermoskin.devices.serial_device import SerialDevice
 from thermoskin.params import Config
+from thermoskin.physics.finger import contact_profile
 from thermoskin.sim.scenarios import SCENARIOS
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
@@ -270,3 +272,69 @@ def test_cli_process_links_and_stops_on_sigterm(tmp_path: Path) -> None:
     assert proc.returncode == 0, err
     assert "stopped after" in err and "lateness" in err
     assert not link.is_symlink()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_truth_file_from_a_real_emulator_process(tmp_path: Path, sig: signal.Signals) -> None:
+    """--truth: one row per sample sent, t as the host logs it, flushed while running,
+    complete at the stop, and the simulator's values (no command: drive 0, pump off)."""
+    link, truth = tmp_path / "skin", tmp_path / "truth.csv"
+    proc = subprocess.Popen([sys.executable, "-c", "from thermoskin.cli import main; main()",
+                             "device-emulator", "--link", str(link), "--scenario", "fingers",
+                             "--truth", str(truth)], stderr=subprocess.PIPE, text=True)
+    try:
+        t_end = time.monotonic() + 30.0
+        while not link.is_symlink() and time.monotonic() < t_end and proc.poll() is None:
+            time.sleep(0.02)
+        assert link.is_symlink()
+        with SerialDevice(str(link)) as dev:
+            got = collect(dev, 0.8)  # no COMMAND: the device holds drive 0 and the pump off
+        assert len(got) > 300
+        time.sleep(1.1)
+        mid = np.loadtxt(truth, delimiter=",", skiprows=1, ndmin=2)
+        assert mid[-1, 0] >= got[-1].t  # flushed within a second of sending
+    finally:
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=10)
+    assert proc.returncode == 0, err
+    lines = truth.read_text().splitlines()
+    assert lines[0] == "t,contact_true,q_i,n_fingers,T_g" == ",".join(TRUTH_COLUMNS)
+    rows = np.loadtxt(truth, delimiter=",", skiprows=1, ndmin=2)
+    n = rows.shape[0]
+    assert f"stopped after {n} samples" in err and f"{n} truth rows" in err  # every sample sent
+    np.testing.assert_array_equal(np.round(rows[:, 0] * 1e6), np.arange(n) * 1000)  # 0, 1 ms, ...
+    assert n >= mid.shape[0] and {round(s.t * 1e6) for s in got} <= set(np.round(rows[:, 0] * 1e6))
+    # the same values as the device core stepped here without commands
+    core = DeviceCore(Config(), SCENARIOS["fingers"])
+    core.on_message(proto.Hello(0))
+    ref = []
+    for _ in range(n):
+        core.step()
+        ref.append(core.truth)
+    ref_a = np.array(ref)
+    np.testing.assert_array_equal(rows[:, [1, 3]], ref_a[:, [1, 3]])
+    np.testing.assert_allclose(rows[:, [2, 4]], ref_a[:, [2, 4]], rtol=1e-8, atol=1e-12)
+
+
+def test_truth_rows_follow_the_touches_and_bad_truth_path(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    core = DeviceCore(Config(), SCENARIOS["fingers"], command_timeout=100.0)
+    core.on_message(proto.Hello(0))
+    core.on_message(proto.Command(1, 0.1, 0.141))
+    w = TruthWriter(tmp_path / "t.csv")
+    for _ in range(6000):
+        core.step()
+        w.add(*core.truth)
+    w.close()
+    rows = np.loadtxt(tmp_path / "t.csv", delimiter=",", skiprows=1)
+    G, T_f, n_f = contact_profile(SCENARIOS["fingers"].touches, np.arange(6000) * 1e-3)
+    np.testing.assert_array_equal(rows[:, 1], G > 0)
+    np.testing.assert_array_equal(rows[:, 3], n_f)
+    np.testing.assert_allclose(rows[:, 2], G * (T_f - rows[:, 4]), rtol=1e-7, atol=1e-12)
+    assert rows[5500, 2] > 0.1  # the first touch (5.0-7.0 s) brings heat
+    assert main(str(tmp_path / "l"), "none", truth=tmp_path / "no" / "dir" / "t.csv", verbose=False) == 2
+    assert "cannot write the truth file" in capsys.readouterr().err
+    assert main(str(tmp_path / "l"), "none", jitter=-1.0, verbose=False) == 2
+    assert main(str(tmp_path / "l"), "none", tc_period=0.1, jitter=0.06, verbose=False) == 2
+    assert "jitter" in capsys.readouterr().err
+    assert not (tmp_path / "l").exists()

@@ -116,3 +116,36 @@ def test_touch_validation():
         contact_at([Touch(0.0, 1.0, 1, "nobody")], 0.5)
     with pytest.raises(ValueError, match="G_finger"):
         Person("x", 33.0, 0.0)
+
+
+def test_conductance_override_and_objects():
+    """``G`` replaces n_fingers G_finger; ``T_body`` makes an object; n_fingers 0 only with ``G``."""
+    weak = Touch(0.0, 1.0, 1, "a", G=0.02)
+    palm = Touch(0.0, 1.0, 0, "b", G=0.3)
+    can = Touch(2.0, 1.0, 0, "a", T_body=15.0, G=0.1)
+    assert touch_conductance(weak, 0.5, P) == pytest.approx(0.02, rel=1e-12)
+    assert touch_conductance(weak, RAMP_S / 2, P) == pytest.approx(0.01, rel=1e-9)
+    G, T_f, n = contact_at([palm], 0.5, P)
+    assert (G, T_f, n) == (pytest.approx(0.3), pytest.approx(36.0), 0)  # person b's body, no finger
+    G, T_f, n = contact_at([can], 2.5, P)
+    assert (G, T_f, n) == (pytest.approx(0.1), pytest.approx(15.0), 0)
+    # a can and a finger together: conductances in parallel
+    G, T_f, n = contact_at([can, Touch(2.2, 1.0, 2, "a")], 2.5, P)
+    assert (G, n) == (pytest.approx(0.18), 2)
+    assert T_f == pytest.approx((0.1 * 15.0 + 0.08 * 30.0) / 0.18)
+    touches = [weak, palm, can, Touch(2.4, 0.3, 3, "b", T_body=45.0)]
+    t = np.arange(0.0, 3.5, 1e-3)
+    Gp, T_fp, n_p = contact_profile(touches, t, P)
+    ref = [contact_at(touches, float(tk), P) for tk in t]
+    np.testing.assert_allclose(Gp, [r[0] for r in ref], rtol=0, atol=1e-15)
+    on = Gp > 0
+    np.testing.assert_allclose(T_fp[on], np.array([r[1] for r in ref])[on], rtol=1e-14)
+    np.testing.assert_array_equal(n_p, [r[2] for r in ref])
+    with pytest.raises(ValueError, match=r"n_fingers.*\(or 0 with G\)"):
+        Touch(0.0, 1.0, 4, "a", G=0.1)
+    with pytest.raises(ValueError, match=r"must be 1, 2 or 3$"):
+        Touch(0.0, 1.0, 0, "a")
+    with pytest.raises(ValueError, match=r"G = -0\.1"):
+        Touch(0.0, 1.0, 1, "a", G=-0.1)
+    with pytest.raises(ValueError, match="T_body = nan"):
+        Touch(0.0, 1.0, 1, "a", T_body=float("nan"))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -195,3 +197,84 @@ def test_more_fingers_more_heat_flow():
     assert peaks[0] < peaks[1] < peaks[2]
     # the sheet warms under the finger
     assert r["T_g"][int(6.9 / 1e-3)] > r["T_g"][int(4.9 / 1e-3)] + 0.3
+
+
+# -- ambient, set-point schedules, sensors in the log ------------------------------------
+
+
+def test_ambient_profile_is_piecewise_linear():
+    sc = Scenario("a", "", 100.0, T_a=99.0, ambient=((10.0, 20.0), (11.0, 21.0), (70.0, 18.5)))
+    assert sc.T_a == 20.0  # the profile's value at t = 0
+    t = np.array([0.0, 10.0, 10.25, 11.0, 40.5, 70.0, 95.0])
+    np.testing.assert_allclose(sc.T_a_at(t), [20.0, 20.0, 20.25, 21.0, 21.0 - 2.5 * 29.5 / 59.0, 18.5, 18.5],
+                               rtol=0, atol=1e-12)
+    assert sc.T_a_at(10.5) == pytest.approx(20.5)
+    sh = sc.shifted(5.0)
+    assert sh.T_a_at(15.5) == pytest.approx(20.5) and sh.duration == 105.0
+    assert Scenario("c", "", 10.0, T_a=22.0).T_a_at(3.0) == 22.0
+    with pytest.raises(ValueError, match="the times of ambient must increase"):
+        Scenario("x", "", 10.0, ambient=((1.0, 20.0), (1.0, 21.0)))
+    with pytest.raises(ValueError, match="finite"):
+        Scenario("x", "", 10.0, ambient=((1.0, float("nan")),))
+
+
+def rate_limited(target: np.ndarray, start: float, step: float) -> np.ndarray:
+    """A discrete rate limiter, written out again: move at most ``step`` toward the target per sample."""
+    out = np.empty_like(target)
+    p = start
+    for k, c in enumerate(target):
+        out[k] = p
+        p += min(max(c - p, -step), step)
+    return out
+
+
+def test_prescribed_T_p_follows_the_setpoints_rate_limited():
+    sc = Scenario("s", "", 90.0, setpoints=((0.0, 24.0), (30.0, 26.0), (60.0, 23.0)), T_p_offset=0.3,
+                  T_p_rate=0.3)
+    t = np.arange(90_000) * 1e-3
+    tp = sc.T_p(t)
+    target = sc.T_w_cmd_profile(t) + 0.3
+    np.testing.assert_allclose(tp, rate_limited(target, 24.3, 0.3e-3), rtol=0, atol=1e-9)
+    assert np.max(np.abs(np.diff(tp))) <= 0.3e-3 + 1e-12
+    # 2 K up at 0.3 K/s takes 6.67 s; 3 K down takes 10 s
+    assert sc.T_p(30.0 + 2.0 / 0.3 - 0.01) < 26.3 and sc.T_p(30.0 + 2.0 / 0.3 + 0.01) == pytest.approx(26.3)
+    assert sc.T_p(70.0 - 0.01) > 23.3 and sc.T_p(70.01) == pytest.approx(23.3)
+    np.testing.assert_array_equal(sc.T_w_cmd_profile(np.array([0.0, 29.999, 30.0, 75.0])),
+                                  [24.0, 24.0, 26.0, 23.0])
+    # no schedule: the constant offset of before
+    assert Scenario("c", "", 10.0).T_p(5.0) == pytest.approx(24.3)
+
+
+def test_simulate_honours_the_setpoint_schedule():
+    sc = Scenario("s", "", 60.0, setpoints=((0.0, 24.0), (20.0, 26.0), (40.0, 23.0)))
+    r = simulate(sc, CFG)
+    np.testing.assert_array_equal(r["T_w_cmd"], sc.T_w_cmd_profile(r["t"]))
+    for t0, cmd in ((0.0, 24.0), (20.0, 26.0), (40.0, 23.0)):
+        w = (r["t"] >= t0 + 15.0) & (r["t"] < t0 + 20.0)
+        assert np.mean(np.abs(r["T_w_true"][w] - cmd)) < 0.15
+    # the pump logic ran against the command of each sample
+    pump = PumpLogic(CFG.pump, CFG.sampling.t_s)
+    v = np.array([pump.step(float(m), float(c)) for m, c in zip(r["T_w"], r["T_w_cmd"], strict=True)])
+    np.testing.assert_array_equal(v, r["v"])
+
+
+def test_simulate_logs_fresh_and_the_true_ambient_seen_through_the_air_sensor_lag():
+    tau, r_K = 1.0, 1.0  # lag (s); ambient ramp 1 K/s from 5 to 6 s
+    cfg = CFG.replace(sensor={"noise_T": 0.0, "quantum_T": 0.0, "lag_T_a": tau, "period_T_w": 0.1})
+    sc = Scenario("amb", "", 12.0, ambient=((5.0, 20.0), (6.0, 21.0)))
+    r = simulate(sc, cfg)
+    t = r["t"]
+    np.testing.assert_allclose(r["T_a_true"], sc.T_a_at(t), rtol=0, atol=1e-12)
+    # first-order lag of a ramp: x - r tau (1 - e^{-(t - t0)/tau}) during it, then relaxing
+    # (to half a sample of the ramp: the element integrates the air held over each sample)
+    ramp = (t >= 5.0) & (t <= 6.0)
+    expected = r["T_a_true"][ramp] - r_K * tau * (1 - np.exp(-(t[ramp] - 5.0) / tau))
+    np.testing.assert_allclose(r["T_a"][ramp], expected, rtol=0, atol=r_K * 1e-3)
+    after = t > 6.0
+    lag_end = r_K * tau * (1 - math.exp(-1.0 / tau))
+    expected = 21.0 - lag_end * np.exp(-(t[after] - 6.0) / tau)
+    np.testing.assert_allclose(r["T_a"][after], expected, rtol=0, atol=r_K * 1e-3)
+    # fresh: T_w every 100th sample, T_p and T_a every sample
+    k = np.arange(len(t))
+    np.testing.assert_array_equal(r["fresh"], np.where(k % 100 == 0, 7, 6))
+    assert np.all(r["T_w"] == r["T_w"][k - k % 100])

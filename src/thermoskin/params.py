@@ -204,15 +204,42 @@ class DetectorParams(_Validated):
 
 @dataclass(frozen=True)
 class SensorParams(_Validated):
-    """Sensors of the simulated skin."""
+    """Thermocouple boards of the simulated skin (``sim.sensors``): one per channel.
+
+    Each board converts every ``period_*`` s (0: every sample) at instants jittered by up
+    to ``jitter`` s and holds its reading in between; its sensing element lags the true
+    temperature with time constant ``lag_*`` s (0: none). The defaults are ideal sensors:
+    a fresh reading every sample, noise and quantum only.
+    """
 
     section = "sensor"
     noise_T: float = _p(0.02, "K", 0.0, 10.0, doc="thermocouple noise (standard deviation)")
     quantum_T: float = _p(0.0078125, "K", 0.0, 10.0,
                           doc="thermocouple resolution (0 = none); 1/128 K as a MAX31856")
-    seed: int = _p(0, "", 0, 2**32 - 1, doc="random seed of the sensor noise")
+    seed: int = _p(0, "", 0, 2**32 - 1, doc="random seed of the sensor noise and jitter")
+    period_T_w: float = _p(0.0, "s", 0.0, 60.0,
+                           doc="conversion period of the T_w board (0 = every sample; 0.1 = a "
+                               "10 Hz MAX31856); the reading is held in between")
+    period_T_p: float = _p(0.0, "s", 0.0, 60.0, doc="conversion period of the T_p board (0 = every sample)")
+    period_T_a: float = _p(0.0, "s", 0.0, 60.0, doc="conversion period of the T_a board (0 = every sample)")
+    jitter: float = _p(0.0, "s", 0.0, 1.0,
+                       doc="conversion instants uniform within +-jitter of their nominal j*period "
+                           "(below half of every non-zero period)")
+    lag_T_w: float = _p(0.0, "s", 0.0, 600.0,
+                        doc="time constant of the T_w sensing element's first-order lag (0 = none)")
+    lag_T_p: float = _p(0.0, "s", 0.0, 600.0,
+                        doc="time constant of the T_p sensing element's first-order lag (0 = none)")
     lag_T_a: float = _p(0.0, "s", 0.0, 600.0,
-                        doc="time constant of the air sensor (a bead in still air: about 1 s)")
+                        doc="time constant of the air sensor's lag (0 = none; a bead in still air "
+                            "about 1 s)")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for ch in ("T_w", "T_p", "T_a"):
+            period = getattr(self, f"period_{ch}")
+            if period > 0.0 and not self.jitter < 0.5 * period:
+                raise ConfigError(f"sensor.jitter = {self.jitter!r} is out of range: must be below "
+                                  f"half of sensor.period_{ch} = {period!r} (s)")
 
 
 @dataclass(frozen=True)
@@ -315,6 +342,11 @@ class Config:
         if self.safety.T_p_min >= self.safety.T_p_max:
             raise ConfigError(f"safety.T_p_min = {self.safety.T_p_min} must be below "
                               f"safety.T_p_max = {self.safety.T_p_max}")
+        for ch in ("T_w", "T_p", "T_a"):
+            period = getattr(self.sensor, f"period_{ch}")
+            if 0.0 < period < self.sampling.t_s:
+                raise ConfigError(f"sensor.period_{ch} = {period!r} is out of range: must be 0 or "
+                                  f">= sampling.t_s = {self.sampling.t_s!r} (s)")
 
     def replace(self, **sections: dict[str, Any]) -> Config:
         """A copy with some fields of some sections replaced: ``replace(skin={"R_g": 5})``."""

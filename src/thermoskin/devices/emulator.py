@@ -1,23 +1,29 @@
 """The device emulator: the simulated skin behind a pseudo-terminal speaking the link protocol.
 
-``thermoskin device-emulator --link PATH [--scenario NAME] [--fault KIND@SECONDS]`` (or
-``python -m thermoskin.devices.emulator``) opens a pty pair, makes ``PATH`` a symbolic
-link to the slave side (a stale link is replaced, the link is removed on exit) and waits
+``thermoskin device-emulator --link PATH [--scenario NAME] [--fault KIND@SECONDS]
+[--tc-period S] [--jitter S] [--truth TRUTH.csv]`` (or ``python -m
+thermoskin.devices.emulator``) opens a pty pair, makes ``PATH`` a symbolic link to the
+slave side (a stale link is replaced, the link is removed on exit) and waits
 for a HELLO. Its clock starts at the first HELLO; from then on, every ``t_s`` (1 ms, paced
 by the wall clock with absolute deadlines) it
 
-1. measures: thermocouple readings of ``T_w, T_p, T_a`` are taken every ``tc_period``
-   (default 0.1 s, a MAX31856-class board); in between the last reading is repeated with
-   its fresh bit clear and its update counter unchanged;
+1. measures: the thermocouple boards of the simulated plant read ``T_w, T_p, T_a``
+   (``sim.sensors``: each converts every ``tc_period``, default 0.1 s, a MAX31856-class
+   board, with the configured jitter and lag); between conversions the last reading is
+   repeated with its fresh bit clear and its update counter unchanged;
 2. sends a SAMPLE (and a FAULT when a fault it can detect appears);
-3. advances the skin (:class:`~thermoskin.sim.skin.SimulatedSkin`, exact ZOH) and the
-   tank one step with the last COMMAND (drive, pump velocity), the scenario's touches
-   (:func:`~thermoskin.physics.finger.contact_at`, repeating every ``scenario.duration``)
-   and the scenario's ``T_a``.
+3. advances the simulated plant (:class:`~thermoskin.sim.plant.SimulatedPlant`: the skin,
+   exact ZOH, and the Peltier tank, :class:`~thermoskin.physics.peltier.PeltierTank` with
+   the configured drive limits, losing ``q_out = (T_p - T_w)/R_w(v)`` to the skin's water)
+   one step with the last COMMAND (drive, pump velocity), the scenario's touches and
+   ambient repeating every ``scenario.duration``. It starts in the network's equilibrium
+   for ``scenario.T_p(0)`` with the pump running.
 
-The tank: :class:`thermoskin.physics.peltier.PeltierTank` (with the configured drive
-limits), losing ``q_out = (T_p - T_w)/R_w(v)`` to the skin's water, started at
-``scenario.T_p(0)``.
+``--truth TRUTH.csv`` writes the simulator's truth, one row per sample sent,
+``t,contact_true,q_i,n_fingers,T_g`` with ``t`` the sample's device time (as the host
+logs it), flushed every half second and complete when the emulator stops (SIGINT,
+SIGTERM). ``--tc-period`` sets the three boards' conversion periods (default 0.1 s, or
+the config's ``[sensor]`` periods if it sets any), ``--jitter`` their jitter.
 
 Until the first COMMAND after a HELLO, and while no COMMAND came for ``command_timeout``
 s (the watchdog), the device holds drive 0 and the pump off. SAFE latches the same
@@ -31,8 +37,8 @@ Faults, ``KIND@SECONDS`` since the host connected:
 - ``serial-drop``: the device stops sending and stops listening (a cut cable).
 - ``tc-stuck``: ``T_w`` freezes at its last reading while still flagged fresh.
 
-``tc-open``, ``nan-burst`` and ``overtemp`` force a conversion at their onset, so they show
-in the very sample at their time (the host's fault-to-safe delay is measured from there);
+``tc-open``, ``nan-burst`` and ``overtemp`` force a reading of their channels at their
+onset, so they show in the very sample at their time (the host's fault-to-safe delay is measured from there);
 ``tc-stuck`` shows at the regular conversions. :attr:`DeviceCore.t_safe` is the device
 time at which the first SAFE of the session took effect (NaN if none).
 """
@@ -57,16 +63,15 @@ import numpy as np
 
 from thermoskin.devices import protocol as proto
 from thermoskin.params import Config
-from thermoskin.physics.finger import contact_at
-from thermoskin.physics.peltier import PeltierTank
+from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import DEFAULT_SCENARIO, SCENARIOS, Scenario, get_scenario
-from thermoskin.sim.skin import Sensors, SimulatedSkin
 
 FAULT_KINDS = ("tc-open", "nan-burst", "overtemp", "serial-drop", "tc-stuck")
 OVERTEMP_C = 45.0
 """``T_p`` reading under the ``overtemp`` fault, °C."""
-_FORCED = frozenset({"tc-open", "nan-burst", "overtemp"})
-"""Faults that force a conversion at their onset (seen in the very next sample)."""
+_FORCED = {"tc-open": proto.CH_W, "nan-burst": proto.CH_W | proto.CH_P | proto.CH_A,
+           "overtemp": proto.CH_P}
+"""Faults that force a reading of their channels at their onset (seen in that very sample)."""
 DEVICE_ID = 0x7E57_0001
 """Device id the emulator reports in HELLO_ACK."""
 
@@ -96,22 +101,37 @@ class FaultSpec:
 
 
 class DeviceCore:
-    """What the device does, without I/O or wall clock: messages in, one step per ``t_s``."""
+    """What the device does, without I/O or wall clock: messages in, one step per ``t_s``.
+
+    The physics and the thermocouple boards are the simulated plant
+    (:class:`~thermoskin.sim.plant.SimulatedPlant`: Peltier tank, the scenario's touches and
+    ambient repeating every ``scenario.duration``, the ``[sensor]`` boards); ``tc_period``
+    (s) sets the three boards' conversion periods and ``jitter`` (s) their jitter (``None``:
+    the configuration's). The faults are the device's own, applied to the plant's readings.
+    """
 
     def __init__(self, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec] = (),
-                 tc_period: float = 0.1, command_timeout: float = 0.5, device_id: int = DEVICE_ID) -> None:
+                 tc_period: float | None = 0.1, command_timeout: float = 0.5,
+                 device_id: int = DEVICE_ID, jitter: float | None = None) -> None:
+        sensor: dict[str, float] = {}
+        if tc_period is not None:
+            sensor.update(period_T_w=tc_period, period_T_p=tc_period, period_T_a=tc_period)
+        if jitter is not None:
+            sensor["jitter"] = jitter
+        cfg = cfg.replace(sensor=sensor) if sensor else cfg
         self.cfg = cfg
         self.t_s = cfg.sampling.t_s
         self.scenario = scenario
         self.faults = sorted(faults, key=lambda f: f.t)
-        self.n_tc = max(1, round(tc_period / self.t_s))
-        self.tc_period = self.n_tc * self.t_s
+        s = cfg.sensor
+        self.tc_period = max(s.period_T_w, s.period_T_p, s.period_T_a) or self.t_s
+        """The longest conversion period of the boards (reported in HELLO_ACK), s."""
         self.command_timeout = float(command_timeout)
         self.device_id = device_id
-        self.skin = SimulatedSkin(cfg)
-        self.sensors = Sensors(cfg.sensor)
-        self.tank = PeltierTank(cfg.peltier, self.t_s,
-                                (cfg.control.drive_min, cfg.control.drive_max))
+        self.plant = SimulatedPlant(cfg, scenario, repeat=True)
+        self.skin = self.plant.skin
+        self.tank = self.plant.tank
+        self.sensors = self.plant.sensors
         self.connected = False
         self.k = 0
         self.seq = 0
@@ -120,11 +140,7 @@ class DeviceCore:
         self._reset_physics()
 
     def _reset_physics(self) -> None:
-        sc = self.scenario
-        T_p0 = float(sc.T_p(0.0))
-        self.tank.reset(T_p0, None, sc.T_a)
-        self.skin.reset_equilibrium(T_p0, self.cfg.pump.v_on, sc.T_a)
-        self.sensors.reset()
+        self.plant.reset("equilibrium", v=self.cfg.pump.v_on)
         self.drive = 0.0
         self.v = 0.0
         self.cmd_drive = 0.0
@@ -135,6 +151,8 @@ class DeviceCore:
         self.active: set[str] = set()
         self.readings = [math.nan, math.nan, math.nan]
         self.counters = [0, 0, 0]
+        self.truth = (0.0, 0, 0.0, 0, math.nan)
+        """``(t, contact_true, q_i, n_fingers, T_g)`` of the last sample sent."""
         self._overrun = False
 
     # -- messages --------------------------------------------------------------------------
@@ -189,35 +207,40 @@ class DeviceCore:
         """Measure, report (SAMPLE and new FAULTs), then advance the physics by ``t_s``."""
         t = self.k * self.t_s
         out: list[proto.Message] = []
-        force = False
+        force = 0
         for f in self.faults:
             if f.t <= t + 1e-12 and f.kind not in self.active:
                 self.active.add(f.kind)
-                force = force or f.kind in _FORCED
+                force |= _FORCED.get(f.kind, 0)
                 if f.kind == "tc-open":
                     out.append(proto.Fault(0, proto.F_TC_OPEN, 0, math.nan))
         active = self.active
-        fresh = 0
-        if force or self.k % self.n_tc == 0:
-            sens = self.sensors
-            T_w = sens.measure_one("T_w", self.skin.T_w)
-            T_p = sens.measure_one("T_p", self.tank.T_p)  # type: ignore[attr-defined]
-            T_a = sens.measure_one("T_a", self.scenario.T_a)
+        plant = self.plant
+        T_w, T_p, T_a = plant.measure()
+        fresh = plant.fresh | force
+        q_i, T_g, _, _ = plant.truth()
+        contact, n_fingers = plant.contact()
+        self.truth = (t, contact, q_i, n_fingers, T_g)
+        if fresh:
             if active:
                 if "tc-stuck" in active:
                     T_w = self.readings[0]
                 if "tc-open" in active:
                     T_w = math.nan
                 if "overtemp" in active:
-                    T_p = sens.quantise(OVERTEMP_C + (T_p - self.tank.T_p))  # type: ignore[attr-defined]
+                    T_p = self.sensors.quantise(OVERTEMP_C + (T_p - plant.T_p_true))
                 if "nan-burst" in active:
                     T_w = T_p = T_a = math.nan
-            self.readings = [T_w, T_p, T_a]
-            c = self.counters
-            c[0] = (c[0] + 1) & 0xFFFF
-            c[1] = (c[1] + 1) & 0xFFFF
-            c[2] = (c[2] + 1) & 0xFFFF
-            fresh = proto.CH_W | proto.CH_P | proto.CH_A
+            r, c = self.readings, self.counters
+            if fresh & proto.CH_W:
+                r[0] = T_w
+                c[0] = (c[0] + 1) & 0xFFFF
+            if fresh & proto.CH_P:
+                r[1] = T_p
+                c[1] = (c[1] + 1) & 0xFFFF
+            if fresh & proto.CH_A:
+                r[2] = T_a
+                c[2] = (c[2] + 1) & 0xFFFF
 
         # commands in force over the next step
         status = 0
@@ -246,15 +269,56 @@ class DeviceCore:
                                self.cmd_seq))
 
         # physics over [t, t + t_s)
-        sc = self.scenario
-        G_c, T_f, _ = contact_at(sc.touches, t % sc.duration)
-        skin = self.skin
-        T_p_true = self.tank.T_p  # type: ignore[attr-defined]
-        q_out = (T_p_true - skin.T_w) / skin.R_w(v)
-        self.tank.step(drive, sc.T_a, q_out)  # type: ignore[attr-defined]
-        skin.step(T_p_true, v, sc.T_a, G_c, T_f)
+        plant.apply(drive, v)
         self.k += 1
         return out
+
+
+TRUTH_COLUMNS = ("t", "contact_true", "q_i", "n_fingers", "T_g")
+"""Columns of the emulator's truth file (``--truth``)."""
+
+
+class TruthWriter:
+    """The emulator's truth, one CSV row per sample sent: ``t,contact_true,q_i,n_fingers,T_g``.
+
+    ``t`` is the sample's device time (``t_us`` of its SAMPLE, s since the HELLO), which the
+    host logs as its ``t``; ``contact_true`` 0/1, ``q_i`` W (the touch's heat into the
+    sheet, contact applied from ``t`` on), ``n_fingers``, ``T_g`` °C. Rows are formatted as
+    they come and written and flushed every ``flush_s`` (wall clock) and on :meth:`close`.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], flush_s: float = 0.5) -> None:
+        self.path = Path(path)
+        self._f = self.path.open("w", encoding="ascii", newline="\n")
+        self._f.write(",".join(TRUTH_COLUMNS) + "\n")
+        self._f.flush()
+        self._rows: list[str] = []
+        self.flush_s = float(flush_s)
+        self._t_flush = time.monotonic()
+        self.rows = 0
+
+    def add(self, t: float, contact: int, q_i: float, n_fingers: int, T_g: float) -> None:
+        """One sample's row (formatted now, written at the next flush)."""
+        self._rows.append(f"{t:.6f},{contact},{q_i:.9g},{n_fingers},{T_g:.9g}\n")
+
+    def maybe_flush(self, now: float) -> None:
+        """Write and flush if ``flush_s`` passed since the last flush (``now``: monotonic, s)."""
+        if now - self._t_flush >= self.flush_s:
+            self.flush(now)
+
+    def flush(self, now: float | None = None) -> None:
+        if self._rows:
+            self._f.write("".join(self._rows))
+            self.rows += len(self._rows)
+            self._rows.clear()
+        self._f.flush()
+        self._t_flush = time.monotonic() if now is None else now
+
+    def close(self) -> None:
+        """Every row so far to the file, then close it."""
+        if not self._f.closed:
+            self.flush()
+            self._f.close()
 
 
 class PtyEmulator:
@@ -269,9 +333,12 @@ class PtyEmulator:
     MAX_LAG = 0.05
     """Behind its deadlines by more than this (s), the emulator re-anchors its pacing."""
 
-    def __init__(self, link: str | os.PathLike[str], core: DeviceCore) -> None:
+    def __init__(self, link: str | os.PathLike[str], core: DeviceCore,
+                 truth: TruthWriter | None = None) -> None:
         self.link = Path(link)
         self.core = core
+        self.truth = truth
+        """Where each sample sent also writes its truth row (``None``: nowhere)."""
         self.decoder = proto.Decoder()
         self._stop = threading.Event()
         self.ready = threading.Event()
@@ -384,6 +451,7 @@ class PtyEmulator:
             return
         t0 = self._t0
         k = 0
+        truth = self.truth
         lat = self.lateness
         n_lat = lat.size
         while not stop.is_set():
@@ -408,6 +476,9 @@ class PtyEmulator:
                 for m in msgs:
                     self._send(m)
                 self._flush()
+                if truth is not None:
+                    truth.add(*core.truth)
+                    truth.maybe_flush(now)
             k += 1
             self._read()
 
@@ -424,18 +495,38 @@ class PtyEmulator:
 
 
 def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = (),
-         tc_period: float = 0.1, cfg: Config | None = None, verbose: bool = True) -> int:
-    """Run the emulator until SIGINT/SIGTERM; 0 on a clean stop, 2 on bad arguments or link."""
+         tc_period: float | None = None, cfg: Config | None = None, verbose: bool = True,
+         jitter: float | None = None, truth: str | os.PathLike[str] | None = None) -> int:
+    """Run the emulator until SIGINT/SIGTERM; 0 on a clean stop, 2 on bad arguments or link.
+
+    ``tc_period`` (s) sets the three boards' conversion periods; ``None``: the config's
+    ``[sensor]`` periods if any is set, else 0.1 s. ``jitter`` (s): their jitter (``None``:
+    the config's). ``truth``: a CSV file for the truth (:class:`TruthWriter`), complete up
+    to the last sample sent when the emulator stops.
+    """
+    cfg = cfg or Config()
+    s = cfg.sensor
+    if tc_period is None and not (s.period_T_w or s.period_T_p or s.period_T_a):
+        tc_period = 0.1
     try:
         sc = get_scenario(scenario)
         specs = [FaultSpec.parse(f) for f in faults]
-        if not (tc_period > 0 and math.isfinite(tc_period)):
-            raise ValueError(f"tc_period = {tc_period} s must be > 0")
+        if tc_period is not None and not (tc_period > 0 and math.isfinite(tc_period)):
+            raise ValueError(f"--tc-period {tc_period} s must be > 0")
+        if jitter is not None and not (jitter >= 0 and math.isfinite(jitter)):
+            raise ValueError(f"--jitter {jitter} s must be >= 0")
+        core = DeviceCore(cfg, sc, specs, tc_period=tc_period, jitter=jitter)
     except (KeyError, ValueError) as e:
         print(f"device-emulator: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
         return 2
-    core = DeviceCore(cfg or Config(), sc, specs, tc_period=tc_period)
-    emu = PtyEmulator(link, core)
+    writer = None
+    if truth is not None:
+        try:
+            writer = TruthWriter(truth)
+        except OSError as e:
+            print(f"device-emulator: cannot write the truth file {truth}: {e.strerror or e}", file=sys.stderr)
+            return 2
+    emu = PtyEmulator(link, core, writer)
     old: dict[int, object] = {}
 
     def _stop(signum: int, frame: object) -> None:
@@ -451,14 +542,19 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
             print(f"device-emulator: cannot create the link {link}: {e}", file=sys.stderr)
             return 2
         if verbose:
+            j = core.cfg.sensor.jitter
             print(f"device-emulator: {link} -> {emu.slave_name} (scenario {sc.name}, "
                   f"thermocouples every {core.tc_period * 1e3:g} ms"
-                  + (f", faults {', '.join(faults)}" if faults else "") + "); waiting for the host",
+                  + (f" +- {j * 1e3:g} ms" if j else "")
+                  + (f", faults {', '.join(faults)}" if faults else "")
+                  + (f", truth to {truth}" if truth is not None else "") + "); waiting for the host",
                   file=sys.stderr, flush=True)
         try:
             emu.serve()
         finally:
             emu.close_link()
+            if writer is not None:
+                writer.close()
         if verbose:
             tm = emu.timing()
             if tm.get("samples"):
@@ -468,10 +564,14 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
                 if core.t_safe == core.t_safe:
                     print(f"device-emulator: SAFE from the host took effect at t = {core.t_safe:.3f} s",
                           file=sys.stderr)
+                if writer is not None:
+                    print(f"device-emulator: {writer.rows} truth rows in {truth}", file=sys.stderr)
             else:
                 print("device-emulator: stopped (no host connected)", file=sys.stderr)
         return 0
     finally:
+        if writer is not None:
+            writer.close()
         for sig, handler in old.items():
             signal.signal(sig, handler)  # type: ignore[arg-type]
 
@@ -483,9 +583,13 @@ def _cli(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--scenario", default=DEFAULT_SCENARIO, help=f"one of {', '.join(SCENARIOS)}")
     ap.add_argument("--fault", action="append", default=[], metavar="KIND@SECONDS",
                     help=f"inject a fault; KIND one of {', '.join(FAULT_KINDS)}")
-    ap.add_argument("--tc-period", type=float, default=0.1, help="thermocouple update period, s")
+    ap.add_argument("--tc-period", type=float, default=None,
+                    help="conversion period of the three thermocouple boards, s (default 0.1)")
+    ap.add_argument("--jitter", type=float, default=None, help="conversion-instant jitter, s (default 0)")
+    ap.add_argument("--truth", default=None, metavar="TRUTH.csv",
+                    help="write the truth: t,contact_true,q_i,n_fingers,T_g per sample")
     a = ap.parse_args(argv)
-    return main(a.link, a.scenario, a.fault, a.tc_period)
+    return main(a.link, a.scenario, a.fault, a.tc_period, jitter=a.jitter, truth=a.truth)
 
 
 if __name__ == "__main__":

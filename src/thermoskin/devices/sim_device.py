@@ -1,10 +1,10 @@
 """The in-process simulated skin (:class:`~thermoskin.sim.plant.SimulatedPlant`) as a device.
 
-``read_sample`` measures the plant at the current sample (every channel fresh: the
-simulated thermocouples update every ``t_s``); ``write_command`` holds the drive and the
-pump command over one ``t_s`` and advances the physics. ``safe()`` latches drive 0 and
-pump off for every later step. The simulator's truth of the sample just read is in
-:meth:`truth`.
+``read_sample`` measures the plant at the current sample (``fresh``: the channels whose
+simulated board converted; every channel every sample with the default ``[sensor]``);
+``write_command`` holds the drive and the pump command over one ``t_s`` and advances the
+physics. ``safe()`` latches drive 0 and pump off for every later step. The simulator's
+truth of the sample just read is in :meth:`truth`.
 """
 
 from __future__ import annotations
@@ -41,14 +41,11 @@ class SimDevice:
         if k >= self.n:
             return None
         T_w, T_p, T_a = self.plant.measure()
-        return Sample(k * self.t_s, T_w, T_p, T_a, 0b111, k, self._v, self._drive)
+        return Sample(k * self.t_s, T_w, T_p, T_a, self.plant.fresh, k, self._v, self._drive)
 
     def truth(self) -> tuple[float, float, float, float]:
         """``(q_i, T_g, T_w, T_p)`` of the simulator at the current step (W, °C)."""
-        p = self.plant
-        skin = p.skin
-        q_i = skin.G_c * (skin.T_f - skin.T_g) if skin.G_c else 0.0
-        return q_i, skin.T_g, skin.T_w, p.tank.T_p
+        return self.plant.truth()
 
     def write_command(self, drive: float, v: float) -> None:
         """Hold ``drive``, ``v`` (or the safe outputs) over one sample and advance."""

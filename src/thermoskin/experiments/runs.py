@@ -11,6 +11,7 @@ thermocouple end. :func:`open_loop_spatial` says why.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -25,12 +26,10 @@ from thermoskin.experiments.scenarios import T_A, contact_scenario, setpoint_sce
 from thermoskin.identify import decimate_blocks
 from thermoskin.observer import ThermalExchangeObserver
 from thermoskin.params import Config, load_config
-from thermoskin.physics.finger import contact_profile
 from thermoskin.physics.spatial import SpatialParams
 from thermoskin.runtime.closed_loop import run_closed_loop
+from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import Scenario
-from thermoskin.sim.skin import Sensors
-from thermoskin.sim.spatial_skin import SpatialSkin
 
 Array = NDArray[np.float64]
 
@@ -64,7 +63,8 @@ class Job:
 
 def open_loop_spatial(sc: Scenario, cfg: Config, *, stop_in_contact: bool, inlet: str = "far"
                       ) -> tuple[list[ContactEvent], dict[str, Array]]:
-    """The spatial skin with the pump logic and a held tank; observer and detector over the log.
+    """The spatial skin (the simulated plant, prescribed tank) with the pump logic and a held
+    tank; observer and detector over the log.
 
     Why not the closed loop: with thermocouple noise of 0.02 K and no hysteresis the pump
     switches at its 50 ms dwell whatever a touch does (a finger moves ``T_w`` by about
@@ -82,37 +82,33 @@ def open_loop_spatial(sc: Scenario, cfg: Config, *, stop_in_contact: bool, inlet
     out of ``dq_i_hat``.
     """
     t_s = cfg.sampling.t_s
-    n = max(1, int(np.floor(sc.duration / t_s + 1e-9)))
-    t = np.arange(n) * t_s
-    G, T_f, _ = contact_profile(sc.touches, t)
-    pos = np.zeros(n)
-    for tc in sc.touches:
-        pos[(t >= tc.t_on) & (t < tc.t_off)] = tc.position
-    skin = SpatialSkin(cfg, SpatialParams(inlet=inlet))
-    sensors = Sensors(cfg.sensor)
+    sc = dataclasses.replace(sc, T_p_offset=T_P_OFFSET, T_p_drift=0.0, setpoints=())
+    plant = SimulatedPlant(cfg, sc, skin_model="spatial", tank="prescribed",
+                           spatial=SpatialParams(inlet=inlet))
+    n = plant.n
+    cmd = float(sc.T_w_cmd)
+    plant.reset("command", T_w0=cmd)
     pump = PumpLogic(cfg.pump, t_s)
-    cmd, T_p = float(sc.T_w_cmd), float(sc.T_w_cmd) + T_P_OFFSET
-    skin.reset(cmd, T_a=sc.T_a)
-    noise = sensors.noise("T_w", n).tolist()
-    G_l, T_f_l, pos_l = G.tolist(), T_f.tolist(), pos.tolist()
-    T_w, T_w_true, T_g, v = (np.zeros(n) for _ in range(4))
-    quantise = sensors.quantise
+    G_l = plant.G_c
+    T_w, T_p_m, T_a_m, T_w_true, T_g, v = (np.zeros(n) for _ in range(6))
+    fresh = np.zeros(n, dtype=np.int64)
+    skin = plant.skin
     for k in range(n):
-        Tw = skin.T_w
-        T_w_true[k] = Tw
+        T_w_true[k] = skin.T_w
         T_g[k] = skin.T_g
-        m = quantise(Tw + noise[k])
+        m, T_p_m[k], T_a_m[k] = plant.measure()
         T_w[k] = m
+        fresh[k] = plant.fresh
         vk = pump.step(m, cmd)
         if stop_in_contact and G_l[k] > 0.0:
             vk = 0.0
         v[k] = vk
-        skin.step(T_p, vk, sc.T_a, G_l[k], T_f_l[k], position=pos_l[k])
-    T_p_m = sensors.measure("T_p", np.full(n, T_p))
-    T_a_m = sensors.measure("T_a", np.full(n, float(sc.T_a)))
-    out = TouchEstimator(cfg, t_s=t_s).run(t, T_w, T_p_m, v, T_a_m)
+        plant.apply(0.0, vk)
+    t = np.arange(n) * t_s
+    out = TouchEstimator(cfg, t_s=t_s).run(t, T_w, T_p_m, v, T_a_m, fresh=fresh)
+    G, T_f = np.asarray(G_l), np.asarray(plant.T_f)
     return out.events, {"t": t, "T_w": T_w, "T_p": T_p_m, "v": v, "T_a": T_a_m, "T_w_cmd": np.full(n, cmd),
-            "T_p_cmd": np.full(n, T_p), "q_i_hat": out.columns["q_i_hat"],
+            "T_p_cmd": np.asarray(plant.T_p_prescribed), "q_i_hat": out.columns["q_i_hat"],
             "dq_i_hat": out.columns["dq_i_hat"],
             "q_i": G * (T_f - T_g), "T_g": T_g, "T_w_true": T_w_true, "contact_true": (G > 0).astype(float)}
 

@@ -15,6 +15,12 @@ Overlapping touches add their conductances; the body temperature seen by the she
 then the conductance-weighted mean ``T_f = sum(G_j T_j) / sum(G_j)`` (two conductances
 in parallel to the same node).
 
+A touch may override both factors: ``G`` (W/K) replaces ``n_fingers G_finger`` (a weak
+fingertip, 0.02 W/K; a palm, 0.3 W/K) and ``T_body`` (°C) the person's fingertip
+temperature (an object: a 15 °C can, a 45 °C mug). A touch with ``G`` may have
+``n_fingers = 0`` (an object or a palm: no fingertip), which the ``n_fingers`` column
+then counts as none.
+
 Where the numbers of :data:`PERSONS` come from (the paper, Sec. VI, names three persons,
 ``man1``, ``woman1``, ``woman2``, aged 27-28, and gives no thermal data for them):
 
@@ -27,7 +33,7 @@ Where the numbers of :data:`PERSONS` come from (the paper, Sec. VI, names three 
   The per-person spread of about ±10 % stands for the "variations depending on
   persons" of Fig. 18. Again assumptions, not measurements.
 
-``Touch.position`` is kept for a later spatial model (Fig. 19); the lumped two-node
+``Touch.position`` places a touch on the spatial skin (Fig. 19); the lumped two-node
 network ignores it.
 """
 
@@ -74,8 +80,10 @@ PERSONS: dict[str, Person] = {
 class Touch:
     """One touch: ``n_fingers`` fingers of ``person`` on the skin from ``t_on`` for ``duration`` s.
 
-    ``T_body`` (°C) overrides the person's fingertip temperature for this touch;
-    ``position`` is reserved for a spatial model (0 = at the thermocouple).
+    ``T_body`` (°C) overrides the person's fingertip temperature for this touch; ``G``
+    (W/K) overrides the total contact conductance ``n_fingers G_finger`` (then
+    ``n_fingers`` may be 0: not a fingertip); ``position`` places the touch on the spatial
+    skin (0 = at the thermocouple, 1 = the far end).
     """
 
     t_on: float
@@ -84,10 +92,17 @@ class Touch:
     person: str = "man1"
     position: float = 0.0
     T_body: float | None = None
+    G: float | None = None
 
     def __post_init__(self) -> None:
-        if isinstance(self.n_fingers, bool) or self.n_fingers not in (1, 2, 3):
-            raise ValueError(f"Touch at t_on = {self.t_on}: n_fingers = {self.n_fingers!r} must be 1, 2 or 3")
+        allowed = (0, 1, 2, 3) if self.G is not None else (1, 2, 3)
+        if isinstance(self.n_fingers, bool) or self.n_fingers not in allowed:
+            raise ValueError(f"Touch at t_on = {self.t_on}: n_fingers = {self.n_fingers!r} must be 1, 2 or 3"
+                             + (" (or 0 with G)" if self.G is not None else ""))
+        if self.G is not None and not (math.isfinite(self.G) and 0.0 < self.G < 100.0):
+            raise ValueError(f"Touch at t_on = {self.t_on}: G = {self.G} W/K must be in (0, 100)")
+        if self.T_body is not None and not (math.isfinite(self.T_body) and -20.0 <= self.T_body <= 100.0):
+            raise ValueError(f"Touch at t_on = {self.t_on}: T_body = {self.T_body} °C must be in [-20, 100]")
         if not (math.isfinite(self.duration) and self.duration > 0):
             raise ValueError(f"Touch at t_on = {self.t_on}: duration = {self.duration} s must be > 0")
         if not math.isfinite(self.t_on):
@@ -107,12 +122,22 @@ def _person(touch: Touch, persons: Mapping[str, Person]) -> Person:
                        f"(known: {', '.join(persons)})") from None
 
 
+def full_conductance(touch: Touch, persons: Mapping[str, Person] = PERSONS) -> float:
+    """The touch's conductance once pressed, W/K: ``G`` or ``n_fingers G_finger``."""
+    return touch.G if touch.G is not None else touch.n_fingers * _person(touch, persons).G_finger
+
+
+def body_temperature(touch: Touch, persons: Mapping[str, Person] = PERSONS) -> float:
+    """The touching body's temperature, °C: ``T_body`` or the person's."""
+    return touch.T_body if touch.T_body is not None else _person(touch, persons).T_body
+
+
 def touch_conductance(touch: Touch, t: float, persons: Mapping[str, Person] = PERSONS) -> float:
     """``G_c`` of one touch at time ``t``, W/K (ramped, zero outside ``(t_on, t_off)``)."""
     f = min(t - touch.t_on, touch.t_on + touch.duration - t) / RAMP_S
     if f <= 0.0:
         return 0.0
-    return touch.n_fingers * _person(touch, persons).G_finger * (f if f < 1.0 else 1.0)
+    return full_conductance(touch, persons) * (f if f < 1.0 else 1.0)
 
 
 def contact_at(touches: Sequence[Touch], t: float,
@@ -128,7 +153,7 @@ def contact_at(touches: Sequence[Touch], t: float,
     for touch in touches:
         g = touch_conductance(touch, t, persons)
         if g > 0.0:
-            T_body = touch.T_body if touch.T_body is not None else persons[touch.person].T_body
+            T_body = body_temperature(touch, persons)
             G += g
             GT += g * T_body
             n += touch.n_fingers
@@ -149,12 +174,12 @@ def contact_profile(touches: Sequence[Touch], t: NDArray[np.float64],
     GT = np.zeros_like(t)
     n = np.zeros(t.shape, dtype=np.int64)
     for touch in touches:
-        p = _person(touch, persons)
-        T_body = touch.T_body if touch.T_body is not None else p.T_body
+        G_full = full_conductance(touch, persons)
+        T_body = body_temperature(touch, persons)
         lo, hi = np.searchsorted(t, [touch.t_on, touch.t_off], side="right") if ordered else (0, t.size)
         seg = t[lo:hi]
         f = np.minimum(seg - touch.t_on, touch.t_on + touch.duration - seg) / RAMP_S
-        g = touch.n_fingers * p.G_finger * np.clip(f, 0.0, 1.0)
+        g = G_full * np.clip(f, 0.0, 1.0)
         G[lo:hi] += g
         GT[lo:hi] += g * T_body
         n[lo:hi] += np.where(g > 0.0, touch.n_fingers, 0)

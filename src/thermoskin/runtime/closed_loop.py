@@ -81,6 +81,7 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     est = ctrl.estimator
     sup = sv.Supervisor(cfg)
     check = sup.check
+    truth = plant.truth
     k_sent = 0
 
     def send(k1: int, code: int = 0) -> None:
@@ -109,12 +110,12 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
             cmd = cmd_at(t)
             setpoint_changes.pop(0)
         T_w, T_p, T_a = plant.measure()
-        fresh = 7
+        fresh = plant.fresh
         if check(t, T_w, T_p, T_a):
             ctrl.safe()  # safe outputs first; the plant gets them below
         else:
             ctrl.step(t, T_w, T_p, T_a, cmd, fresh)
-        skin = plant.skin
+        q_i, T_g, T_w_true, T_p_true = truth()
         c_t[k] = t
         c_Tw[k] = T_w
         c_Tp[k] = T_p
@@ -128,10 +129,10 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
         c_con[k] = ctrl.contact
         c_gap[k] = est.gap
         c_fr[k] = fresh
-        c_q[k] = skin.q_i
-        c_Tg[k] = skin.T_g
-        c_Twt[k] = skin.T_w
-        c_Tpt[k] = plant.tank.T_p
+        c_q[k] = q_i
+        c_Tg[k] = T_g
+        c_Twt[k] = T_w_true
+        c_Tpt[k] = T_p_true
         if est.started and on_start is not None:
             on_start(t)
         if est.ended and on_event is not None:

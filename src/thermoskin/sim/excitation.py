@@ -132,7 +132,7 @@ def simulate_excitation(cfg: Config, duration: float = 600.0, seed: int = 0,
     if progress is not None and next_report - every < n:
         progress(1.0)
 
-    sensors = Sensors(cfg.sensor)
+    sensors = Sensors(cfg.sensor, cfg.sampling.t_s)
     T_p_true = np.asarray(T_p)
     T_w_true = np.asarray(T_w)
     return {

@@ -1,12 +1,35 @@
-"""The simulated skin as a device: skin network, Peltier tank, sensors and scripted touches.
+"""The simulated plant: skin, tank, sensors, touches and ambient, stepped one ``t_s`` at a time.
 
-``measure()`` returns the thermocouple readings at the current sample; ``apply(drive, v)``
-holds the Peltier drive and the pump command over one ``t_s`` and advances the physics
-(zero-order hold). The tank gives the skin's water ``T_p`` and loses ``q_p`` to it.
+One plant serves every simulated path: ``sim.run.simulate`` (open loop, prescribed
+``T_p``, pump logic), ``runtime.closed_loop`` (Peltier tank under the loop body),
+``devices.sim_device.SimDevice`` (the realtime loop's device), the device emulator's
+``DeviceCore`` (touches and ambient repeating every scenario duration) and the spatial
+runs of ``experiments.runs``. A fix to the plant is a fix to all of them.
 
-``skin_model="network"`` is the two-node network of Fig. 3 (what the observer assumes);
-``"spatial"`` is the cell model along the pipe (``physics.spatial``), where each touch acts at
-its ``position`` (0 = at the thermocouple, 1 = the far end).
+Per sample ``k`` (``t_k = k t_s``)::
+
+    T_w, T_p, T_a = plant.measure()   # the boards' readings of the state at t_k; plant.fresh
+    plant.apply(drive, v)             # hold drive and v over [t_k, t_k+1), advance (ZOH)
+
+- **skin**: ``"network"``, the two-node network of Fig. 3 (``sim.skin.SimulatedSkin``,
+  what the observer assumes), or ``"spatial"``, cells along the pipe
+  (``sim.spatial_skin.SpatialSkin``), each touch at its ``position``;
+- **tank**: ``"peltier"``, the Peltier tank (``physics.peltier.PeltierTank``) driven by
+  ``drive`` and losing ``q_p = (T_p - T_w)/R_w(v)`` to the skin's water; or
+  ``"prescribed"``, ``T_p = scenario.T_p(t)`` (``drive`` ignored);
+- **touches** ``G_c, T_f`` (``physics.finger.contact_profile``) and the **true ambient**
+  ``scenario.T_a_at(t)`` drive the skin (and the tank's loss to the air); with
+  ``repeat=True`` both repeat every ``scenario.duration`` and the plant runs for ever;
+- **sensors** (``sim.sensors.Sensors``, ``[sensor]``) read ``T_w``, ``T_p`` and the true
+  ambient once per sample.
+
+Truth at sample ``k`` (:meth:`truth`): ``q_i = G_c(t_k) (T_f(t_k) - T_g(t_k))`` with the
+contact applied from ``t_k`` on (as the open-loop log), ``T_g``, ``T_w``, ``T_p``.
+
+Starts (:meth:`reset`): ``"ambient"`` (tank, heat sink, pipe and sheet at the air, the
+closed loop's start), ``"command"`` (the pipe at ``T_w0``, the sheet in its equilibrium
+for it) or ``"equilibrium"`` (the network's equilibrium for ``T_p(0)`` and a held ``v``;
+a Peltier tank at ``T_p(0)``, its sink at the air).
 """
 
 from __future__ import annotations
@@ -14,75 +37,153 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import NDArray
 
 from thermoskin.params import Config
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.finger import contact_profile
 from thermoskin.physics.peltier import PeltierTank
+from thermoskin.physics.spatial import SpatialParams
 from thermoskin.sim.scenarios import Scenario
-from thermoskin.sim.skin import Sensors, SimulatedSkin
+from thermoskin.sim.sensors import Sensors
+from thermoskin.sim.skin import SimulatedSkin
+
+SKIN_MODELS = ("network", "spatial")
+TANKS = ("peltier", "prescribed")
+STARTS = ("ambient", "command", "equilibrium")
 
 
 class SimulatedPlant:
-    """One scenario on the simulated skin, sample by sample."""
+    """One scenario on the simulated skin, sample by sample (see the module doc).
+
+    ``n`` samples (default: the scenario's duration); with ``repeat`` the profiles span one
+    scenario duration and repeat. Profiles over those samples: ``G_c``, ``T_f``, ``position``
+    (lists), ``n_fingers``, ``T_a_true`` and, for a prescribed tank, ``T_p_prescribed`` (arrays).
+    """
 
     def __init__(self, cfg: Config, scenario: Scenario, n: int | None = None,
-                 skin_model: str = "network") -> None:
+                 skin_model: str = "network", *, tank: str = "peltier", repeat: bool = False,
+                 spatial: SpatialParams | None = None) -> None:
+        if skin_model not in SKIN_MODELS:
+            raise ValueError(f"unknown skin_model {skin_model!r} (network or spatial)")
+        if tank not in TANKS:
+            raise ValueError(f"unknown tank {tank!r} (peltier or prescribed)")
         t_s = cfg.sampling.t_s
         self.cfg = cfg
         self.scenario = scenario
         self.t_s = t_s
+        self.repeat = bool(repeat)
         self.n = n if n is not None else max(1, math.floor(scenario.duration / t_s + 1e-9))
         t = np.arange(self.n) * t_s
         G_c, T_f, n_f = contact_profile(scenario.touches, t)
-        self.G_c, self.T_f = G_c.tolist(), T_f.tolist()
-        self.n_fingers = n_f
-        self.position = [0.0] * self.n
-        if skin_model == "spatial":
+        self.G_c: list[float] = G_c.tolist()
+        self.T_f: list[float] = T_f.tolist()
+        self.n_fingers: NDArray[np.int64] = n_f
+        self.spatial = skin_model == "spatial"
+        if self.spatial:
             from thermoskin.sim.spatial_skin import SpatialSkin
 
             pos = np.zeros(self.n)
             for tc in scenario.touches:
                 pos[(t >= tc.t_on) & (t < tc.t_off)] = tc.position
-            self.position = pos.tolist()
-            self.skin: SimulatedSkin = SpatialSkin(cfg)  # type: ignore[assignment]
-        elif skin_model == "network":
-            self.skin = SimulatedSkin(cfg)
+            self.position: list[float] = pos.tolist()
+            self.skin: SimulatedSkin = SpatialSkin(cfg, spatial)  # type: ignore[assignment]
         else:
-            raise ValueError(f"unknown skin_model {skin_model!r} (network or spatial)")
-        self.spatial = skin_model == "spatial"
-        self.tank = PeltierTank(cfg.peltier, t_s,
-                                (cfg.control.drive_min, cfg.control.drive_max))
+            self.position = [0.0] * self.n
+            self.skin = SimulatedSkin(cfg)
+        self.prescribed = tank == "prescribed"
+        self.T_p_prescribed = np.asarray(scenario.T_p(t), dtype=float) if self.prescribed else None
+        self._T_p = self.T_p_prescribed.tolist() if self.T_p_prescribed is not None else []
+        self.tank = PeltierTank(cfg.peltier, t_s, (cfg.control.drive_min, cfg.control.drive_max))
         self.R_w = FlowResistance(cfg.skin)
-        self.sensors = Sensors(cfg.sensor)
-        self.T_a = float(scenario.T_a)
-        # thermocouple noise drawn in advance (plain lists: no allocation per sample)
-        self._noise = {ch: self.sensors.noise(ch, self.n).tolist() for ch in Sensors.CHANNELS}
+        self.sensors = Sensors(cfg.sensor, t_s)
+        self.T_a_true: NDArray[np.float64] = np.asarray(scenario.T_a_at(t), dtype=float)
+        """The true ambient at each sample (the scenario's profile), °C."""
+        self._T_a = self.T_a_true.tolist()
         self.k = 0
         self.reset()
 
-    def reset(self) -> None:
-        """Everything at ambient: the tank, the sink, the pipe and the sheet."""
-        T_a = self.T_a
+    # -- state ---------------------------------------------------------------------------
+    def reset(self, start: str = "ambient", *, T_w0: float | None = None, v: float = 0.0) -> None:
+        """Back to sample 0, sensors from their seed; ``start`` one of :data:`STARTS` (module doc).
+
+        ``T_w0`` (°C) is the pipe of a ``"command"`` start (default ``scenario.T_w_cmd_at(0)``),
+        ``v`` (m/s) the pump held for an ``"equilibrium"`` start.
+        """
+        if start not in STARTS:
+            raise ValueError(f"SimulatedPlant.reset: start = {start!r} must be one of {STARTS}")
         self.k = 0
-        self.tank.reset(T_a, T_a, T_a)
-        self.skin.reset(T_a, T_a=T_a, G_c=self.G_c[0], T_f=self.T_f[0])
+        self._k_read = -1
+        self._reading = (math.nan, math.nan, math.nan)
+        self.fresh = 0
+        self.sensors.reset()
+        T_a, G0, T_f0 = self._T_a[0], self.G_c[0], self.T_f[0]
+        skin, tank = self.skin, self.tank
+        if start == "ambient":
+            tank.reset(T_a, T_a, T_a)
+            skin.reset(T_a, T_a=T_a, G_c=G0, T_f=T_f0)
+            return
+        T_p0 = float(self.scenario.T_p(0.0))
+        tank.reset(T_p0, None, T_a)
+        if start == "command":
+            w0 = self.scenario.T_w_cmd_at(0.0) if T_w0 is None else float(T_w0)
+            skin.reset(w0, T_a=T_a, G_c=G0, T_f=T_f0)
+        else:
+            skin.reset_equilibrium(T_p0, v, T_a, G0, T_f0)
+
+    def index(self) -> int:
+        """Index of the current sample in the profiles (``k``, or ``k mod n`` when repeating)."""
+        return self.k % self.n if self.repeat else self.k
+
+    @property
+    def T_p_true(self) -> float:
+        """The tank's true temperature now, °C."""
+        return self._T_p[self.index()] if self.prescribed else self.tank.T_p
 
     def measure(self) -> tuple[float, float, float]:
-        """``(T_w, T_p, T_a)`` as the thermocouples read them now (°C)."""
-        k, q, nz = self.k, self.sensors.quantise, self._noise
-        return (q(self.skin.T_w + nz["T_w"][k]), q(self.tank.T_p + nz["T_p"][k]),
-                q(self.T_a + nz["T_a"][k]))
+        """``(T_w, T_p, T_a)`` as the thermocouples read them now (°C); ``fresh`` their bit mask.
+
+        The sensors advance once per sample: a second call in the same sample repeats the first.
+        """
+        if self._k_read != self.k:
+            i = self.index()
+            sens = self.sensors
+            T_p = self._T_p[i] if self.prescribed else self.tank.T_p
+            self._reading = sens.read(self.skin.T_w, T_p, self._T_a[i])
+            self.fresh = sens.fresh
+            self._k_read = self.k
+        return self._reading
+
+    def truth(self) -> tuple[float, float, float, float]:
+        """``(q_i, T_g, T_w, T_p)`` now (W, °C): ``q_i`` with the contact applied from now on."""
+        i = self.index()
+        skin = self.skin
+        G = self.G_c[i]
+        T_g = skin.T_g
+        q_i = G * (self.T_f[i] - T_g) if G > 0.0 else 0.0
+        return q_i, T_g, skin.T_w, self.T_p_true
+
+    def contact(self) -> tuple[int, int]:
+        """``(contact_true, n_fingers)`` now: 1 while ``G_c > 0``, and the fingers touching."""
+        i = self.index()
+        return (1 if self.G_c[i] > 0.0 else 0), int(self.n_fingers[i])
 
     def apply(self, drive: float, v: float) -> None:
         """Hold ``drive`` and ``v`` over one sample and advance."""
-        k = self.k
-        skin, tank = self.skin, self.tank
-        q_p = (tank.T_p - skin.T_w) / self.R_w(v)
-        if self.spatial:
-            skin.step(tank.T_p, v, self.T_a, self.G_c[k], self.T_f[k],
-                      position=self.position[k])  # type: ignore[call-arg]
+        if self._k_read != self.k:
+            self.measure()  # the sensors see every sample
+        i = self.index()
+        skin = self.skin
+        T_a = self._T_a[i]
+        if self.prescribed:
+            T_p = self._T_p[i]
         else:
-            skin.step(tank.T_p, v, self.T_a, self.G_c[k], self.T_f[k])
-        tank.step(drive, self.T_a, q_p)
-        self.k = k + 1
+            tank = self.tank
+            T_p = tank.T_p
+            tank.step(drive, T_a, (T_p - skin.T_w) / self.R_w(v))
+        if self.spatial:
+            skin.step(T_p, v, T_a, self.G_c[i], self.T_f[i],
+                      position=self.position[i])  # type: ignore[call-arg]
+        else:
+            skin.step(T_p, v, T_a, self.G_c[i], self.T_f[i])
+        self.k += 1

@@ -1,19 +1,34 @@
-"""Named simulation scenarios: touches, commands, the prescribed Peltier temperature, the pump mode.
+"""Named simulation scenarios: touches, commands, ambient, the prescribed Peltier temperature, the pump.
 
-The Peltier/tank temperature is prescribed here (no MPC, no Peltier model)::
+The Peltier/tank temperature is prescribed here for the open loop (no MPC, no Peltier
+model)::
 
-    T_p(t) = T_w_cmd + T_p_offset + T_p_drift sin(2 pi t / T_p_period)
+    T_p(t) = c(t) + T_p_drift sin(2 pi t / T_p_period)
+
+where ``c(t)`` follows ``T_w_cmd(t) + T_p_offset`` at no more than ``T_p_rate`` K/s (a
+tank cannot step): with one command ``c = T_w_cmd + T_p_offset``; with a set-point
+schedule, from the start of each command segment ``[s_i, s_i+1)`` with target ``c_i``::
+
+    c(t) = c_i + sign(c(s_i) - c_i) max(|c(s_i) - c_i| - T_p_rate (t - s_i), 0)
 
 With the pump logic around ``T_w_cmd`` (Sec. V) an offset of a few tenths of a kelvin
 heats the pipe while the pump runs and the pipe cools by natural loss while it is stopped:
-the chattering of Fig. 8. The touch scenarios follow Sec. VI (one, two, three fingers;
-three persons), with touches 1.5-3 s long and 5-9 s of quiet between them ("gap":
-from the release of one touch to the onset of the next).
+the chattering of Fig. 8.
+
+The ambient air is ``T_a`` (constant) or, with ``ambient = ((t_0, T_a0), (t_1, T_a1), ...)``,
+piecewise linear through those points and constant before the first and after the last;
+``T_a`` is then the profile's value at ``t = 0``. The true ambient drives the physics (the
+skin's and the tank's losses to the air); the air sensor sees it through its lag.
+
+The touch scenarios follow Sec. VI (one, two, three fingers; three persons), with touches
+1.5-3 s long and 5-9 s of quiet between them ("gap": from the release of one touch to the
+onset of the next).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -27,7 +42,7 @@ PUMP_MODES = ("logic", "on", "off")
 
 @dataclass(frozen=True)
 class Scenario:
-    """One simulated experiment: ``duration`` s, ``T_w_cmd`` and ``T_a`` (°C), ``T_p(t)``, touches, pump."""
+    """One simulated experiment: ``duration`` s, command(s), ambient, ``T_p(t)``, touches, pump."""
 
     name: str
     description: str
@@ -40,7 +55,11 @@ class Scenario:
     T_p_drift: float = 0.0
     T_p_period: float = 60.0
     setpoints: tuple[tuple[float, float], ...] = ()
-    """Command schedule ``((t_start, T_w_cmd), ...)`` for the closed loop; empty: ``T_w_cmd``."""
+    """Command schedule ``((t_start, T_w_cmd), ...)``; empty: ``T_w_cmd`` throughout."""
+    ambient: tuple[tuple[float, float], ...] = ()
+    """Ambient profile ``((t, T_a), ...)``, piecewise linear (s, °C); empty: ``T_a`` throughout."""
+    T_p_rate: float = 0.3
+    """Fastest change of the prescribed ``T_p`` after a command change, K/s."""
 
     def __post_init__(self) -> None:
         if self.pump not in PUMP_MODES:
@@ -49,13 +68,53 @@ class Scenario:
             raise ValueError(f"Scenario {self.name!r}: duration = {self.duration} s must be > 0")
         if not self.T_p_period > 0:
             raise ValueError(f"Scenario {self.name!r}: T_p_period = {self.T_p_period} s must be > 0")
+        if not (math.isfinite(self.T_p_rate) and self.T_p_rate > 0):
+            raise ValueError(f"Scenario {self.name!r}: T_p_rate = {self.T_p_rate} K/s must be > 0")
+        for what, pts in (("setpoints", self.setpoints), ("ambient", self.ambient)):
+            pts = tuple((float(a), float(b)) for a, b in pts)
+            if not all(math.isfinite(a) and math.isfinite(b) for a, b in pts):
+                raise ValueError(f"Scenario {self.name!r}: {what} must hold finite (s, °C) pairs")
+            times = [a for a, _ in pts]
+            if any(b <= a for a, b in itertools.pairwise(times)):
+                raise ValueError(f"Scenario {self.name!r}: the times of {what} must increase")
+            object.__setattr__(self, what, pts)
+        if self.ambient:
+            object.__setattr__(self, "T_a", float(self.T_a_at(0.0)))
         object.__setattr__(self, "touches", tuple(sorted(self.touches, key=lambda tc: tc.t_on)))
 
-    def T_p(self, t: float | NDArray[np.float64]) -> float | NDArray[np.float64]:
-        """Prescribed Peltier/tank temperature, °C (scalar or array ``t``)."""
+    def T_a_at(self, t: float | NDArray[np.float64]) -> float | NDArray[np.float64]:
+        """The true ambient at ``t`` (s), °C (scalar or array ``t``)."""
         tt = np.asarray(t, dtype=float)
-        out = self.T_w_cmd + self.T_p_offset + self.T_p_drift * np.sin(2.0 * np.pi * tt / self.T_p_period)
+        if not self.ambient:
+            out = np.full(tt.shape, float(self.T_a))
+        else:
+            xp, fp = zip(*self.ambient, strict=True)
+            out = np.interp(tt, xp, fp)
         return float(out) if out.ndim == 0 else out
+
+    def T_p(self, t: float | NDArray[np.float64]) -> float | NDArray[np.float64]:
+        """Prescribed Peltier/tank temperature, °C (scalar or array ``t``); see the module doc."""
+        tt = np.asarray(t, dtype=float)
+        drift = self.T_p_drift * np.sin(2.0 * np.pi * tt / self.T_p_period)
+        base = self._T_p_limited(tt) if self.setpoints else self.T_w_cmd + self.T_p_offset
+        out = base + drift
+        return float(out) if out.ndim == 0 else out
+
+    def _T_p_limited(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``c(t)``: the command plus offset, followed at ``T_p_rate`` K/s from ``c(0)``."""
+        starts = sorted({0.0, *(t0 for t0, _ in self.setpoints if t0 > 0.0)})
+        out = np.empty(t.shape)
+        c_start = self.T_w_cmd_at(0.0) + self.T_p_offset
+        rate = self.T_p_rate
+        for i, s0 in enumerate(starts):
+            s1 = starts[i + 1] if i + 1 < len(starts) else math.inf
+            target = self.T_w_cmd_at(s0) + self.T_p_offset
+            gap = c_start - target  # 0 in the first segment
+            m = t < s1 if i == 0 else (t >= s0) & (t < s1)
+            out[m] = target + np.sign(gap) * np.maximum(abs(gap) - rate * (t[m] - s0), 0.0)
+            if math.isfinite(s1):
+                c_start = target + float(np.sign(gap)) * max(abs(gap) - rate * (s1 - s0), 0.0)
+        return out
 
     def T_w_cmd_at(self, t: float) -> float:
         """The water-temperature command at ``t`` (s), °C."""
@@ -65,12 +124,21 @@ class Scenario:
                 cmd = c
         return cmd
 
+    def T_w_cmd_profile(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """:meth:`T_w_cmd_at` over an array of times, °C."""
+        t = np.asarray(t, dtype=float)
+        out = np.full(t.shape, float(self.T_w_cmd))
+        for t0, c in self.setpoints:
+            out[t >= t0] = c
+        return out
+
     def shifted(self, dt: float) -> Scenario:
-        """The same touches and command changes ``dt`` s later, the run ``dt`` s longer."""
+        """The same touches, command and ambient changes ``dt`` s later, the run ``dt`` s longer."""
         touches = tuple(dataclasses.replace(tc, t_on=tc.t_on + dt) for tc in self.touches)
         setpoints = tuple((t0 + dt, c) for t0, c in self.setpoints)
+        ambient = tuple((t0 + dt, T) for t0, T in self.ambient)
         return dataclasses.replace(self, duration=self.duration + dt, touches=touches,
-                                   setpoints=setpoints)
+                                   setpoints=setpoints, ambient=ambient)
 
     def with_setpoint(self, T_w_cmd: float) -> Scenario:
         """The same scenario held at one command."""

@@ -18,22 +18,24 @@ is computed in closed form (``b c > 0``, so the eigenvalues ``m ± δ`` are real
 
 and cached per ``(v, G_c)``, so that a step is a dozen float multiplications.
 
-:class:`Sensors` turns the true temperatures into thermocouple readings: additive
-Gaussian noise of standard deviation ``noise_T`` and rounding to ``quantum_T``.
+:class:`~thermoskin.sim.sensors.Sensors` (re-exported here) turns the true temperatures
+into thermocouple readings.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.params import Config, SensorParams
+from thermoskin.params import Config
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.finger import T_F_IDLE
 from thermoskin.physics.network import state_space, steady_state
+from thermoskin.sim.sensors import Sensors
+
+__all__ = ["Sensors", "SimulatedSkin", "zoh_2x2", "zoh_coefficients"]
 
 Array = NDArray[np.float64]
 Coefficients = tuple[float, float, float, float, float, float, float, float, float, float, float, float]
@@ -171,74 +173,3 @@ class SimulatedSkin:
         self.G_c = G_c
         self.T_f = T_f
         self.k += 1
-
-
-class Sensors:
-    """Thermocouple readings of ``T_w``, ``T_p``, ``T_a``: noise and quantisation.
-
-    ``reading = quantum_T * floor((x + noise_T * N(0, 1)) / quantum_T + 1/2)``
-    (no rounding when ``quantum_T = 0``). Each channel draws from its own generator
-    (``SeedSequence(seed).spawn``), so one channel's readings do not depend on how many
-    readings the others took. :meth:`measure_one` (per sample) and :meth:`measure`
-    (arrays) give the same numbers for the same sequence of samples.
-    """
-
-    CHANNELS: tuple[str, ...] = ("T_w", "T_p", "T_a")
-    BLOCK = 1024
-
-    def __init__(self, sensor: SensorParams, channels: Sequence[str] = CHANNELS) -> None:
-        self.sensor = sensor
-        self.channels = tuple(channels)
-        self.noise_T = float(sensor.noise_T)
-        self.quantum_T = float(sensor.quantum_T)
-        self.reset()
-
-    def reset(self) -> None:
-        """Restart every channel's noise sequence from the seed."""
-        seqs = np.random.SeedSequence(int(self.sensor.seed)).spawn(len(self.channels))
-        self._rng = {ch: np.random.default_rng(s) for ch, s in zip(self.channels, seqs, strict=True)}
-        self._buf: dict[str, list[float]] = {ch: [] for ch in self.channels}
-        self._pos: dict[str, int] = dict.fromkeys(self.channels, 0)
-
-    def _generator(self, channel: str) -> np.random.Generator:
-        try:
-            return self._rng[channel]
-        except KeyError:
-            known = ", ".join(self.channels)
-            raise KeyError(f"Sensors: unknown channel {channel!r} (known: {known})") from None
-
-    def noise(self, channel: str, n: int) -> Array:
-        """The next ``n`` noise values of a channel, K."""
-        rng = self._generator(channel)
-        buf, pos = self._buf[channel], self._pos[channel]
-        head = np.asarray(buf[pos:pos + n], dtype=float)  # left over from measure_one's block
-        self._pos[channel] = pos + head.size
-        rest = rng.standard_normal(n - head.size)
-        return self.noise_T * np.concatenate([head, rest])
-
-    def quantise(self, x: float) -> float:
-        """Round to the nearest multiple of ``quantum_T`` (ties upward)."""
-        q = self.quantum_T
-        return q * math.floor(x / q + 0.5) if q > 0.0 else x
-
-    def quantise_array(self, x: Array) -> Array:
-        """Vectorised :meth:`quantise`."""
-        q = self.quantum_T
-        x = np.asarray(x, dtype=float)
-        return q * np.floor(x / q + 0.5) if q > 0.0 else x.copy()
-
-    def measure(self, channel: str, x: Array) -> Array:
-        """Readings of a whole array of true values."""
-        x = np.asarray(x, dtype=float)
-        return self.quantise_array(x + self.noise(channel, x.size).reshape(x.shape))
-
-    def measure_one(self, channel: str, x: float) -> float:
-        """One reading (per-sample path; noise drawn in blocks of :attr:`BLOCK`)."""
-        buf = self._buf[channel]
-        pos = self._pos[channel]
-        if pos >= len(buf):
-            buf = self._generator(channel).standard_normal(self.BLOCK).tolist()
-            self._buf[channel] = buf
-            pos = 0
-        self._pos[channel] = pos + 1
-        return self.quantise(x + self.noise_T * buf[pos])

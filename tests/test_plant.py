@@ -1,0 +1,137 @@
+"""One simulated plant behind every simulated path: the open loop, the closed loop, SimDevice,
+the emulator's DeviceCore and the spatial runs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from thermoskin.devices import protocol as proto
+from thermoskin.devices.emulator import DeviceCore
+from thermoskin.devices.sim_device import SimDevice
+from thermoskin.params import Config
+from thermoskin.physics.finger import Touch
+from thermoskin.runtime.closed_loop import run_closed_loop
+from thermoskin.sim.plant import SimulatedPlant
+from thermoskin.sim.run import simulate
+from thermoskin.sim.scenarios import SCENARIOS, Scenario
+
+CFG = Config()
+
+
+def test_open_loop_log_is_the_plant_stepped_by_the_pump_logic() -> None:
+    """simulate() = a prescribed-tank plant with the pump logic on its T_w reading."""
+    from thermoskin.control.pump import PumpLogic
+
+    sc = SCENARIOS["one-finger"].with_duration(8.0)
+    cfg = CFG.replace(sensor={"period_T_a": 0.05, "lag_T_a": 1.0, "seed": 4})
+    log = simulate(sc, cfg)
+    plant = SimulatedPlant(cfg, sc, tank="prescribed")
+    plant.reset("command", T_w0=24.0)
+    pump = PumpLogic(cfg.pump, cfg.sampling.t_s)
+    rows = []
+    for _ in range(plant.n):
+        q_i, T_g, T_w, T_p = plant.truth()
+        m = plant.measure()
+        v = pump.step(m[0], 24.0)
+        rows.append((*m, v, plant.fresh, q_i, T_g, T_w, T_p, *plant.contact()))
+        plant.apply(0.0, v)
+    r = np.array(rows)
+    for i, k in enumerate(("T_w", "T_p", "T_a", "v", "fresh", "q_i", "T_g", "T_w_true")):
+        np.testing.assert_array_equal(r[:, i], log[k], err_msg=k)
+    np.testing.assert_array_equal(r[:, 8], sc.T_p(log["t"]))
+    np.testing.assert_array_equal(r[:, 9], log["contact_true"])
+    np.testing.assert_array_equal(r[:, 10], log["n_fingers"])
+
+
+def test_closed_loop_and_sim_device_share_the_plants_truth() -> None:
+    sc = SCENARIOS["one-finger"].with_duration(7.0)
+    c = run_closed_loop(sc, CFG).columns
+    G = np.asarray(SimulatedPlant(CFG, sc).G_c)
+    from thermoskin.physics.finger import contact_profile
+
+    G2, T_f, _ = contact_profile(sc.touches, c["t"])
+    np.testing.assert_array_equal(G, G2)
+    # q_i with the contact applied from t_k on, as the open-loop log
+    np.testing.assert_allclose(c["q_i"], G2 * (T_f - c["T_g"]), rtol=0, atol=1e-15)
+    assert c["q_i"].max() > 0.2
+    dev = SimDevice(CFG, sc)
+    dev.open()
+    for k in range(5200):
+        s = dev.read_sample()
+        assert s is not None
+        q_i, T_g, _, _ = dev.truth()
+        if k == 5100:
+            assert q_i == pytest.approx(G2[k] * (T_f[k] - T_g), abs=1e-15) and q_i > 0
+        dev.write_command(0.0, 0.141)
+
+
+def test_the_true_ambient_drives_the_tanks_loss() -> None:
+    """One step of the tank from the air's 20 °C with the air at 30 °C: the loss term by hand."""
+    sc = Scenario("amb", "", 2.0, ambient=((0.0, 30.0), (1.0, 30.0)), T_a=20.0)
+    plant = SimulatedPlant(CFG, sc)
+    assert plant.T_a_true[0] == 30.0
+    # start the tank, its sink and the skin at 20 °C against air at 30 °C
+    plant.tank.reset(20.0, 20.0)
+    plant.skin.reset(20.0, 20.0)
+    p = CFG.peltier
+    plant.apply(0.0, 0.0)
+    t_s = CFG.sampling.t_s
+    rate = (plant.tank.T_p - 20.0) / t_s
+    assert rate == pytest.approx((30.0 - 20.0) / (p.R_tank_air * p.C_tank), rel=1e-3)
+
+
+def test_emulator_core_is_the_plant_with_the_devices_boards_and_repeating_touches() -> None:
+    sc = Scenario("rep", "", 3.0, touches=(Touch(0.5, 1.0, 2),))
+    core = DeviceCore(CFG, sc, tc_period=0.1, command_timeout=100.0)
+    core.on_message(proto.Hello(0))
+    core.on_message(proto.Command(1, 0.2, 0.141))
+    samples = [m for _ in range(7000) for m in core.step() if isinstance(m, proto.SampleMsg)]
+    truths = []
+    core2 = DeviceCore(CFG, sc, tc_period=0.1)
+    core2.on_message(proto.Hello(0))
+    core2.on_message(proto.Command(1, 0.2, 0.141))
+    for _ in range(7000):
+        core2.step()
+        truths.append(core2.truth)
+    tr = np.array(truths)
+    # touches repeat every scenario duration (3000 samples)
+    np.testing.assert_array_equal(tr[:3000, 1], tr[3000:6000, 1])
+    t_in = (np.arange(7000) % 3000) * 1e-3
+    np.testing.assert_array_equal(tr[:, 1], (t_in > 0.5) & (t_in < 1.5))
+    assert set(tr[:, 3]) == {0.0, 2.0}
+    # the same plant stepped by hand with the same commands reads the same
+    cfg = CFG.replace(sensor={"period_T_w": 0.1, "period_T_p": 0.1, "period_T_a": 0.1})
+    plant = SimulatedPlant(cfg, sc, repeat=True)
+    plant.reset("equilibrium", v=cfg.pump.v_on)
+    for k, m in enumerate(samples):
+        T_w, T_p, T_a = plant.measure()
+        if m.fresh:
+            assert (m.T_w, m.T_p, m.T_a) == (T_w, T_p, T_a), k
+        assert m.fresh == plant.fresh
+        plant.apply(0.2, 0.141)
+    assert [m.t_us for m in samples if m.fresh][:3] == [0, 100_000, 200_000]
+
+
+def test_emulator_jitter_and_fault_on_plant_readings() -> None:
+    core = DeviceCore(CFG, SCENARIOS["none"], [], tc_period=0.1, jitter=0.004)
+    core.on_message(proto.Hello(0))
+    msgs = [m for _ in range(3000) for m in core.step() if isinstance(m, proto.SampleMsg)]
+    fresh_t = np.array([m.t_us for m in msgs if m.fresh & proto.CH_W]) * 1e-6
+    off = fresh_t[1:] - 0.1 * np.round(fresh_t[1:] / 0.1)
+    assert np.all(np.abs(off) <= 0.0045) and np.any(off != 0.0)
+    assert core.cfg.sensor.jitter == 0.004 and core.tc_period == pytest.approx(0.1)
+    with pytest.raises(ValueError, match="jitter"):
+        DeviceCore(CFG, SCENARIOS["none"], tc_period=0.01, jitter=0.006)
+    assert math.isnan(DeviceCore(CFG, SCENARIOS["none"]).t_safe)
+
+
+def test_plant_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="skin_model"):
+        SimulatedPlant(CFG, SCENARIOS["none"], skin_model="foam")
+    with pytest.raises(ValueError, match="tank"):
+        SimulatedPlant(CFG, SCENARIOS["none"], tank="kettle")
+    with pytest.raises(ValueError, match="start"):
+        SimulatedPlant(CFG, SCENARIOS["none"]).reset("somewhere")
