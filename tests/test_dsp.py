@@ -129,3 +129,17 @@ def test_order_zero_and_improper() -> None:
     np.testing.assert_allclose(f.run(np.array([1.0, -2.0]), 0.0), [2.5, -5.0])
     with pytest.raises(ValueError):
         Iir(np.array([1.0, 0.0]), np.array([1.0]), T_S)
+
+
+@pytest.mark.parametrize(("num", "den"), [([1.0], [0.0166, 0.1464, 0.0]), ([2.0, 1.0], [1.0, 3.0, 2.0]),
+                                          ([1.0], [1.34, 1.0]), ([3.0, 0.0, 1.0], [1.0, 2.0, 2.0, 1.0])])
+def test_bilinear_is_scipys(num: list[float], den: list[float]) -> None:
+    """The hand-written Tustin map (no scipy.signal import at start-up) against scipy's."""
+    from scipy.signal import bilinear as scipy_bilinear
+
+    from thermoskin.dsp import bilinear
+
+    b, a = bilinear(np.array(num), np.array(den), 1000.0)
+    b_ref, a_ref = scipy_bilinear(num, den, 1000.0)
+    np.testing.assert_allclose(b, b_ref, rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(a, a_ref, rtol=1e-12, atol=1e-15)

@@ -1,7 +1,7 @@
 """Discrete SISO filters from continuous transfer functions, streamed or over arrays.
 
 ``Iir`` discretises ``num(s)/den(s)`` with the bilinear (Tustin) transform
-(``scipy.signal.bilinear``) and runs it in transposed direct form II, the form
+(:func:`bilinear`, ``s = 2 f_s (z - 1)/(z + 1)``) and runs it in transposed direct form II, the form
 ``scipy.signal.lfilter`` uses, so that the per-sample ``step`` and the array path
 ``run`` share one state layout and agree to rounding. The filter runs on the deviation
 from the value it was reset at (``x - x0``, output ``dc x0 +``), so that large absolute
@@ -12,16 +12,42 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import bilinear, lfilter, lfilter_zi
 
 Array = NDArray[np.float64]
+
+
+def bilinear(num: Array, den: Array, fs: float) -> tuple[Array, Array]:
+    """Tustin's map of ``num(s)/den(s)`` (coefficients highest power first) to ``b(z)/a(z)``.
+
+    With ``n`` the order of ``den`` and ``k = 2 fs``, each ``c_j s^j`` becomes
+    ``c_j k^j (z - 1)^j (z + 1)^(n - j)``; both polynomials are divided by ``a``'s leading
+    coefficient (as ``scipy.signal.bilinear``, without importing ``scipy.signal``).
+    """
+    num = np.atleast_1d(np.asarray(num, dtype=float))
+    den = np.atleast_1d(np.asarray(den, dtype=float))
+    n = len(den) - 1
+    k = 2.0 * fs
+
+    def mapped(c: Array) -> Array:
+        out = np.zeros(n + 1)
+        for i, cj in enumerate(c[::-1]):  # cj multiplies s^i
+            term = np.array([cj * k**i])
+            for _ in range(i):
+                term = np.convolve(term, [1.0, -1.0])
+            for _ in range(n - i):
+                term = np.convolve(term, [1.0, 1.0])
+            out += term
+        return out
+
+    b, a = mapped(num), mapped(den)
+    return b / a[0], a / a[0]
 
 
 class Iir:
     """A proper SISO filter ``num(s)/den(s)`` discretised at ``t_s`` (Tustin)."""
 
     __slots__ = ("_a1", "_a2", "_a3", "_b0", "_b1", "_b2", "_b3", "_step", "_x0", "_y0",
-                 "a", "b", "dc", "order", "z", "zi_unit")
+                 "a", "b", "dc", "order", "z")
 
     def __init__(self, num: Array, den: Array, t_s: float) -> None:
         num = np.atleast_1d(np.asarray(num, dtype=float))
@@ -36,7 +62,6 @@ class Iir:
         self.a: Array = a
         self.order = n
         self.dc = float(num[-1] / den[-1]) if den[-1] != 0 else float("inf")
-        self.zi_unit: Array = lfilter_zi(b, a) if n > 0 else np.zeros(0)
         self.z: list[float] = [0.0] * n
         self._x0 = self._y0 = 0.0
         self._step = {0: self._step0, 1: self._step1, 2: self._step2, 3: self._step3}[n]
@@ -88,6 +113,8 @@ class Iir:
         self.reset(x0)
         if self.order == 0:
             return self._b0 * np.asarray(x, dtype=float)
+        from scipy.signal import lfilter  # 1 s of import: only where arrays are filtered
+
         y, zf = lfilter(self.b, self.a, np.asarray(x, dtype=float) - x0, zi=np.zeros(self.order))
         self.z = zf.tolist()
         return y + self._y0

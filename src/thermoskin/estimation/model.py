@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 
 from thermoskin.params import Config
 from thermoskin.physics.convection import R_w as R_w_of
+from thermoskin.physics.network import discretize
 
 Array = NDArray[np.float64]
 
@@ -92,13 +93,7 @@ def van_loan(A: Array, B: Array, S: Array, t_s: float) -> tuple[Array, Array, Ar
     """Exact ZOH discretisation ``(Phi, Gamma, Q_d)`` of ``dx = A x dt + B u dt + dw``,
     ``E[dw dw'] = S dt``."""
     n = A.shape[0]
-    B2 = B.reshape(n, -1)
-    m = B2.shape[1]
-    M = np.zeros((n + m, n + m))
-    M[:n, :n] = A
-    M[:n, n:] = B2
-    E = _expm(M * t_s)
-    Phi, Gam = E[:n, :n], E[:n, n:]
+    Phi, Gam = discretize(A, B, t_s)
     F = np.zeros((2 * n, 2 * n))
     F[:n, :n] = -A
     F[:n, n:] = S

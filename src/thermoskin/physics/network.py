@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import cont2discrete
 
 from thermoskin.params import SkinParams
 
@@ -45,11 +44,20 @@ def state_space(skin: SkinParams, R_w: float, G_c: float = 0.0) -> tuple[Array, 
 
 
 def discretize(A: Array, B: Array, t_s: float) -> tuple[Array, Array]:
-    """Exact zero-order-hold discretisation ``x[k+1] = Phi x[k] + Gamma u[k]``."""
-    n = A.shape[0]
-    Phi, Gamma, *_ = cont2discrete((A, B, np.eye(n), np.zeros((n, B.shape[1]))), t_s,
-                                   method="zoh")
-    return np.asarray(Phi), np.asarray(Gamma)
+    """Exact zero-order-hold discretisation ``x[k+1] = Phi x[k] + Gamma u[k]``.
+
+    ``[[Phi, Gamma], [0, I]] = exp([[A, B], [0, 0]] t_s)`` (one matrix exponential).
+    """
+    from scipy.linalg import expm
+
+    A = np.atleast_2d(np.asarray(A, dtype=float))
+    B2 = np.asarray(B, dtype=float).reshape(A.shape[0], -1)
+    n, m = B2.shape
+    M = np.zeros((n + m, n + m))
+    M[:n, :n] = A
+    M[:n, n:] = B2
+    E = expm(M * t_s)
+    return E[:n, :n], E[:n, n:]
 
 
 def steady_state(skin: SkinParams, R_w: float, u: Array, G_c: float = 0.0) -> Array:

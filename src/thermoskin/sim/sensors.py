@@ -38,7 +38,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.signal
 from numpy.typing import NDArray
 
 from thermoskin.params import SensorParams
@@ -202,6 +201,8 @@ class Board:
         if not self._lagged or x.size == 0:
             return x
         # y[k] = z[k-1], z[k] = b x[k] + a y[k]: the recursion of read(), term for term
+        import scipy.signal  # only on the array path (1 s of import)
+
         y, _ = scipy.signal.lfilter([0.0, self._b], [1.0, -self._a], x, zi=[x[0]])
         return np.asarray(y)
 
