@@ -171,8 +171,13 @@ def test_interrupted_recording_is_finished(tmp_path: Path) -> None:
     for p in procs:
         assert p.stdout is not None
         assert p.stdout.readline().startswith("thermoskin run")  # recording starts right after
-    time.sleep(0.8)
-    for p, (_, sig, _) in zip(procs, cases, strict=True):
+    # signal each run once its loop is recording (a loaded machine may take a while to start)
+    for p, (name, sig, _) in zip(procs, cases, strict=True):
+        path = tmp_path / f"{name}.mcap"
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline and (not path.exists() or path.stat().st_size < 20_000):
+            time.sleep(0.05)
+        time.sleep(0.3)
         p.send_signal(sig)
     for p, (name, sig, _) in zip(procs, cases, strict=True):
         _, err = p.communicate(timeout=30)
