@@ -255,28 +255,45 @@ def test_layout_names_only_recorded_topics_and_fields() -> None:
     assert panels(layout["layout"]) == set(layout["configById"])
 
 
+SERVE = """
+import sys
+from thermoskin.live import LiveServer
+from thermoskin.params import Config
+live = LiveServer("127.0.0.1", int(sys.argv[1]), config=Config())
+print("ready", flush=True)
+sys.stdin.read()
+live.close(linger=0)
+"""
+
+
 def test_server_latches_params_and_serves_a_self_contained_page() -> None:
+    """A LiveServer in a process of its own (its SDK callbacks would leave foreign-thread entries
+    in this process's `threading`, which would make later tests start their loop processes
+    by spawn rather than fork)."""
     port = free_port_pair()
-    cfg = Config()
-    with LiveServer("127.0.0.1", port, config=cfg) as live:
-        late = []
+    server = subprocess.Popen([sys.executable, "-c", SERVE, str(port)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True, env=ENV)
+    try:
+        assert server.stdout is not None and server.stdout.readline().strip() == "ready"
+        cfg = Config()
+        clients = []
         for _ in range(2):  # two clients, one after the other: both get the parameters
             c = FoxgloveClient(port, timeout=10)
-            late.append(c)
+            clients.append(c)
             t_end = time.monotonic() + 5
             while not c.of("/params") and time.monotonic() < t_end:
                 time.sleep(0.02)
             assert c.of("/params"), "no /params for a client that came after it was published"
-        got = late[1].of("/params")[0]
+        got = clients[1].of("/params")[0]
         assert got["config"]["skin"]["R_g"] == cfg.skin.R_g
         assert got["config"]["sampling"]["t_s"] == cfg.sampling.t_s
-        assert late[1].subprotocol in SUBPROTOCOLS
-        adv = {c["topic"]: c for c in late[1].channels.values()}
+        assert clients[1].subprotocol in SUBPROTOCOLS
+        adv = {c["topic"]: c for c in clients[1].channels.values()}
         assert set(adv) == set(TOPIC_SCHEMAS)
         for topic, ch in adv.items():
             assert ch["encoding"] == "json" and ch["schemaEncoding"] == "jsonschema"
             assert json.loads(ch["schema"]) == TOPIC_SCHEMAS[topic]
-        for c in late:
+        for c in clients:
             c.close()
         with urllib.request.urlopen(f"http://127.0.0.1:{port + 1}/", timeout=5) as r:
             assert r.headers["Content-Type"].startswith("text/html")
@@ -286,11 +303,13 @@ def test_server_latches_params_and_serves_a_self_contained_page() -> None:
         assert not re.search(r"\b(src|href)\s*=", html) and "http://" not in html and "https://" not in html
         with pytest.raises(urllib.error.HTTPError):
             urllib.request.urlopen(f"http://127.0.0.1:{port + 1}/other", timeout=5)
-        # a port in use is a one-line error
+        # a port in use is a one-line error (no callback runs: nothing is left in `threading`)
         with pytest.raises(LiveError, match="in use") as e:
             LiveServer("127.0.0.1", port)
         assert "\n" not in str(e.value)
-    assert live.page_url == f"http://127.0.0.1:{port + 1}/"
+    finally:
+        server.communicate("", timeout=10)
+    assert server.returncode == 0
 
 
 # ----------------------------------------------------------------------------- end to end
