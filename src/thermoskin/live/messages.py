@@ -104,12 +104,15 @@ class RowMessages:
         if not n:
             return
         fault = np.asarray(block["fault"]) if "fault" in block else np.zeros(n)
-        if "contact" in block:
-            c = np.nan_to_num(np.asarray(block["contact"], dtype=float)).astype(np.int64)
-            for i in np.flatnonzero(fault == 0):
-                if c[i] != self._contact:
-                    self._contact = int(c[i])
-                    yield "/events", float(t[i]), {"kind": "contact-on" if c[i] else "contact-off"}
+        ok_rows = np.flatnonzero(fault == 0)
+        if "contact" in block and len(ok_rows):
+            c = np.nan_to_num(np.asarray(block["contact"], dtype=float)[ok_rows]).astype(np.int64)
+            prev = np.empty_like(c)
+            prev[0] = self._contact
+            prev[1:] = c[:-1]
+            for j in np.flatnonzero(c != prev):
+                yield "/events", float(t[ok_rows[j]]), {"kind": "contact-on" if c[j] else "contact-off"}
+            self._contact = int(c[-1])
         keep = self._dec.select(t)
         if not len(keep):
             return
