@@ -221,6 +221,43 @@ def simulate(scenario: str, duration: float | None, config_path: Path | None,
                   f"{len(log['t'])} samples); wrote {output_csv}")
 
 
+def _live_options(fn: F) -> F:
+    """``--live [HOST:]PORT``, ``--live-rate HZ``, ``--live-wait S`` (see docs/live.md)."""
+    from thermoskin.live.address import DEFAULT_ADDRESS
+
+    fn = click.option("--live-wait", "live_wait", type=float, default=0.0, show_default=True,
+                      help="With --live: wait up to this many seconds for a viewer to subscribe "
+                           "before starting.")(fn)
+    fn = click.option("--live-rate", "live_rate", type=float, default=100.0, show_default=True,
+                      help="With --live: signals decimated to this rate, Hz of the loop clock.")(fn)
+    return click.option("--live", "live_addr", is_flag=False, flag_value=DEFAULT_ADDRESS, default=None,
+                        metavar="[HOST:]PORT",
+                        help=f"Serve the topics live over the Foxglove WebSocket protocol (default "
+                             f"{DEFAULT_ADDRESS}) and a live page on PORT+1.")(fn)  # type: ignore[return-value]
+
+
+def _start_live(addr: str, rate: float, wait: float, cfg: Any) -> Any:
+    """The live server at ``addr`` (one-line errors), its addresses printed; waits for a viewer."""
+    from thermoskin.live import LiveError, LiveServer, parse_address
+
+    if not (rate > 0 and math.isfinite(rate)):
+        raise UserError(f"--live-rate {rate}: must be > 0 Hz")
+    if not (wait >= 0 and math.isfinite(wait)):
+        raise UserError(f"--live-wait {wait}: must be >= 0 s")
+    try:
+        live = LiveServer(*parse_address(addr), config=cfg, rate=rate)
+    except LiveError as e:
+        raise UserError(str(e)) from None
+    console.print(f"[bold]live[/]: Foxglove WebSocket {live.ws_url} (Foxglove or Lichtblick: open "
+                  f"connection, Foxglove WebSocket; layout docs/foxglove-layout.json); page "
+                  f"{live.page_url}; signals at {rate:g} Hz")
+    if wait > 0:
+        console.print(f"[bold]live[/]: waiting up to {wait:g} s for a viewer")
+        if not live.wait_for_client(wait):
+            console.print("[bold]live[/]: no viewer yet; starting")
+    return live
+
+
 #: Seconds the closed loop gets to bring the skin from ambient to its command before the
 #: scenario's touches begin.
 SETTLE_S = 10.0
@@ -243,10 +280,11 @@ SETTLE_S = 10.0
               help="Pace the simulated skin at wall-clock speed in the fixed-rate loop process.")
 @click.option("--record", "record_path", type=click.Path(path_type=Path), default=None,
               help="Record every signal, command, event and the parameters to this MCAP file.")
+@_live_options
 @_user_errors
 def run(scenario: str, duration: float | None, setpoint: float | None,
         config_path: Path | None, log_path: Path, plot_path: Path, device: str, realtime: bool,
-        record_path: Path | None) -> None:
+        record_path: Path | None, live_addr: str | None, live_rate: float, live_wait: float) -> None:
     """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
 
     From ambient, the MPC and the inner loop bring T_w to its command while the observer
@@ -294,6 +332,16 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         from thermoskin.runtime.record import LoopRecorder
 
         recorder = LoopRecorder(record_path, cfg)
+    if live_addr is not None:
+        from thermoskin.live import Fanout
+
+        try:
+            recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg))
+        except BaseException:
+            if recorder is not None:
+                recorder.close()
+            raise
+    if recorder is not None:
         recorder.event(0.0, "run-start", device=device, scenario=sc.name, realtime=bool(realtime or serial))
     try:
         if serial or realtime:
@@ -511,24 +559,38 @@ def _recording_warnings(report: Any) -> None:
 
 @main.command()
 @click.argument("recording", type=click.Path(path_type=Path))
-@click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
+@click.option("-o", "--output", "output", type=click.Path(path_type=Path), default=None,
               help="CSV: the observer's inputs, the replayed q_i_hat, dq_i_hat, contact, gap and "
-                   "the live q_i_hat_live, contact_live.")
+                   "the live q_i_hat_live, contact_live (required unless --live).")
 @click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
               help="TOML file to replay with instead of the recorded configuration.")
+@_live_options
+@click.option("--speed", type=float, default=None,
+              help="With --live: play at this factor of real time (default 1).")
 @_user_errors
-def replay(recording: Path, output: Path, config_path: Path | None) -> None:
+def replay(recording: Path, output: Path | None, config_path: Path | None, live_addr: str | None,
+           live_rate: float, live_wait: float, speed: float | None) -> None:
     """Re-run the observer and the detector on a recording; compare with the live estimates.
 
     Exits with code 1 if the replayed q_i_hat or contact differ from the recorded ones
     (with the recorded configuration they must be identical), and with code 4 if the
     recording is damaged (replayed over its intact parts; one warning line per damaged
-    part; the estimates after a lost part cannot be reproduced exactly).
+    part; the estimates after a lost part cannot be reproduced exactly). With --live, plays
+    the recording into the live server (Foxglove WebSocket and page) at real speed or --speed.
     """
     from thermoskin.logio import write_log
     from thermoskin.runtime.record import RecordingError
     from thermoskin.runtime.record import replay as do_replay
 
+    if output is None and live_addr is None:
+        raise UserError("replay: give -o OUT.csv, --live [HOST:]PORT, or both")
+    if speed is not None and live_addr is None:
+        raise UserError("--speed plays into the live server: give --live too")
+    if speed is not None and not (speed > 0 and math.isfinite(speed)):
+        raise UserError(f"--speed {speed}: must be > 0")
+    if output is None:
+        _replay_live(recording, live_addr, live_rate, live_wait, speed or 1.0)
+        return
     cfg = _config(config_path) if config_path is not None else None
     info: dict[str, Any] = {}
     try:
@@ -549,8 +611,30 @@ def replay(recording: Path, output: Path, config_path: Path | None) -> None:
                   f"(max |q_i_hat difference| {cmp['q_i_hat_max_abs_diff']:.3g} W, "
                   f"{cmp['contact_mismatches']} contact mismatches); wrote {output}")
     _recording_warnings(info["report"])
+    if live_addr is not None:
+        _replay_live(recording, live_addr, live_rate, live_wait, speed or 1.0)
     if not cmp["exact"] and cfg is None:
         sys.exit(1)
+
+
+def _replay_live(recording: Path, addr: str, rate: float, wait: float, speed: float) -> None:
+    """Play ``recording`` into a live server at ``speed`` times real time."""
+    from thermoskin.live import play
+    from thermoskin.runtime.record import RecordingError
+
+    if not recording.is_file():
+        raise UserError(f"recording {recording} does not exist")
+    live = _start_live(addr, rate, wait, None)
+    try:
+        console.print(f"[bold]live[/]: playing {recording} at {speed:g}x")
+        res = play(recording, live, speed)
+    except RecordingError as e:
+        raise UserError(str(e)) from None
+    finally:
+        live.close()
+    cut = "" if res["complete"] else " (the recording was cut short: played what it holds)"
+    console.print(f"played {res['sent']} messages ({res['skipped']} signal samples decimated away) "
+                  f"from t = {res['t_first']:.3f} to {res['t_last']:.3f} s in {res['wall_s']:.1f} s{cut}")
 
 
 @main.command()

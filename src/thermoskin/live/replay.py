@@ -1,0 +1,66 @@
+"""``thermoskin replay RUN.mcap --live``: a recording played into the live server.
+
+Messages go out in file order, paced so that a message at loop time ``t`` leaves at
+``(t - t_first) / speed`` s of wall-clock time after the first; signals are decimated
+to the server's rate per topic (as a live run's), events and ``/params`` all sent.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+from thermoskin.live.messages import EVENT_TOPICS, Decimator
+from thermoskin.live.server import LiveServer
+from thermoskin.runtime.record import RecordingError, iter_messages
+
+_MAGIC = b"\x89MCAP0\r\n"
+
+
+def play(path: str | PathLike[str], live: LiveServer, speed: float = 1.0, *,
+         clock: Callable[[], float] = time.monotonic,
+         sleep: Callable[[float], None] = time.sleep) -> dict[str, Any]:
+    """Play ``path`` into ``live`` at ``speed`` times real time; figures of what was sent.
+
+    Returns ``sent`` (messages), ``skipped`` (signals dropped by decimation), ``t_first``,
+    ``t_last`` (loop clock, s), ``wall_s`` and ``complete`` (the file's footer was read).
+    """
+    if not (speed > 0 and math.isfinite(speed)):
+        raise ValueError(f"--speed {speed}: must be > 0 and finite")
+    p = Path(path)
+    if not p.is_file():
+        raise RecordingError(f"recording {p} does not exist")
+    with open(p, "rb") as fh:
+        if fh.read(len(_MAGIC)) != _MAGIC:
+            raise RecordingError(f"{p} is not an MCAP file (bad magic)")
+    rate = live.rows.rate
+    decimators: dict[str, Decimator] = {}
+    info: dict[str, Any] = {}
+    sent = skipped = 0
+    t_first = t_last = math.nan
+    wall0 = math.nan
+    for topic, t, msg in iter_messages(p, None, info):
+        if topic not in live.channels:
+            continue
+        if topic not in EVENT_TOPICS:
+            dec = decimators.get(topic)
+            if dec is None:
+                dec = decimators[topic] = Decimator(rate)
+            if not dec.keep(t):
+                skipped += 1
+                continue
+        if math.isnan(wall0):
+            wall0, t_first = clock(), t
+        delay = wall0 + (t - t_first) / speed - clock()
+        if delay > 0.001:
+            sleep(delay)
+        live.publish(topic, t, msg)
+        sent += 1
+        t_last = t
+    wall = clock() - wall0 if sent else 0.0
+    return {"sent": sent, "skipped": skipped, "t_first": t_first, "t_last": t_last, "wall_s": wall,
+            "complete": bool(info.get("complete"))}

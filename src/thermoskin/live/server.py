@@ -1,0 +1,267 @@
+"""The live server: the recording's topics over the Foxglove WebSocket protocol, and a page.
+
+:class:`LiveServer` runs in the parent process (the command line), never in the 1 kHz
+loop process. It advertises one channel per topic of the recording, with the same JSON
+schemas (:data:`~thermoskin.runtime.record.TOPIC_SCHEMAS`), so one Foxglove layout serves
+live runs and recordings. Messages carry ``log_time = t`` in ns of the loop clock, as in
+the recording. Signals are decimated to ``rate`` Hz (:mod:`thermoskin.live.messages`);
+events are sent at once; ``/params`` is sent again to every new subscriber (latched).
+
+The WebSocket is served by ``foxglove-sdk`` (its subprotocol is ``foxglove.sdk.v1``, the
+Foxglove WebSocket protocol v1 under its current name). The page (``page.html``, one
+file, no external resource) is served over HTTP on ``port + 1``; it speaks the same
+protocol to the WebSocket.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import socket
+import threading
+import time
+from collections.abc import Mapping
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from importlib import resources
+from typing import Any
+
+import foxglove
+
+from thermoskin.live.address import LiveError, url_host
+from thermoskin.live.messages import RowMessages, clean
+from thermoskin.runtime.record import TOPIC_SCHEMAS
+
+#: Outgoing messages buffered per client before the oldest is dropped (the SDK's default
+#: is 1024: 2 s of an as-fast-as-possible run at 100 Hz on five topics).
+BACKLOG = 1 << 16
+#: Seconds after a subscription before the latched ``/params`` is sent again (the SDK may
+#: call back before the client's subscription is in place).
+LATCH_DELAY_S = 0.05
+
+
+def page_html() -> bytes:
+    """The live page (``thermoskin/live/page.html``)."""
+    return resources.files("thermoskin.live").joinpath("page.html").read_bytes()
+
+
+class _Listener:
+    """foxglove-sdk server callbacks (called on the SDK's threads)."""
+
+    def __init__(self, owner: LiveServer) -> None:
+        self.owner = owner
+
+    def on_subscribe(self, client: Any, channel: Any) -> None:
+        self.owner._subscribed(channel.topic)
+
+    def on_unsubscribe(self, client: Any, channel: Any) -> None:
+        return None
+
+
+class _PageHandler(BaseHTTPRequestHandler):
+    server_version = "thermoskin-live"
+
+    def do_GET(self) -> None:
+        self._send(head=False)
+
+    def do_HEAD(self) -> None:
+        self._send(head=True)
+
+    def _send(self, head: bool) -> None:
+        path = self.path.split("?", 1)[0]
+        if path not in ("/", "/index.html"):
+            self.send_error(404, "only / is served here")
+            return
+        body: bytes = self.server.page  # type: ignore[attr-defined]
+        self.send_response(200)
+        self.send_header("Content-Type", "text/html; charset=utf-8")
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
+        if not head:
+            self.wfile.write(body)
+
+    def log_message(self, format: str, *args: Any) -> None:  # quiet
+        return None
+
+
+class _PageServer(ThreadingHTTPServer):
+    daemon_threads = True
+
+    def __init__(self, host: str, port: int, page: bytes) -> None:
+        self.address_family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        self.page = page
+        super().__init__((host, port), _PageHandler)
+
+
+def _schema(topic: str) -> foxglove.Schema:
+    schema = TOPIC_SCHEMAS[topic]
+    return foxglove.Schema(name=schema.get("title", topic.strip("/").replace("/", ".")),
+                           encoding="jsonschema", data=json.dumps(schema).encode())
+
+
+def _config_object(config: Any) -> Any:
+    if dataclasses.is_dataclass(config) and not isinstance(config, type):
+        return dataclasses.asdict(config)
+    return config
+
+
+class LiveServer:
+    """Foxglove WebSocket on ``host:port`` and the live page on ``host:port+1``.
+
+    ``config`` (a :class:`~thermoskin.params.Config` or a mapping) is sent on ``/params``;
+    ``rate`` (Hz of the loop clock) is what :meth:`write_rows` decimates signals to.
+    Raises :class:`~thermoskin.live.address.LiveError` if a port cannot be bound.
+    """
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 8765, *, config: Any = None,
+                 rate: float = 100.0, page: bool = True, name: str = "thermoskin") -> None:
+        self.host, self.port = host, port
+        self.rows = RowMessages(rate)
+        self.published = 0
+        self._lock = threading.Lock()
+        self._params: tuple[bytes, int] | None = None
+        self._first_sub = threading.Event()
+        self._timers: list[threading.Timer] = []
+        self._closed = False
+        self._http: _PageServer | None = None
+        self.context = foxglove.Context()
+        where = f"--live {url_host(host)}:{port}"
+        try:
+            self._ws = foxglove.start_server(name=name, host=host, port=port, context=self.context,
+                                             server_listener=_Listener(self),
+                                             message_backlog_size=BACKLOG,
+                                             session_id=str(time.time_ns()))
+        except RuntimeError as e:
+            raise LiveError(f"{where}: cannot serve the WebSocket there ({_reason(e)})") from None
+        self.channels = {topic: foxglove.Channel(topic, schema=_schema(topic), message_encoding="json",
+                                                 context=self.context) for topic in TOPIC_SCHEMAS}
+        if page:
+            try:
+                self._http = _PageServer(host, port + 1, page_html())
+            except OSError as e:
+                self._ws.stop()
+                raise LiveError(f"{where}: cannot serve the page on port {port + 1} "
+                                f"({e.strerror or e})") from None
+            threading.Thread(target=self._http.serve_forever, name="thermoskin-live-page",
+                             daemon=True).start()
+        if config is not None:
+            self.publish("/params", 0.0, {"config": _config_object(config)})
+
+    # ------------------------------------------------------------------ addresses
+    @property
+    def ws_url(self) -> str:
+        return f"ws://{url_host(self.host)}:{self.port}"
+
+    @property
+    def page_url(self) -> str | None:
+        return f"http://{url_host(self.host)}:{self.port + 1}/" if self._http is not None else None
+
+    # ------------------------------------------------------------------ publishing
+    def publish(self, topic: str, t: float, data: Mapping[str, Any]) -> None:
+        """Send one message (``t`` s of the loop clock is added to it) to the subscribers."""
+        ch = self.channels.get(topic)
+        if ch is None:
+            raise KeyError(f"live: no channel {topic!r} (the recording's topics: {', '.join(TOPIC_SCHEMAS)})")
+        latched = topic == "/params"
+        if not (latched or ch.has_sinks()):
+            return
+        obj = {"t": t}
+        for k, v in data.items():
+            if k != "t":
+                obj[k] = clean(v)
+        payload = json.dumps(obj, separators=(",", ":"), allow_nan=False).encode()
+        ns = max(0, round(t * 1e9))
+        if latched:
+            with self._lock:
+                self._params = (payload, ns)
+        ch.base.log(payload, ns)
+        self.published += 1
+
+    def write_rows(self, block: Mapping[str, Any]) -> None:
+        """One block of the loop's rows (columns of equal length), decimated; contact changes at once."""
+        channels = self.channels
+        live = {topic for topic, ch in channels.items() if ch.has_sinks()}
+        dumps = json.dumps
+        for topic, t, msg in self.rows.messages(block):  # already JSON-clean (no NaN)
+            if topic in live:
+                ns = max(0, round(t * 1e9))
+                channels[topic].base.log(dumps({"t": t, **msg}, separators=(",", ":")).encode(), ns)
+                self.published += 1
+
+    def event(self, t: float, kind: str, **detail: Any) -> None:
+        """An event on ``/events`` (the recorder's form: ``kind`` and ``detail``)."""
+        self.publish("/events", t, {"kind": kind, "detail": detail})
+
+    # ------------------------------------------------------------------ clients
+    def _subscribed(self, topic: str) -> None:
+        self._first_sub.set()
+        if topic == "/params" and not self._closed:
+            timer = threading.Timer(LATCH_DELAY_S, self._resend_params)
+            timer.daemon = True
+            self._timers.append(timer)
+            timer.start()
+
+    def _resend_params(self) -> None:
+        with self._lock:
+            latched = self._params
+        if latched is not None and not self._closed:
+            self.channels["/params"].base.log(*latched)
+
+    def wait_for_client(self, timeout: float) -> bool:
+        """Wait up to ``timeout`` s for a first subscription (and a little more for the rest of
+        the client's subscriptions); true if one came."""
+        if self._first_sub.wait(timeout):
+            time.sleep(0.25)
+            return True
+        return False
+
+    def close(self, linger: float = 0.5) -> None:
+        """Let the last messages go out (``linger`` s), then stop both servers."""
+        if self._closed:
+            return
+        if linger > 0:
+            time.sleep(linger)
+        self._closed = True
+        for timer in self._timers:
+            timer.cancel()
+        self._ws.stop()
+        if self._http is not None:
+            self._http.shutdown()
+            self._http.server_close()
+
+    def __enter__(self) -> LiveServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close(linger=0)
+
+
+def _reason(e: Exception) -> str:
+    msg = " ".join(str(e).split())
+    return msg.removeprefix("FoxgloveError: ")
+
+
+class Fanout:
+    """Hands the loop's rows and events to several sinks (a recorder, a live server)."""
+
+    def __init__(self, *sinks: Any) -> None:
+        self.sinks = [s for s in sinks if s is not None]
+
+    def write_rows(self, block: Mapping[str, Any]) -> None:
+        for s in self.sinks:
+            s.write_rows(block)
+
+    def event(self, t: float, kind: str, **detail: Any) -> None:
+        for s in self.sinks:
+            s.event(t, kind, **detail)
+
+    def close(self) -> None:
+        """Close every sink, even if one fails (the first error is raised after)."""
+        error: BaseException | None = None
+        for s in self.sinks:
+            try:
+                s.close()
+            except BaseException as e:
+                error = error or e
+        if error is not None:
+            raise error
