@@ -19,7 +19,7 @@ from rich.console import Console
 from rich.table import Table
 
 from thermoskin import __version__
-from thermoskin.estimator import ContactEvent
+from thermoskin.events import ContactEvent
 from thermoskin.params import Config, ConfigError, load_config
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -56,16 +56,32 @@ def _config(path: Path | None, preset: str = "paper") -> Config:
 
 
 def events_table(events: list[ContactEvent], title: str = "Detected contacts") -> Table:
-    """The events as a rich table."""
+    """The events as a rich table (heat flows signed: negative for heat out, a cold object)."""
     table = Table(title=title)
-    for name in ("#", "onset s", "detected s", "release s", "duration s", "peak dq W",
+    for name in ("#", "onset s", "detected s", "release s", "duration s", "sign", "peak dq W",
                  "mean dq W", "energy J"):
         table.add_column(name, justify="right")
     for i, e in enumerate(events, 1):
         table.add_row(str(i), f"{e.onset:.3f}", f"{e.detected_at:.3f}", f"{e.release:.3f}",
-                      f"{e.duration:.2f}", f"{e.peak_dq:.4f}", f"{e.mean_dq:.4f}",
-                      f"{e.energy:.4f}")
+                      f"{e.duration:.2f}", "+" if e.sign > 0 else "-", f"{e.peak_dq:.3f}",
+                      f"{e.mean_dq:.3f}", f"{e.energy:.3f}")
     return table
+
+
+EVENTS_OPT = click.option("--events", "events_path", type=click.Path(path_type=Path), default=None,
+                          help="Also write the contacts, one row each: onset,detected,release,"
+                               "duration,sign,peak_dq,mean_dq,energy (s, s, s, s, +1/-1, W, W, J).")
+
+
+def _write_events(path: Path | None, events: list[ContactEvent]) -> None:
+    if path is None:
+        return
+    from thermoskin.events import write_events
+
+    try:
+        write_events(path, events)
+    except OSError as e:
+        raise UserError(f"cannot write {path}: {e.strerror or e}") from None
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -81,31 +97,61 @@ CONFIG_OPT = click.option("--config", "config_path", type=click.Path(path_type=P
 @main.command()
 @click.argument("input_csv", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "output_csv", type=click.Path(path_type=Path), required=True,
-              help="Output CSV: the input columns plus q_i_hat (W) and contact (0/1).")
+              help="Output log (CSV or Parquet): the input columns plus q_i_hat, dq_i_hat (W), "
+                   "contact (0/1) and gap; a log that already had them keeps them as *_live.")
+@EVENTS_OPT
 @CONFIG_OPT
 @_user_errors
-def observe(input_csv: Path, output_csv: Path, config_path: Path | None) -> None:
+def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
+            config_path: Path | None) -> None:
     """Estimate the touch heat flow and detect contacts in a recorded log.
 
-    INPUT_CSV has a header and at least the columns t,T_w,T_p,v,T_a (s, °C, °C, m/s, °C),
-    uniformly sampled. NaN samples (a loose thermocouple) are held over and flagged in the
-    output's ``gap`` column.
+    INPUT_CSV (CSV or Parquet) has at least the columns t,T_w,T_p,v,T_a (s, °C, °C, m/s, °C),
+    uniformly sampled at 50 Hz to 1 kHz. Each thermocouple's update rate is read from the
+    log (its `fresh` column if it has one, else runs of repeated readings); T_w_cmd and drive
+    are used if present, as the loop used them, so a log written by `thermoskin run` gives the
+    live run's estimates and contacts again. NaN samples are held over (`gap`).
     """
-    from thermoskin.logio import read_log, sample_time, write_log
-    from thermoskin.pipeline import INPUT_COLUMNS
+    from thermoskin.estimation.freshness import CHANNELS, infer_fresh
+    from thermoskin.logio import read_log, write_log
+    from thermoskin.pipeline import INPUT_COLUMNS, sample_interval
     from thermoskin.pipeline import observe as run_observe
 
     cfg = _config(config_path)
     log = read_log(input_csv, required=INPUT_COLUMNS)
-    t_s = sample_time(log["t"])
-    res = run_observe(log, cfg, t_s=t_s)
+    t_s = sample_interval(log["t"])
+    if t_s > 0.02 + 1e-12:
+        err_console.print(f"thermoskin: warning: {input_csv} is sampled at {1 / t_s:.3g} Hz; the "
+                          "estimator is made for 50 Hz to 1 kHz: the pump switches faster than this "
+                          "log can show, expect late or missed contacts")
+    _, periods = infer_fresh(log)
+    rates = ", ".join(f"{ch} every {periods[ch] * t_s * 1e3:.0f} ms" for ch in CHANNELS)
+    res = run_observe(log, cfg)
     out = dict(log)
+    live = {k: log[k] for k in ("q_i_hat", "dq_i_hat", "contact", "gap") if k in log}
+    for k, x in live.items():
+        out[f"{k}_live"] = out.pop(k)
+        out[k] = x  # keeps the column order; replaced just below
     out.update(res.columns)
+    out.pop("sd", None)
     write_log(output_csv, out)
+    _write_events(events_path, res.events)
     n_gap = int(np.sum(res.columns["gap"]))
     console.print(events_table(res.events))
-    console.print(f"{len(log['t'])} samples at {1 / t_s:.0f} Hz, {len(res.events)} contacts, "
-                  f"{n_gap} NaN samples held over; wrote {output_csv}")
+    console.print(f"{len(log['t'])} samples at {1 / t_s:.0f} Hz ({rates}), {len(res.events)} contacts, "
+                  f"{n_gap} NaN samples held over; wrote {output_csv}"
+                  + (f" and {events_path}" if events_path else ""))
+    if "contact" in live and "q_i_hat" in live:
+        dq = np.abs(res.columns["q_i_hat"] - live["q_i_hat"])
+        both = np.isfinite(dq)
+        mism = int(np.sum(res.columns["contact"] != np.nan_to_num(live["contact"]).astype(np.int8)))
+        console.print(f"against the log's own estimates: max |q_i_hat difference| "
+                      f"{float(dq[both].max()) if both.any() else 0.0:.3g} W, {mism} contact mismatches")
+    armed = res.columns["contact"].any() or res.events
+    if not armed and len(log["t"]) * t_s < cfg.detector.t_warmup + (cfg.detector.t_arm if "T_w_cmd" in log
+                                                                     else 0.0):
+        err_console.print(f"thermoskin: warning: the log lasts {len(log['t']) * t_s:.3g} s, less than "
+                          "the detector needs to arm and learn its baseline: no contact can be reported")
 
 
 def _scenario(name: str, duration: float | None) -> Any:
@@ -271,8 +317,9 @@ SETTLE_S = 10.0
 @CONFIG_OPT
 @click.option("--log", "log_path", type=click.Path(path_type=Path), default=Path("run.csv"),
               show_default=True, help="Where to save the log.")
-@click.option("--plot", "plot_path", type=click.Path(path_type=Path), default=Path("run.png"),
-              show_default=True, help="Where to save the plot.")
+@click.option("--plot", "plot_path", type=click.Path(path_type=Path), default=None,
+              help="Where to save the plot (default: beside the log, LOG.png).")
+@EVENTS_OPT
 @click.option("--device", default="sim", show_default=True,
               help="sim (the simulated skin in this process) or serial://PATH (a device or "
                    "`thermoskin device-emulator` speaking docs/protocol.md).")
@@ -283,8 +330,9 @@ SETTLE_S = 10.0
 @_live_options
 @_user_errors
 def run(scenario: str, duration: float | None, setpoint: float | None,
-        config_path: Path | None, log_path: Path, plot_path: Path, device: str, realtime: bool,
-        record_path: Path | None, live_addr: str | None, live_rate: float, live_wait: float) -> None:
+        config_path: Path | None, log_path: Path, plot_path: Path | None, events_path: Path | None,
+        device: str, realtime: bool, record_path: Path | None, live_addr: str | None,
+        live_rate: float, live_wait: float) -> None:
     """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
 
     From ambient, the MPC and the inner loop bring T_w to its command while the observer
@@ -299,6 +347,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     from thermoskin.plotting import plot_run
     from thermoskin.runtime.closed_loop import COLUMNS, TRUTH, run_closed_loop
 
+    if plot_path is None:
+        plot_path = log_path.with_suffix(".png")
     cfg = _config(config_path)
     sc = _scenario(scenario, None)
     if not sc.setpoints:
@@ -374,6 +424,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     if len(out["t"]):
         write_log(log_path, out)
         plot_run(out, res.events, plot_path, title=f"thermoskin run: {sc.name}, closed loop")
+    _write_events(events_path, res.events)
     if res.events:
         console.print(events_table(res.events))
     if len(out["t"]) > 1 and not res.fault:
@@ -396,6 +447,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             console.print(f"[bold]link[/]: {ln['frames']} frames, {ln['corrupted']} corrupted, "
                           f"{ln['lost']} lost, {ln['repeated']} repeated")
     wrote = f"wrote {log_path} and {plot_path}" if n else "no samples"
+    if events_path is not None:
+        wrote += f", {events_path}"
     if record_path is not None:
         wrote += f" and {record_path}"
     console.print(f"{n * cfg.sampling.t_s:g} s in {res.wall_s:.1f} s "

@@ -20,7 +20,7 @@ a command (``T_w_cmd`` NaN) it is armed from the first sample.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -28,48 +28,16 @@ from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.model import ModelTables, build_tables
+from thermoskin.events import ContactEvent
 from thermoskin.observer import ThermalExchangeObserver
 from thermoskin.params import Config
+from thermoskin.physics.convection import FlowResistance
 
 Array = NDArray[np.float64]
 
-#: Columns of the events table (``--events``): s, s, s, s, +1/-1, W, W, J.
-EVENT_COLUMNS = ("onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq", "energy")
-
-
-@dataclass(frozen=True)
-class ContactEvent:
-    """One detected contact. Times in s; heat flows (signed: negative when heat leaves the
-    skin, a cold object) in W; energy in J; ``sign`` +1 (heat in) or -1 (heat out)."""
-
-    onset: float
-    detected_at: float
-    release: float
-    duration: float
-    sign: int
-    peak_dq: float
-    mean_dq: float
-    energy: float
-
-    def as_dict(self) -> dict[str, float]:
-        return asdict(self)
-
-    def row(self) -> dict[str, float]:
-        """The event as a row of :data:`EVENT_COLUMNS`."""
-        return {"onset": self.onset, "detected": self.detected_at, "release": self.release,
-                "duration": self.duration, "sign": self.sign, "peak_dq": self.peak_dq,
-                "mean_dq": self.mean_dq, "energy": self.energy}
-
-    @classmethod
-    def from_kernel(cls, ev: Array) -> ContactEvent:
-        return cls(onset=float(ev[K.EV_ONSET]), detected_at=float(ev[K.EV_DETECTED]),
-                   release=float(ev[K.EV_RELEASE]), duration=float(ev[K.EV_DURATION]),
-                   sign=int(ev[K.EV_SIGN]), peak_dq=float(ev[K.EV_PEAK]),
-                   mean_dq=float(ev[K.EV_MEAN]), energy=float(ev[K.EV_ENERGY]))
-
-
-def kernel_params(cfg: Config, tables: ModelTables) -> Array:
-    """The kernel's parameter vector for ``cfg`` at the tables' sampling time."""
+def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver) -> Array:
+    """The kernel's parameter vector for ``cfg`` at the tables' sampling time (``eq8``: the
+    paper's observer at that time, whose discretised filters the kernel runs)."""
     d, t_s = cfg.detector, tables.t_s
     pr = np.zeros(K.NPARAM)
     n_warm = max(2, round(d.t_warmup / t_s))
@@ -89,6 +57,15 @@ def kernel_params(cfg: Config, tables: ModelTables) -> Array:
     pr[K.PR_HSLOPE] = d.h_rate
     pr[K.PR_ARATE] = min(1.0, t_s / 2.0)
     pr[K.PR_TCMD] = 2.0
+    F1, F2 = eq8.filters
+    (pr[K.PR_F1B0], pr[K.PR_F1B1], pr[K.PR_F1B2]), (_, pr[K.PR_F1A1], pr[K.PR_F1A2]) = F1.b, F1.a
+    pr[K.PR_F1DC] = F1.dc
+    (pr[K.PR_F2B0], pr[K.PR_F2B1]), (_, pr[K.PR_F2A1]) = F2.b, F2.a
+    pr[K.PR_F2DC] = F2.dc
+    pr[K.PR_IRAW] = 1.0 / cfg.skin.R_aw
+    pr[K.PR_IRAG] = 1.0 / cfg.skin.R_ag
+    pr[K.PR_NINIT] = cfg.observer.n_init
+    pr[K.PR_MAXGAP8] = max(1, round(cfg.observer.max_gap_s / t_s))
     pr[K.PR_CMAN] = cfg.estimator.tank_jump
     pr[K.PR_TMAN] = cfg.estimator.tank_jump_s
     pr[K.PR_TREF] = d.t_refractory
@@ -116,13 +93,20 @@ class Observation:
 
 
 class TouchEstimator:
-    """Eq. 8, the sensor-aware estimate and the detector of one patch, stepped together."""
+    """Eq. 8, the sensor-aware estimate and the detector of one patch, stepped together.
+
+    ``step`` (one sample, the live loop), ``feed`` (a chunk of a log, continuing) and
+    ``run`` (a whole log) all run :func:`thermoskin.estimation.kernel.step`.
+    """
 
     def __init__(self, cfg: Config, t_s: float | None = None,
                  v_values: tuple[float, ...] = ()) -> None:
         self.cfg = cfg
         self.t_s = cfg.sampling.t_s if t_s is None else float(t_s)
-        self.observer = ThermalExchangeObserver(cfg.skin, cfg.observer, self.t_s)
+        if not (math.isfinite(self.t_s) and self.t_s > 0):
+            raise ValueError(f"TouchEstimator: t_s = {t_s} s must be > 0")
+        self._eq8 = ThermalExchangeObserver(cfg.skin, cfg.observer, self.t_s)
+        self._R_w = FlowResistance(cfg.skin)
         self._build((0.0, cfg.pump.v_on, *v_values))
         self._ev = np.zeros(K.NEV)
         self.reset()
@@ -130,28 +114,36 @@ class TouchEstimator:
     def _build(self, v_values: tuple[float, ...]) -> None:
         self.tables = build_tables(self.cfg, self.t_s, v_values)
         tb = self.tables
-        self._tabs = (tb.Phi, tb.Gam, tb.Q_idle, tb.Q, tb.Phi_a, tb.Q_a)
+        Rw = np.array([self._R_w(v) for v in tb.v_values])
+        self._tabs = (tb.Phi, tb.Gam, tb.Q_idle, tb.Q, tb.Phi_a, tb.Q_a, Rw)
         self._iv = {v: i for i, v in enumerate(tb.v_values)}
-        self.pr = kernel_params(self.cfg, tb)
+        self.pr = kernel_params(self.cfg, tb, self._eq8)
 
     def _index(self, v: float) -> int:
-        """Table row of ``v``; a velocity not seen before gets its tables now."""
+        """Table row of ``v`` (-1 for NaN); a velocity not seen before gets its tables now."""
         i = self._iv.get(v)
         if i is None:
+            if v != v:
+                return -1
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"pump velocity v = {v!r} m/s must be >= 0 and finite")
             self._build((*self.tables.v_values, float(v)))
             i = self._iv[v]
         return i
 
     def reset(self) -> None:
         """Everything afresh; disarmed until the set-point is held (if there is one)."""
-        self.observer.reset()
         self.st = K.new_state()
         self.events: list[ContactEvent] = []
         self.contact = 0
         self.started = self.ended = False
-        self.q_i_hat = math.nan
 
     # -- outputs ----------------------------------------------------------------------------
+    @property
+    def q_i_hat(self) -> float:
+        """The paper's estimate, eq. 8 with its ``q_ag`` correction, W."""
+        return float(self.st[K.QIH])
+
     @property
     def dq_i_hat(self) -> float:
         """The touch's heat into the sheet minus its no-touch baseline, W."""
@@ -161,6 +153,11 @@ class TouchEstimator:
     def sd(self) -> float:
         """Standard deviation of the estimate (the Kalman filter's), W."""
         return float(self.st[K.SQ])
+
+    @property
+    def T_g_hat(self) -> float:
+        """The estimated sheet temperature, degC (the Kalman filter's state)."""
+        return float(self.st[K.X + 1])
 
     @property
     def gap(self) -> bool:
@@ -180,7 +177,6 @@ class TouchEstimator:
         (``drive`` NaN: unknown, the tank is then a constant-velocity model); ``fresh``: the
         bitmask of channels with a new reading (1 ``T_w``, 2 ``T_p``, 4 ``T_a``).
         """
-        self.q_i_hat = self.observer.step(T_w, T_p, v, T_a)
         iv = self._iv.get(v)
         if iv is None:
             iv = self._index(v)
@@ -200,10 +196,11 @@ class TouchEstimator:
             self.contact = 0
 
     # -- arrays -----------------------------------------------------------------------------
-    def run(self, t: Array, T_w: Array, T_p: Array, v: Array, T_a: Array,
-            T_w_cmd: Array | None = None, fresh: Any = None, drive: Array | None = None) -> Observation:
-        """``reset``, then every sample, then ``finish``: equal to ``step`` per sample."""
-        self.reset()
+    def feed(self, t: Array, T_w: Array, T_p: Array, v: Array, T_a: Array,
+             T_w_cmd: Array | None = None, fresh: Any = None, drive: Array | None = None
+             ) -> tuple[dict[str, Array], list[ContactEvent]]:
+        """The next chunk of a log (continuing from the last sample stepped): per-sample
+        columns ``q_i_hat, dq_i_hat, sd, contact, gap`` and the contacts that ended in it."""
         t, T_w, T_p, v, T_a = (np.ascontiguousarray(x, dtype=float) for x in (t, T_w, T_p, v, T_a))
         n = len(t)
         cmd = np.full(n, math.nan) if T_w_cmd is None else np.ascontiguousarray(T_w_cmd, dtype=float)
@@ -212,15 +209,22 @@ class TouchEstimator:
               else np.ascontiguousarray(fresh, dtype=np.int64))
         vals, inv = np.unique(v, return_inverse=True)
         idx = np.array([self._index(float(x)) for x in vals], dtype=np.int64)
-        iv = idx[inv] if n else np.zeros(0, dtype=np.int64)
-        o = self.observer.run(T_w, T_p, v, T_a)
-        dq, q, sq, contact = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-        events = np.empty((max(16, n // 100), K.NEV))
-        ne = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, dq, q, sq,
-                   contact, events)
-        self.events = [ContactEvent.from_kernel(events[i]) for i in range(min(ne, len(events)))]
-        if n:
-            self.finish(float(t[-1]))
-        cols = {"q_i_hat": o.q_i_hat, "dq_i_hat": dq, "sd": sq,
-                "contact": contact.astype(np.int8), "gap": o.gap.astype(np.int8)}
+        iv = idx[inv].reshape(-1) if n else np.zeros(0, dtype=np.int64)
+        out = np.empty((6, n))
+        events = np.empty((max(16, n // 50), K.NEV))
+        ne = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out, events)
+        new = [ContactEvent.from_kernel(events[i]) for i in range(min(ne, len(events)))]
+        self.events.extend(new)
+        self.contact = int(self.st[K.CONTACT])
+        cols = {"q_i_hat": out[0], "dq_i_hat": out[1], "sd": out[3],
+                "contact": out[4].astype(np.int8), "gap": out[5].astype(np.int8)}
+        return cols, new
+
+    def run(self, t: Array, T_w: Array, T_p: Array, v: Array, T_a: Array,
+            T_w_cmd: Array | None = None, fresh: Any = None, drive: Array | None = None) -> Observation:
+        """``reset``, then every sample, then ``finish``: equal to ``step`` per sample."""
+        self.reset()
+        cols, _ = self.feed(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)
+        if len(t):
+            self.finish(float(np.asarray(t, dtype=float)[-1]))
         return Observation(columns=cols, events=list(self.events))

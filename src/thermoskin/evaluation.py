@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.estimator import ContactEvent
+from thermoskin.events import ContactEvent
 from thermoskin.physics.finger import Touch
 
 

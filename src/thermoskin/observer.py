@@ -92,6 +92,8 @@ class ThermalExchangeObserver:
         self._H_a = mk([-1 / (Rg * Rag)], rsden)
         self._filters = (self._F1, self._F2, self._G_w, self._G_a, self._H_w, self._H_q,
                          self._H_a)
+        self.filters = (self._F1, self._F2)
+        """Eq. 8's two filters ``F1, F2`` (the compiled estimator runs the same coefficients)."""
         self.reset()
 
     # -- streaming -------------------------------------------------------------------

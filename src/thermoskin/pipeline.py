@@ -13,7 +13,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.estimation.freshness import infer_fresh
-from thermoskin.estimator import ContactEvent, Observation, TouchEstimator
+from thermoskin.estimator import Observation, TouchEstimator
+from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 
 INPUT_COLUMNS = ("t", "T_w", "T_p", "v", "T_a")

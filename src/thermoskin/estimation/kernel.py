@@ -83,7 +83,28 @@ SGE = 72       # this sample's sum of g e / S
 SGG = 73       # ... and of g^2 / S
 RATE = 74      # fresh pipe readings per sample (running mean)
 CMD = 75       # the last set-point seen, degC
-WBUF = 80      # warm-up buffer: NWB q values
+IVP = 76       # the last valid pump table row
+# the paper's observer (eq. 8), q_hat = F1(s) T_w - F2(s) q_net, on interval means
+E8N = 77       # samples averaged for its steady start
+E8SW = 78      # running sums of T_w, q_net, T_a
+E8SQ = 79
+E8SA = 80
+E8PW = 81      # the previous sample: T_w, T_p, T_a, pump row
+E8PP = 82
+E8PA = 83
+E8PIV = 84
+E8PREV = 85    # 1 once there is a previous sample
+E8READY = 86
+E8GAP = 87     # samples of the current NaN run
+QIH = 88       # output: q_i_hat (eq. 8 + q_ag with T_w), W
+F1Z0 = 89      # F1: state, input and output offsets
+F1Z1 = 90
+F1X0 = 91
+F1Y0 = 92
+F2Z0 = 93      # F2
+F2X0 = 94
+F2Y0 = 95
+WBUF = 96      # warm-up buffer: NWB q values
 NWB = 256
 SCR = WBUF + NWB  # scratch: Phi P (25)
 NSTATE = SCR + 25
@@ -121,7 +142,14 @@ PR_TMAN = 26     # time over which a manoeuvre's jump is taken as a change of sl
 PR_HSLOPE = 27   # onset threshold grows by this per e-fold of the pipe reading rate
 PR_ARATE = 28    # weight per sample of the reading-rate mean
 PR_TCMD = 29     # a set-point change of dc makes the tank's slope uncertain by dc / this, s
-NPARAM = 30
+# eq. 8: F1 = b(z)/a(z) of order 2, F2 of order 1 (Tustin), their DC gains, 1/R_aw, 1/R_ag
+PR_F1B0, PR_F1B1, PR_F1B2, PR_F1A1, PR_F1A2, PR_F1DC = 30, 31, 32, 33, 34, 35
+PR_F2B0, PR_F2B1, PR_F2A1, PR_F2DC = 36, 37, 38, 39
+PR_IRAW = 40
+PR_IRAG = 41
+PR_NINIT = 42    # samples averaged for eq. 8's steady start
+PR_MAXGAP8 = 43  # a NaN run longer than this restarts eq. 8
+NPARAM = 44
 
 # event fields
 EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
@@ -138,6 +166,7 @@ def new_state() -> np.ndarray:
     st[KAPPA] = 1.0
     st[RATE] = 1.0
     st[CMD] = np.nan
+    st[QIH] = np.nan
     return st
 
 
@@ -271,6 +300,63 @@ def _init(st, pr, T_w, T_p, T_a):
     st[PA + 3] = R
     st[READY] = 1.0
     st[GAPRUN] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _eq8(st, pr, Rw, T_w, T_p, T_a, iv):
+    """The paper's thermal exchange observer (eq. 8) with its ``q_ag`` correction, one sample.
+
+    ``q_hat = F1(s) T_w - F2(s) q_net`` with ``F1 = D(s)/((R_g C_w s+1)(R_g C_g s+1))``,
+    ``F2 = 1/(R_g C_w s+1)`` (Tustin), on the means over the interval ``[k-1, k]`` of
+    ``T_w, T_p, T_a`` and ``q_net = (T_p - T_w)/R_w(v_{k-1}) - (T_w - T_a)/R_aw`` (eqs. 1, 3);
+    ``q_i_hat = q_hat + (T_w - T_a)/R_ag``. The first ``n_init`` samples are averaged and the
+    filters start in that steady state; a NaN sample is held over; a NaN run longer than
+    ``max_gap`` restarts it. The same arithmetic as :class:`thermoskin.observer.ThermalExchangeObserver`.
+    """
+    if iv < 0 or not (math.isfinite(T_w) and math.isfinite(T_p) and math.isfinite(T_a)):
+        st[E8GAP] += 1.0
+        return
+    if st[E8GAP] > pr[PR_MAXGAP8]:
+        st[E8N] = st[E8SW] = st[E8SQ] = st[E8SA] = 0.0
+        st[E8PREV] = 0.0
+        st[E8READY] = 0.0
+        st[QIH] = np.nan
+    st[E8GAP] = 0.0
+    if st[E8PREV] == 0.0:
+        st[E8PW], st[E8PP], st[E8PA], st[E8PIV] = T_w, T_p, T_a, iv
+        st[E8PREV] = 1.0
+    pw, pp, pa, piv = st[E8PW], st[E8PP], st[E8PA], int(st[E8PIV])
+    st[E8PW], st[E8PP], st[E8PA], st[E8PIV] = T_w, T_p, T_a, iv
+    mw = 0.5 * (pw + T_w)
+    mp = 0.5 * (pp + T_p)
+    ma = 0.5 * (pa + T_a)
+    qn = (mp - mw) / Rw[piv] - (mw - ma) * pr[PR_IRAW]
+    if st[E8READY] == 0.0:
+        n = st[E8N] + 1.0
+        st[E8N] = n
+        st[E8SW] += mw
+        st[E8SQ] += qn
+        st[E8SA] += ma
+        aw, aq, aa = st[E8SW] / n, st[E8SQ] / n, st[E8SA] / n
+        st[QIH] = pr[PR_F1DC] * aw - pr[PR_F2DC] * aq + (aw - aa) * pr[PR_IRAG]
+        if n >= pr[PR_NINIT]:
+            st[F1Z0] = st[F1Z1] = st[F2Z0] = 0.0
+            st[F1X0] = aw
+            st[F1Y0] = pr[PR_F1DC] * aw
+            st[F2X0] = aq
+            st[F2Y0] = pr[PR_F2DC] * aq
+            st[E8READY] = 1.0
+        return
+    x = mw - st[F1X0]
+    y = pr[PR_F1B0] * x + st[F1Z0]
+    st[F1Z0] = pr[PR_F1B1] * x - pr[PR_F1A1] * y + st[F1Z1]
+    st[F1Z1] = pr[PR_F1B2] * x - pr[PR_F1A2] * y
+    y1 = st[F1Y0] + y
+    x = qn - st[F2X0]
+    y = pr[PR_F2B0] * x + st[F2Z0]
+    st[F2Z0] = pr[PR_F2B1] * x - pr[PR_F2A1] * y
+    y2 = st[F2Y0] + y
+    st[QIH] = (y1 - y2) + (T_w - T_a) * pr[PR_IRAG]
 
 
 @njit(cache=True, inline="always")
@@ -431,15 +517,21 @@ def _detect(st, pr, t, ev):
 
 
 @njit(cache=True)
-def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
+def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
          ev):
     """One sample of one patch; returns the step-result bits (contact, started, ended).
 
     ``iv`` and ``drive``: the pump's table row and the Peltier drive applied over the coming
-    interval; ``Qi`` / ``Qc``: the process-noise tables while idle and in contact.
+    interval (``iv = -1``: the pump's velocity is unknown, a NaN); ``Qi`` / ``Qc``: the
+    process-noise tables while idle and in contact; ``Rw`` the water's resistance per row.
     """
     R = pr[PR_RT]
-    gap = not (math.isfinite(T_w) and math.isfinite(T_p) and math.isfinite(T_a))
+    _eq8(st, pr, Rw, T_w, T_p, T_a, iv)
+    if iv >= 0:
+        st[IVP] = iv
+    else:
+        iv = int(st[IVP])
+    gap = st[E8GAP] > 0.0
     st[GAP] = 1.0 if gap else 0.0
     st[LLP] = st[LLM] = st[SGE] = st[SGG] = 0.0
     if st[READY] == 0.0:
@@ -497,20 +589,23 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, t, T_w, T_p, T_a, T_w_cmd, iv, dr
 
 
 @njit(cache=True)
-def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
-        dq, q, sq, contact, events):
-    """:func:`step` over arrays; fills ``dq, q, sq, contact`` and ``events``; returns the event count."""
+def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
+        out, events):
+    """:func:`step` over arrays; fills ``out`` (rows: q_i_hat, dq_i_hat, q estimate, its sd,
+    contact, gap) and ``events``; returns the event count."""
     n = t.shape[0]
     ev = np.empty(NEV)
     ne = 0
     cap = events.shape[0]
     for k in range(n):
-        c = step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, t[k], T_w[k], T_p[k], T_a[k], T_w_cmd[k], iv[k],
-                 drive[k], fresh[k], ev)
-        dq[k] = st[DQ]
-        q[k] = st[Q]
-        sq[k] = st[SQ]
-        contact[k] = st[CONTACT]
+        c = step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k], T_w_cmd[k],
+                 iv[k], drive[k], fresh[k], ev)
+        out[0, k] = st[QIH]
+        out[1, k] = st[DQ]
+        out[2, k] = st[Q]
+        out[3, k] = st[SQ]
+        out[4, k] = st[CONTACT]
+        out[5, k] = st[GAP]
         if c & C_ENDED:
             if ne < cap:
                 events[ne, :] = ev

@@ -20,7 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.control.pump import PumpLogic
-from thermoskin.estimator import ContactEvent, TouchEstimator
+from thermoskin.estimator import TouchEstimator
+from thermoskin.events import ContactEvent
 from thermoskin.experiments.analysis import aligned_response, contact_stats, setpoint_stats
 from thermoskin.experiments.scenarios import T_A, contact_scenario, setpoint_scenario
 from thermoskin.identify import decimate_blocks

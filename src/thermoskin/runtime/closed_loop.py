@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.estimator import ContactEvent
+from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.controller import SkinController
