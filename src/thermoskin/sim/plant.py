@@ -145,13 +145,15 @@ class SimulatedPlant:
 
         The sensors advance once per sample: a second call in the same sample repeats the first.
         """
-        if self._k_read != self.k:
-            i = self.index()
+        k = self.k
+        if self._k_read != k:
+            i = k % self.n if self.repeat else k
             sens = self.sensors
             T_p = self._T_p[i] if self.prescribed else self.tank.T_p
-            self._reading = sens.read(self.skin.T_w, T_p, self._T_a[i])
+            self._reading = r = sens.read(self.skin.T_w, T_p, self._T_a[i])
             self.fresh = sens.fresh
-            self._k_read = self.k
+            self._k_read = k
+            return r
         return self._reading
 
     def truth(self) -> tuple[float, float, float, float]:
@@ -170,9 +172,10 @@ class SimulatedPlant:
 
     def apply(self, drive: float, v: float) -> None:
         """Hold ``drive`` and ``v`` over one sample and advance."""
-        if self._k_read != self.k:
+        k = self.k
+        if self._k_read != k:
             self.measure()  # the sensors see every sample
-        i = self.index()
+        i = k % self.n if self.repeat else k
         skin = self.skin
         T_a = self._T_a[i]
         if self.prescribed:
@@ -186,4 +189,4 @@ class SimulatedPlant:
                       position=self.position[i])  # type: ignore[call-arg]
         else:
             skin.step(T_p, v, T_a, self.G_c[i], self.T_f[i])
-        self.k += 1
+        self.k = k + 1
