@@ -55,7 +55,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_WSTRIDE] = max(1, math.ceil(n_warm / K.NWB))
     pr[K.PR_S0] = d.z_scale
     pr[K.PR_HSLOPE] = d.h_rate
-    pr[K.PR_ARATE] = min(1.0, t_s / 2.0)
+    pr[K.PR_ARATE] = 0.05
     pr[K.PR_TCMD] = 2.0
     F1, F2 = eq8.filters
     (pr[K.PR_F1B0], pr[K.PR_F1B1], pr[K.PR_F1B2]), (_, pr[K.PR_F1A1], pr[K.PR_F1A2]) = F1.b, F1.a

@@ -48,6 +48,24 @@ def match_events(touches: Sequence[Touch], events: Sequence[ContactEvent],
                  latencies=np.asarray(lat), missed=missed, spurious=spurious)
 
 
+def touches_from_truth(t: NDArray[np.float64], contact_true: NDArray[np.float64],
+                       n_fingers: NDArray[np.float64] | None = None) -> list[Touch]:
+    """The touches of a truth log (``contact_true`` 0/1 per sample, e.g. the emulator's
+    ``--truth`` file): one :class:`Touch` per run of ones, from its first to its last sample."""
+    t = np.asarray(t, dtype=float)
+    c = np.asarray(contact_true, dtype=float) > 0.5
+    if not len(t):
+        return []
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], c, [False]]).astype(np.int8)))
+    out = []
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        n = int(np.max(n_fingers[a:b])) if n_fingers is not None else 1
+        t_end = t[b - 1] + (t[1] - t[0] if len(t) > 1 else 0.0)
+        out.append(Touch(t_on=float(t[a]), duration=float(t_end - t[a]), n_fingers=n,
+                         G=None if n > 0 else 0.05))
+    return out
+
+
 @dataclass
 class Tracking:
     """Tracking of one command over ``[t0, t1)`` (s): errors of ``T_w`` (measured), K."""

@@ -81,7 +81,7 @@ SGEM = 70
 SGGM = 71
 SGE = 72       # this sample's sum of g e / S
 SGG = 73       # ... and of g^2 / S
-RATE = 74      # fresh pipe readings per sample (running mean)
+RATE = 74      # fresh pipe readings per second (running mean of 1/interval)
 CMD = 75       # the last set-point seen, degC
 IVP = 76       # the last valid pump table row
 # the paper's observer (eq. 8), q_hat = F1(s) T_w - F2(s) q_net, on interval means
@@ -104,7 +104,8 @@ F1Y0 = 92
 F2Z0 = 93      # F2
 F2X0 = 94
 F2Y0 = 95
-WBUF = 96      # warm-up buffer: NWB q values
+TLW = 96       # time of the last fresh pipe reading, s
+WBUF = 100     # warm-up buffer: NWB q values
 NWB = 256
 SCR = WBUF + NWB  # scratch: Phi P (25)
 NSTATE = SCR + 25
@@ -140,7 +141,7 @@ PR_S0 = 24       # standard deviation of the contact estimate over its filter's 
 PR_CMAN = 25     # a tank innovation beyond this many sd is a manoeuvre
 PR_TMAN = 26     # time over which a manoeuvre's jump is taken as a change of slope, s
 PR_HSLOPE = 27   # onset threshold grows by this per e-fold of the pipe reading rate
-PR_ARATE = 28    # weight per sample of the reading-rate mean
+PR_ARATE = 28    # weight per fresh reading of the reading-rate mean
 PR_TCMD = 29     # a set-point change of dc makes the tank's slope uncertain by dc / this, s
 # eq. 8: F1 = b(z)/a(z) of order 2, F2 of order 1 (Tustin), their DC gains, 1/R_aw, 1/R_ag
 PR_F1B0, PR_F1B1, PR_F1B2, PR_F1A1, PR_F1A2, PR_F1DC = 30, 31, 32, 33, 34, 35
@@ -164,7 +165,8 @@ def new_state() -> np.ndarray:
     st = np.zeros(NSTATE)
     st[TREL] = -1e300
     st[KAPPA] = 1.0
-    st[RATE] = 1.0
+    st[RATE] = 0.0
+    st[TLW] = -1e300
     st[CMD] = np.nan
     st[QIH] = np.nan
     return st
@@ -435,7 +437,7 @@ def _detect(st, pr, t, ev):
         st[GP] = gp
         st[GM] = gm
         # more readings per second are more chances of a false alarm: h = h_on + c ln(rate)
-        rate = st[RATE] / pr[PR_TS]
+        rate = st[RATE] if st[RATE] > 0.0 else 1.0 / pr[PR_TS]
         h = pr[PR_H] + pr[PR_HSLOPE] * math.log(rate if rate > 1.0 else 1.0)
         if gp > h or gm > h:
             sg = 1.0 if gp >= gm else -1.0
@@ -543,10 +545,13 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         if (fresh & 1) != 0 and math.isfinite(T_w):
             _update(st, pr, 0, T_w, R)
             st[GAPRUN] = 0.0
-            st[RATE] += pr[PR_ARATE] * (1.0 - st[RATE])
+            dt = t - st[TLW]
+            if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is
+                r = 1.0 / dt
+                st[RATE] = r if st[RATE] == 0.0 else st[RATE] + pr[PR_ARATE] * (r - st[RATE])
+            st[TLW] = t
         else:
             st[GAPRUN] += 1.0
-            st[RATE] -= pr[PR_ARATE] * st[RATE]
         if (fresh & 2) != 0 and math.isfinite(T_p):
             _update(st, pr, 3, T_p, R)
     st[Q] = st[X + 2]
