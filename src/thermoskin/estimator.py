@@ -57,6 +57,11 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_HSLOPE] = d.h_rate
     pr[K.PR_ARATE] = 0.05
     pr[K.PR_TCMD] = 2.0
+    pr[K.PR_AJUMP] = 1.0
+    pr[K.PR_KAIR] = 1.0
+    pr[K.PR_HAIR] = 8.0
+    pr[K.PR_TRETR] = 1.0
+    pr[K.PR_TAMBH] = d.t_air + 3.0 * cfg.sensor.lag_T_a
     F1, F2 = eq8.filters
     (pr[K.PR_F1B0], pr[K.PR_F1B1], pr[K.PR_F1B2]), (_, pr[K.PR_F1A1], pr[K.PR_F1A2]) = F1.b, F1.a
     pr[K.PR_F1DC] = F1.dc

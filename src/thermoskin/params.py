@@ -186,6 +186,9 @@ class DetectorParams(_Validated):
     t_warmup: float = _p(1.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
     t_refractory: float = _p(3.0, "s", 0.0, 60.0,
                              doc="after a release, no onset of the opposite sign for this long")
+    t_air: float = _p(1.0, "s", 0.0, 600.0,
+                      doc="after a sudden change of the air (a door), no onset for this long plus "
+                          "three times the air sensor's lag")
     t_settle: float = _p(2.0, "s", 0.0, 600.0,
                          doc="after a release, time before the baseline learns again")
     tau_baseline: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,

@@ -105,7 +105,10 @@ F2Z0 = 93      # F2
 F2X0 = 94
 F2Y0 = 95
 TLW = 96       # time of the last fresh pipe reading, s
-WBUF = 100     # warm-up buffer: NWB q values
+TAMB = 97      # time of the last sudden change of the air, s
+AGP = 98       # CUSUMs of the air sensor's innovations, up and down
+AGM = 99
+WBUF = 104     # warm-up buffer: NWB q values
 NWB = 256
 SCR = WBUF + NWB  # scratch: Phi P (25)
 NSTATE = SCR + 25
@@ -150,7 +153,12 @@ PR_IRAW = 40
 PR_IRAG = 41
 PR_NINIT = 42    # samples averaged for eq. 8's steady start
 PR_MAXGAP8 = 43  # a NaN run longer than this restarts eq. 8
-NPARAM = 44
+PR_AJUMP = 44    # a sudden change of the air lets its estimate go by this much, K
+PR_TAMBH = 45    # no onset this long after a sudden change of the air, s
+PR_KAIR = 46     # drift of the air CUSUM, standard deviations
+PR_HAIR = 47     # its threshold
+PR_TRETR = 48    # a contact begun this shortly before a sudden change of the air is withdrawn, s
+NPARAM = 50
 
 # event fields
 EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
@@ -167,6 +175,7 @@ def new_state() -> np.ndarray:
     st[KAPPA] = 1.0
     st[RATE] = 0.0
     st[TLW] = -1e300
+    st[TAMB] = -1e300
     st[CMD] = np.nan
     st[QIH] = np.nan
     return st
@@ -244,11 +253,28 @@ def _predict(st, F, G, QQ, u, w):
 
 
 @njit(cache=True, inline="always")
-def _ambient(st, y, fresh, R, idx):
-    """Update the ambient filter with a fresh air reading (if any)."""
+def _ambient(st, pr, t, y, fresh, R, idx):
+    """Update the ambient filter with a fresh air reading (if any).
+
+    A sudden change of the air (a door) is found by Page's CUSUM on the standardised
+    innovations (drift ``PR_KAIR``, threshold ``PR_HAIR``, either sign): the air's estimate is
+    then let go (its variance grows by ``PR_AJUMP``²) and the time is kept, for the detector
+    to wait until the lagging sensor has caught up.
+    """
     if fresh:
         S = st[PA + 3 * idx] + R
         e = y - st[XA + idx]
+        z = e / math.sqrt(S)
+        k = pr[PR_KAIR]
+        ap = st[AGP] + z - k
+        am = st[AGM] - z - k
+        st[AGP] = ap if ap > 0.0 else 0.0
+        st[AGM] = am if am > 0.0 else 0.0
+        if st[AGP] > pr[PR_HAIR] or st[AGM] > pr[PR_HAIR]:
+            st[PA] += pr[PR_AJUMP] * pr[PR_AJUMP]
+            S = st[PA + 3 * idx] + R
+            st[TAMB] = t
+            st[AGP] = st[AGM] = 0.0
         k0 = st[PA + idx] / S
         k1 = st[PA + 2 + idx] / S
         st[XA] += k0 * e
@@ -420,6 +446,8 @@ def _detect(st, pr, t, ev):
                 gm = 0.0
             else:
                 gp = 0.0
+        if t - st[TAMB] < pr[PR_TAMBH]:  # the air changed: its lagging sensor catches up first
+            gp = gm = 0.0
         if gp <= 0.0:
             gp = 0.0
             st[TQP] = t
@@ -541,7 +569,13 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             return C_CONTACT if st[MODE] == INCONTACT else 0
         _init(st, pr, T_w, T_p, T_a)
     else:
-        _ambient(st, T_a, (fresh & 4) != 0 and math.isfinite(T_a), R, int(pr[PR_AMB]))
+        _ambient(st, pr, t, T_a, (fresh & 4) != 0 and math.isfinite(T_a), R, int(pr[PR_AMB]))
+        if st[TAMB] == t and st[MODE] == INCONTACT and t - st[DETECTED] < pr[PR_TRETR]:
+            # the "contact" just begun was the air changing: withdraw it (no event)
+            st[MODE] = IDLE
+            st[CONTACT] = 0.0
+            st[X + 2] = st[B]
+            st[GP] = st[GM] = 0.0
         if (fresh & 1) != 0 and math.isfinite(T_w):
             _update(st, pr, 0, T_w, R)
             st[GAPRUN] = 0.0
