@@ -108,6 +108,8 @@ TLW = 96       # time of the last fresh pipe reading, s
 TAMB = 97      # time of the last sudden change of the air, s
 AGP = 98       # CUSUMs of the air sensor's innovations, up and down
 AGM = 99
+RUNL = 100     # the release evidence CUSUM (dates the release)
+TFBL = 101     # last time it was zero, s
 WBUF = 104     # warm-up buffer: NWB q values
 NWB = 256
 SCR = WBUF + NWB  # scratch: Phi P (25)
@@ -493,6 +495,8 @@ def _detect(st, pr, t, ev):
             st[COUNT] = 1.0
             st[RUN] = 0.0
             st[TFB] = t
+            st[RUNL] = 0.0
+            st[TFBL] = t
             st[LEVEL] = d
             st[LVLMAX] = d
             st[SINCE] = 0.0
@@ -531,8 +535,18 @@ def _detect(st, pr, t, ev):
         g = 0.0
         st[TFB] = t
     st[RUN] = g
+    # the readings' evidence for the touch heat back at its baseline (a change of -level):
+    # where it last was zero dates the release better than the estimate, which lags
+    lm = st[LVLMAX]
+    Dr = -sg * (lm if lm > pr[PR_D] else pr[PR_D])
+    gl = st[RUNL] + Dr * st[SGE] - 0.5 * Dr * Dr * st[SGG]
+    if gl <= 0.0:
+        gl = 0.0
+        st[TFBL] = t
+    st[RUNL] = gl
     if g > pr[PR_HOFF]:
-        _end(st, st[TFB], ev)
+        t_rel = st[TFBL] if st[DETECTED] <= st[TFBL] < st[TFB] else st[TFB]
+        _end(st, t_rel, ev)
         # the touch has gone: the estimate goes back to its baseline, free to correct itself
         st[X + 2] = b
         st[P + 12] += 0.25 * lvl * lvl
