@@ -165,15 +165,17 @@ class DetectorParams(_Validated):
     """Two-sided contact detector on the estimator's standardised touch heat."""
 
     section = "detector"
-    dq_design: float = _p(0.4, "W", 0.0, 100.0, lo_open=True,
-                          doc="the change of the touch heat the CUSUM is tuned to (about half a "
-                              "fingertip's)")
-    h_on: float = _p(5.0, "", 0.0, 1000.0, lo_open=True,
+    dq_design: float = _p(0.3, "W", 0.0, 100.0, lo_open=True,
+                          doc="the changes of the touch heat two CUSUMs are tuned to: this one (a "
+                              "light fingertip) ...")
+    dq_design_hi: float = _p(0.6, "W", 0.0, 100.0, lo_open=True,
+                             doc="... and this one (two fingers and more)")
+    h_on: float = _p(6.5, "", 0.0, 1000.0, lo_open=True,
                      doc="onset threshold, log-likelihood ratio of a touch against none, for one "
                          "pipe reading a second ...")
     h_rate: float = _p(1.3, "", 0.0, 100.0,
                        doc="... plus this times ln(readings per second): more readings, more "
-                           "chances of a false alarm (10 Hz boards: 8.0, 1 kHz: 14.0)")
+                           "chances of a false alarm (10 Hz boards: 9.5, 1 kHz: 15.5)")
     k_off: float = _p(1.0, "sigma", 0.0, 100.0, doc="release threshold in noise standard deviations")
     f_off: float = _p(0.35, "", 0.0, 1.0,
                       doc="release threshold as a fraction of the contact's smoothed level")

@@ -49,10 +49,6 @@ MODE = 38      # detector: WARM, IDLE, INCONTACT
 NWARM = 39     # warm-up samples seen
 B = 40         # baseline of the q_i estimate, W
 KAPPA = 41     # scale of the innovations against their predicted standard deviation
-GP = 42        # CUSUM for a rise
-GM = 43        # CUSUM for a fall
-TQP = 44       # last time GP was zero, s
-TQM = 45       # last time GM was zero, s
 SIGN = 46      # sign of the contact (+1 heat in, -1 heat out)
 ONSET = 47
 DETECTED = 48
@@ -73,12 +69,6 @@ CONTACT = 62   # output: 0/1
 LEVEL = 63     # smoothed level of the contact, W
 LVLMAX = 64    # its largest value, W
 GAP = 65       # output: 1 while a reading is NaN (held over)
-LLP = 66       # this sample's log-likelihood ratio for a rise
-LLM = 67       # ... for a fall
-SGEP = 68      # since GP was zero: sum of g e / S
-SGGP = 69      # ... and of g^2 / S (their ratio estimates the change)
-SGEM = 70
-SGGM = 71
 SGE = 72       # this sample's sum of g e / S
 SGG = 73       # ... and of g^2 / S
 RATE = 74      # fresh pipe readings per second (running mean of 1/interval)
@@ -110,7 +100,10 @@ AGP = 98       # CUSUMs of the air sensor's innovations, up and down
 AGM = 99
 RUNL = 100     # the release evidence CUSUM (dates the release)
 TFBL = 101     # last time it was zero, s
-WBUF = 104     # warm-up buffer: NWB q values
+CU = 104       # the onset CUSUMs, NCU of them, 4 fields each: statistic, last time it was
+NCU = 4        # zero, and since then the sums of g e / S and g^2 / S (their ratio estimates
+#                the change); designs +D, -D, +D_hi, -D_hi
+WBUF = CU + 4 * NCU  # warm-up buffer: NWB q values
 NWB = 256
 SCR = WBUF + NWB  # scratch: Phi P (25)
 NSTATE = SCR + 25
@@ -121,7 +114,7 @@ WARM, IDLE, INCONTACT = 0, 1, 2
 PR_TS = 0        # t_s, s
 PR_RT = 1        # thermocouple variance, K^2
 PR_AMB = 2       # ambient state read by the air sensor (0 or 1)
-PR_D = 3         # design change of q_i, W
+PR_D = 3         # the smaller design change of q_i, W
 PR_H = 4         # onset threshold, log-likelihood ratio
 PR_KOFF = 5      # k_off, sigma
 PR_FOFF = 6      # f_off
@@ -160,7 +153,10 @@ PR_TAMBH = 45    # no onset this long after a sudden change of the air, s
 PR_KAIR = 46     # drift of the air CUSUM, standard deviations
 PR_HAIR = 47     # its threshold
 PR_TRETR = 48    # a contact begun this shortly before a sudden change of the air is withdrawn, s
-NPARAM = 50
+PR_DHI = 49      # the larger design change of q_i, W
+PR_VSW = 50      # pump-switch timing uncertainty (0: switches at the samples, as in the loop)
+PR_ICW = 51      # 1/C_w, K/J
+NPARAM = 52
 
 # event fields
 EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
@@ -201,11 +197,6 @@ def _update(st, pr, i, y, R):
         pqq = st[P + 12]
         g = st[P + 5 * i + 2] / pqq if pqq > 0.0 else 0.0
         Se = kap * kap * S
-        D = pr[PR_D]
-        a = D * g * e / Se
-        c = 0.5 * D * D * g * g / Se
-        st[LLP] += a - c
-        st[LLM] += -a - c
         st[SGE] += g * e / Se
         st[SGG] += g * g / Se
         # the innovations' scale: running median of |e| / sqrt(S) (0.6745 for a unit normal)
@@ -390,6 +381,17 @@ def _eq8(st, pr, Rw, T_w, T_p, T_a, iv):
 
 
 @njit(cache=True, inline="always")
+def _cusums_reset(st, t):
+    """Every onset CUSUM back to zero at ``t``."""
+    for j in range(NCU):
+        o = CU + 4 * j
+        st[o] = 0.0
+        st[o + 1] = t
+        st[o + 2] = 0.0
+        st[o + 3] = 0.0
+
+
+@njit(cache=True, inline="always")
 def _end(st, t_release, ev):
     n = st[COUNT]
     sg = st[SIGN]
@@ -407,11 +409,7 @@ def _end(st, t_release, ev):
     st[CONTACT] = 0.0
     st[TREL] = t_release
     st[LASTSIGN] = sg
-    st[GP] = 0.0
-    st[GM] = 0.0
-    st[SGEP] = st[SGGP] = st[SGEM] = st[SGGM] = 0.0
-    st[TQP] = t_release
-    st[TQM] = t_release
+    _cusums_reset(st, t_release)
     st[RUN] = 0.0
 
 
@@ -435,51 +433,49 @@ def _detect(st, pr, t, ev):
             m = min((n - 1) // stride + 1, NWB)
             st[B] = np.median(st[WBUF:WBUF + m])
             st[MODE] = IDLE
-            st[TQP] = t
-            st[TQM] = t
+            _cusums_reset(st, t)
         st[DQ] = q - st[B]
         return 0
     b = st[B]
     if mode == IDLE:
-        gp = st[GP] + st[LLP]
-        gm = st[GM] + st[LLM]
-        if t - st[TREL] < pr[PR_TREF]:  # no onset of the other sign right after a release
-            if st[LASTSIGN] > 0:
-                gm = 0.0
-            else:
-                gp = 0.0
-        if t - st[TAMB] < pr[PR_TAMBH]:  # the air changed: its lagging sensor catches up first
-            gp = gm = 0.0
-        if gp <= 0.0:
-            gp = 0.0
-            st[TQP] = t
-            st[SGEP] = st[SGGP] = 0.0
-        else:
-            st[SGEP] += st[SGE]
-            st[SGGP] += st[SGG]
-        if gm <= 0.0:
-            gm = 0.0
-            st[TQM] = t
-            st[SGEM] = st[SGGM] = 0.0
-        else:
-            st[SGEM] += st[SGE]
-            st[SGGM] += st[SGG]
-        st[GP] = gp
-        st[GM] = gm
+        # Page's CUSUMs for a change of q_i by +-D and +-D_hi (the design sizes): each sample's
+        # log-likelihood ratio D sum(g e/S) - D² sum(g²/S)/2 from the readings' evidence
+        sge, sgg = st[SGE], st[SGG]
+        hold_other = t - st[TREL] < pr[PR_TREF]  # no onset of the other sign after a release
+        hold_all = t - st[TAMB] < pr[PR_TAMBH]  # the air changed: its sensor catches up first
         # more readings per second are more chances of a false alarm: h = h_on + c ln(rate)
         rate = st[RATE] if st[RATE] > 0.0 else 1.0 / pr[PR_TS]
         h = pr[PR_H] + pr[PR_HSLOPE] * math.log(rate if rate > 1.0 else 1.0)
-        if gp > h or gm > h:
-            sg = 1.0 if gp >= gm else -1.0
-            # the change the evidence since the CUSUM left zero points to, sum(g e/S)/sum(g²/S)
-            if sg > 0:
-                jump = st[SGEP] / st[SGGP] if st[SGGP] > 0.0 else pr[PR_D]
-                if jump < pr[PR_D]:
-                    jump = pr[PR_D]
+        fire = -1
+        best = 0.0
+        quiet = True
+        for j in range(NCU):
+            o = CU + 4 * j
+            D = pr[PR_D] if j < 2 else pr[PR_DHI]
+            sgj = 1.0 if j % 2 == 0 else -1.0
+            g = st[o] + sgj * D * sge - 0.5 * D * D * sgg
+            if hold_all or (hold_other and sgj != st[LASTSIGN]):
+                g = 0.0
+            if g <= 0.0:
+                st[o] = 0.0
+                st[o + 1] = t
+                st[o + 2] = st[o + 3] = 0.0
             else:
-                jump = st[SGEM] / st[SGGM] if st[SGGM] > 0.0 else -pr[PR_D]
-                if jump > -pr[PR_D]:
-                    jump = -pr[PR_D]
+                st[o] = g
+                st[o + 2] += sge
+                st[o + 3] += sgg
+                quiet = False
+                if g > h and g - h > best:
+                    best = g - h
+                    fire = j
+        if fire >= 0:
+            o = CU + 4 * fire
+            sg = 1.0 if fire % 2 == 0 else -1.0
+            D = pr[PR_D]
+            # the change the evidence since the CUSUM left zero points to, sum(g e/S)/sum(g²/S)
+            jump = st[o + 2] / st[o + 3] if st[o + 3] > 0.0 else sg * D
+            if sg * jump < D:
+                jump = sg * D
             st[X + 2] += jump
             st[P + 12] += 0.25 * jump * jump
             q = st[X + 2]
@@ -487,7 +483,7 @@ def _detect(st, pr, t, ev):
             st[MODE] = INCONTACT
             st[CONTACT] = 1.0
             st[SIGN] = sg
-            st[ONSET] = st[TQP] if sg > 0 else st[TQM]
+            st[ONSET] = st[o + 1]
             st[DETECTED] = t
             d = sg * (q - b)
             st[PEAK] = d
@@ -500,11 +496,10 @@ def _detect(st, pr, t, ev):
             st[LEVEL] = d
             st[LVLMAX] = d
             st[SINCE] = 0.0
-            st[GP] = 0.0
-            st[GM] = 0.0
+            _cusums_reset(st, t)
             st[DQ] = q - b
             return C_CONTACT | C_STARTED
-        if gp == 0.0 and gm == 0.0 and t - st[TREL] >= pr[PR_TSETTLE]:
+        if quiet and t - st[TREL] >= pr[PR_TSETTLE]:
             # no evidence of a touch: the baseline follows the estimate (a running median)
             step_b = pr[PR_AB] * sq
             b += step_b if q > b else -step_b
@@ -572,12 +567,20 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     R = pr[PR_RT]
     _eq8(st, pr, Rw, T_w, T_p, T_a, iv)
     if iv >= 0:
+        if iv != int(st[IVP]) and pr[PR_VSW] > 0.0 and st[READY] != 0.0:
+            # a log coarser than the loop: the pump switched somewhere in the last interval,
+            # not at its end; the water brought (T_p - T_w)(1/R_w,new - 1/R_w,old) t_s / C_w
+            # times a uniform fraction of it more: half of it, and its sd (0.29) as variance
+            dT = ((st[X + 3] - st[X]) * (1.0 / Rw[iv] - 1.0 / Rw[int(st[IVP])])
+                  * pr[PR_TS] * pr[PR_ICW])
+            st[X] += 0.5 * dT
+            st[P] += (pr[PR_VSW] * dT) ** 2
         st[IVP] = iv
     else:
         iv = int(st[IVP])
     gap = st[E8GAP] > 0.0
     st[GAP] = 1.0 if gap else 0.0
-    st[LLP] = st[LLM] = st[SGE] = st[SGG] = 0.0
+    st[SGE] = st[SGG] = 0.0
     if st[READY] == 0.0:
         if gap:
             return C_CONTACT if st[MODE] == INCONTACT else 0
@@ -589,7 +592,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             st[MODE] = IDLE
             st[CONTACT] = 0.0
             st[X + 2] = st[B]
-            st[GP] = st[GM] = 0.0
+            _cusums_reset(st, t)
         if (fresh & 1) != 0 and math.isfinite(T_w):
             _update(st, pr, 0, T_w, R)
             st[GAPRUN] = 0.0
@@ -611,9 +614,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         dc = T_w_cmd - st[CMD]
         if st[CMD] == st[CMD] and abs(dc) > 1e-9:
             st[P + 24] += (dc / pr[PR_TCMD]) ** 2
-            st[GP] = st[GM] = 0.0
-            st[TQP] = st[TQM] = t
-            st[SGEP] = st[SGGP] = st[SGEM] = st[SGGM] = 0.0
+            _cusums_reset(st, t)
         st[CMD] = T_w_cmd
     # arming: once T_w has held within the band of its command (no command: at once)
     if st[ARMED] == 0.0:
