@@ -142,9 +142,9 @@ def test_synthetic_recording_every_topic(synthetic: Path, tmp_path: Path) -> Non
     contacts = int(np.abs(np.diff(np.r_[0.0, loop_rows(N)["contact"][:-1]])).sum())
     assert counts == {"/params": 1, "/skin/sample": N, "/control": N, "/skin/estimate": N - 1,
                       "/sim/truth": N, "/loop/timing": N, "/events": 2 + contacts, "/custom/thing": 1}
-    got = {m[0]: [] for m in ros_messages(out)}
+    got: dict[str, list[Any]] = {}
     for topic, *_, ros in ros_messages(out):
-        got[topic].append(ros)
+        got.setdefault(topic, []).append(ros)
     # NaN stays NaN; integers at the edges of their types; the fault's detail
     assert all(math.isnan(m.t_w) for m in got["/skin/sample"][100:180])
     assert math.isnan(got["/skin/estimate"][400].q_i_hat) and math.isnan(got["/loop/timing"][7].late)

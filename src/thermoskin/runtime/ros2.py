@@ -11,8 +11,8 @@ from :func:`msg_text` is installed.
 **The encoder.** CDR is written by one precompiled :class:`struct.Struct` per type
 (:class:`RosType`), the file by the ``mcap`` library's writer. ``mcap-ros2-support``'s
 generic encoder writes the same bytes (the tests check it) but made the export of a 60 s
-recording 2.7x slower (6.0 s against 2.2 s, ``benchmarks/ros2_export.py``); it is the
-tests' reference, with its decoder and ``rosbags``'.
+recording 2.5-3.5x slower (6.0-8.7 s against 2.2-2.4 s, ``benchmarks/ros2_export.py``); it
+is the tests' reference, with its decoder and ``rosbags``'.
 
 **The message types.** The signal topics are custom types whose fields mirror the JSON
 schemas of :data:`~thermoskin.runtime.record.TOPIC_SCHEMAS` one for one, so a plot path
