@@ -576,10 +576,15 @@ def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_perio
 @main.command()
 @click.argument("recording", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
-              help="RUN.parquet or RUN.csv: one row per sample, every signal as a column.")
+              help="RUN.parquet or RUN.csv: one row per sample, every signal as a column; "
+                   "with --ros2, OUT.mcap.")
+@click.option("--ros2", "ros2", is_flag=True,
+              help="Write OUT.mcap: every message as a ROS 2 message (CDR, ros2msg schemas), for "
+                   "ros2 bag, Foxglove and Lichtblick.")
 @_user_errors
-def export(recording: Path, output: Path) -> None:
-    """Export an MCAP recording (`thermoskin run --record`) to Parquet or CSV.
+def export(recording: Path, output: Path, ros2: bool) -> None:
+    """Export an MCAP recording (`thermoskin run --record`) to Parquet or CSV, or (--ros2)
+    to an MCAP file of ROS 2 messages.
 
     Fields that are not numbers become text columns. A damaged recording is exported
     from every intact part, with one warning line per damaged part saying what was lost,
@@ -589,6 +594,10 @@ def export(recording: Path, output: Path) -> None:
     from thermoskin.runtime.record import RecordingError
     from thermoskin.runtime.record import export as do_export
 
+    if ros2:
+        from thermoskin.runtime.ros2 import export_ros2 as do_export
+    elif output.suffix.lower() == ".mcap":
+        raise UserError(f"cannot export to {output}: an .mcap output needs --ros2 (ROS 2 messages)")
     info: dict[str, Any] = {}
     try:
         out = do_export(recording, output, info=info)
@@ -597,6 +606,8 @@ def export(recording: Path, output: Path) -> None:
     except OSError as e:
         raise UserError(f"cannot write {output}: {e.strerror or e}") from None
     console.print(f"wrote {out}")
+    for line in info.get("warnings", ()):
+        click.echo(f"thermoskin: warning: {recording}: {line}", err=True)
     _recording_warnings(info["report"])
 
 

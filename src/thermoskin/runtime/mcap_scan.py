@@ -25,6 +25,7 @@ import struct
 import zlib
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END = 0x02, 0x03, 0x04, 0x05, 0x06, 0x0F
@@ -184,12 +185,14 @@ def _inflate(compression: str, data: bytes, size: int) -> bytes:
 class Scanner:
     """Messages of an MCAP file in file order, past cut-offs and damage (see the module doc).
 
-    :meth:`messages` yields ``(topic, sequence, log_time_ns, payload)``; :attr:`report`
-    is complete once it is exhausted.
+    :meth:`messages` yields ``(topic, sequence, log_time_ns, payload)`` (with
+    ``publish_time=True``, ``publish_time_ns`` last); :attr:`report` is complete once it
+    is exhausted.
     """
 
-    def __init__(self, path: str | Path, data: bytes) -> None:
+    def __init__(self, path: str | Path, data: bytes, publish_time: bool = False) -> None:
         self.b = data
+        self.publish_time = publish_time  # messages carry their publish time last
         self.n = len(data)
         self.report = RecordingReport(Path(path), size=self.n)
         self.topics: dict[int, str] = {}  # channel id -> topic
@@ -228,7 +231,7 @@ class Scanner:
             return None
         return op, s, e
 
-    def _chunk(self, s: int, e: int) -> list[tuple[int, int, int, bytes]] | None:
+    def _chunk(self, s: int, e: int) -> list[tuple[int, int, int, bytes, int]] | None:
         """The messages of the chunk body ``[s, e)`` if it inflates, its CRC matches and
         its records parse; the channels it defines are registered."""
         b = self.b
@@ -246,7 +249,7 @@ class Scanner:
             return None
         if len(raw) != usize or (crc and zlib.crc32(raw) != crc):
             return None
-        msgs: list[tuple[int, int, int, bytes]] = []
+        msgs: list[tuple[int, int, int, bytes, int]] = []
         channels: dict[int, str] = {}
         q, n = 0, len(raw)
         while q < n:
@@ -259,8 +262,8 @@ class Scanner:
             if op == OP_MESSAGE:
                 if length < _MSG.size:
                     return None
-                ch, seq, t, _ = _MSG.unpack_from(raw, r)
-                msgs.append((ch, seq, t, raw[r + _MSG.size: end]))
+                ch, seq, t, pub = _MSG.unpack_from(raw, r)
+                msgs.append((ch, seq, t, raw[r + _MSG.size: end], pub))
             elif op == OP_CHANNEL:
                 if _fields(raw, r, end, _LAYOUT[OP_CHANNEL]) != end:
                     return None
@@ -269,7 +272,7 @@ class Scanner:
         self.topics.update(channels)
         return msgs
 
-    def _resync(self, o: int) -> tuple[int, list[tuple[int, int, int, bytes]]] | None:
+    def _resync(self, o: int) -> tuple[int, list[tuple[int, int, int, bytes, int]]] | None:
         """The next offset after ``o`` holding an intact chunk, and its messages."""
         find, p = self.b.find, o
         while True:
@@ -327,9 +330,10 @@ class Scanner:
         self._open.append((span, set(self._last_seq), self._recent))
         self._need_after.append(span)
 
-    def _emit(self, msgs: list[tuple[int, int, int, bytes]]) -> list[tuple[str, int, int, bytes]]:
+    def _emit(self, msgs: list[tuple[int, int, int, bytes, int]]) -> list[tuple[Any, ...]]:
         rep, topics, out = self.report, self.topics, []
-        for ch, seq, t, payload in msgs:
+        pub_too = self.publish_time
+        for ch, seq, t, payload, pub in msgs:
             topic = topics.get(ch)
             if topic is None:
                 rep.orphans += 1
@@ -342,7 +346,7 @@ class Scanner:
                 self._account(ch, seq, topic)
             self._last_seq[ch] = seq
             self._read[ch] = self._read.get(ch, 0) + 1
-            out.append((topic, seq, t, payload))
+            out.append((topic, seq, t, payload, pub) if pub_too else (topic, seq, t, payload))
         if out:
             self._recent = {m[0] for m in msgs}
             if rep.messages == 0:
@@ -369,17 +373,18 @@ class Scanner:
             chans.discard(ch)
         self._open = [x for x in self._open if x[1]]
 
-    def messages(self) -> Iterator[tuple[str, int, int, bytes]]:
-        """``(topic, sequence, log_time_ns, payload)`` of every intact message, in file order."""
+    def messages(self) -> Iterator[tuple[Any, ...]]:
+        """``(topic, sequence, log_time_ns, payload)`` of every intact message, in file order
+        (``publish_time_ns`` last if the scanner was made with ``publish_time=True``)."""
         for batch in self.batches():
             yield from batch
 
-    def batches(self) -> Iterator[list[tuple[str, int, int, bytes]]]:
+    def batches(self) -> Iterator[list[tuple[Any, ...]]]:
         """The messages of :meth:`messages`, one list per chunk (or top-level message)."""
         rep, o, n = self.report, 8, self.n
         while o < n:
             rec = self._record(o)
-            msgs: list[tuple[int, int, int, bytes]] | None = None
+            msgs: list[tuple[int, int, int, bytes, int]] | None = None
             if rec is not None:
                 op, s, e = rec
                 if op == OP_CHUNK:
@@ -387,8 +392,8 @@ class Scanner:
                     if msgs is None:
                         rec = None
                 elif op == OP_MESSAGE:
-                    ch, seq, t, _ = _MSG.unpack_from(self.b, s)
-                    msgs = [(ch, seq, t, self.b[s + _MSG.size: e])]
+                    ch, seq, t, pub = _MSG.unpack_from(self.b, s)
+                    msgs = [(ch, seq, t, self.b[s + _MSG.size: e], pub)]
                 elif op == OP_CHANNEL:
                     self.topics[_U16.unpack_from(self.b, s)[0]] = _string(self.b, s + 4)[0]
                 elif op == OP_DATA_END:  # the data is complete; the summary follows

@@ -421,11 +421,12 @@ def _load(path: str | os.PathLike[str]) -> tuple[Path, bytes]:
         raise RecordingError(f"cannot read recording {p}: {e.strerror or e}") from None
 
 
-def scan_messages(path: str | os.PathLike[str]) -> Scanner:
-    """A :class:`~thermoskin.runtime.mcap_scan.Scanner` of the recording at ``path``."""
+def scan_messages(path: str | os.PathLike[str], publish_time: bool = False) -> Scanner:
+    """A :class:`~thermoskin.runtime.mcap_scan.Scanner` of the recording at ``path``
+    (its messages with their publish time last if ``publish_time``)."""
     p, data = _load(path)
     try:
-        return Scanner(p, data)
+        return Scanner(p, data, publish_time)
     except ScanError as e:
         raise RecordingError(str(e)) from None
 
