@@ -218,6 +218,9 @@ SCENARIOS: dict[str, Scenario] = {
         touches=_sequence(5.0, [2.0, 2.5, 2.2, 1.8, 2.8, 2.4], [6.0, 7.0, 5.5, 8.0, 6.5],
                           [1, 1, 2, 2, 3, 3], ["man1"] * 6),
         pump="on"),
+    "mixed": Scenario(
+        "mixed", "two, three, one and two fingers (man1), 6 s apart: a short mixed test", duration=30.0,
+        touches=_sequence(5.0, [2.0, 1.8, 2.5, 2.2], [4.0, 4.2, 3.5], [2, 3, 1, 2], ["man1"] * 4)),
     "none": Scenario("none", "no touch: noise and pump chattering only", duration=60.0),
     "setpoints": Scenario(
         "setpoints", "commands 24, 26, 28 degC, 120 s each, no touch (Fig. 8)", duration=360.0,
