@@ -133,7 +133,8 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
         out[f"{k}_live"] = out.pop(k)
         out[k] = x  # keeps the column order; replaced just below
     out.update(res.columns)
-    out.pop("sd", None)
+    for k in ("sd", "T_g_hat", "cov_qg"):
+        out.pop(k, None)
     write_log(output_csv, out)
     _write_events(events_path, res.events)
     n_gap = int(np.sum(res.columns["gap"]))

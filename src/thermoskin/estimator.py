@@ -209,7 +209,9 @@ class TouchEstimator:
              T_w_cmd: Array | None = None, fresh: Any = None, drive: Array | None = None
              ) -> tuple[dict[str, Array], list[ContactEvent]]:
         """The next chunk of a log (continuing from the last sample stepped): per-sample
-        columns ``q_i_hat, dq_i_hat, sd, contact, gap`` and the contacts that ended in it."""
+        columns ``q_i_hat, dq_i_hat, sd, contact, gap`` (and the filter's ``T_g_hat``, the
+        sheet's temperature, with ``cov_qg``, the covariance of the ``q_i`` and ``T_g``
+        estimates) and the contacts that ended in it."""
         t, T_w, T_p, v, T_a = (np.ascontiguousarray(x, dtype=float) for x in (t, T_w, T_p, v, T_a))
         n = len(t)
         cmd = np.full(n, math.nan) if T_w_cmd is None else np.ascontiguousarray(T_w_cmd, dtype=float)
@@ -219,14 +221,15 @@ class TouchEstimator:
         vals, inv = np.unique(v, return_inverse=True)
         idx = np.array([self._index(float(x)) for x in vals], dtype=np.int64)
         iv = idx[inv].reshape(-1) if n else np.zeros(0, dtype=np.int64)
-        out = np.empty((6, n))
+        out = np.empty((8, n))
         events = np.empty((max(16, n // 50), K.NEV))
         ne = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out, events)
         new = [ContactEvent.from_kernel(events[i]) for i in range(min(ne, len(events)))]
         self.events.extend(new)
         self.contact = int(self.st[K.CONTACT])
         cols = {"q_i_hat": out[0], "dq_i_hat": out[1], "sd": out[3],
-                "contact": out[4].astype(np.int8), "gap": out[5].astype(np.int8)}
+                "contact": out[4].astype(np.int8), "gap": out[5].astype(np.int8),
+                "T_g_hat": out[6], "cov_qg": out[7]}
         return cols, new
 
     def run(self, t: Array, T_w: Array, T_p: Array, v: Array, T_a: Array,

@@ -646,7 +646,8 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
 def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
         out, events):
     """:func:`step` over arrays; fills ``out`` (rows: q_i_hat, dq_i_hat, q estimate, its sd,
-    contact, gap) and ``events``; returns the event count."""
+    contact, gap, the sheet's estimated temperature T_g, their covariance) and ``events``;
+    returns the event count."""
     n = t.shape[0]
     ev = np.empty(NEV)
     ne = 0
@@ -660,6 +661,8 @@ def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
         out[3, k] = st[SQ]
         out[4, k] = st[CONTACT]
         out[5, k] = st[GAP]
+        out[6, k] = st[X + 1]
+        out[7, k] = st[P + 7]
         if c & C_ENDED:
             if ne < cap:
                 events[ne, :] = ev
