@@ -225,22 +225,35 @@ def _update(st, pr, i, y, R):
 
 @njit(cache=True, inline="always")
 def _predict(st, F, G, QQ, u, w):
-    """``x = Phi x + Gamma [u, w]``, ``P = Phi P Phi' + Q``."""
+    """``x = Phi x + Gamma [u, w]``, ``P = Phi P Phi' + Q``.
+
+    ``q_i`` and ``r_p`` are random walks: their rows of ``Phi`` are unit rows and of
+    ``Gamma`` zero (:func:`thermoskin.estimation.model.build_tables` makes them exactly so),
+    which this uses: three full rows instead of five.
+    """
     x0, x1, x2, x3, x4 = st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4]
-    for i in range(5):
+    for i in (0, 1, 3):
         st[X + i] = (F[i, 0] * x0 + F[i, 1] * x1 + F[i, 2] * x2 + F[i, 3] * x3 + F[i, 4] * x4
                      + G[i, 0] * u + G[i, 1] * w)
-    for i in range(5):
+    # FP = Phi P (rows 2 and 4 are P's own)
+    for i in (0, 1, 3):
+        f0, f1, f2, f3, f4 = F[i, 0], F[i, 1], F[i, 2], F[i, 3], F[i, 4]
         for j in range(5):
-            acc = 0.0
-            for m in range(5):
-                acc += F[i, m] * st[P + 5 * m + j]
-            st[SCR + 5 * i + j] = acc
+            st[SCR + 5 * i + j] = (f0 * st[P + j] + f1 * st[P + 5 + j] + f2 * st[P + 10 + j]
+                                   + f3 * st[P + 15 + j] + f4 * st[P + 20 + j])
+    for j in range(5):
+        st[SCR + 10 + j] = st[P + 10 + j]
+        st[SCR + 20 + j] = st[P + 20 + j]
+    # P = FP Phi' + Q (symmetric): columns 2 and 4 of FP Phi' are FP's own
     for i in range(5):
         for j in range(i, 5):
-            acc = QQ[i, j]
-            for m in range(5):
-                acc += st[SCR + 5 * i + m] * F[j, m]
+            if j == 2 or j == 4:
+                acc = st[SCR + 5 * i + j]
+            else:
+                acc = (st[SCR + 5 * i] * F[j, 0] + st[SCR + 5 * i + 1] * F[j, 1]
+                       + st[SCR + 5 * i + 2] * F[j, 2] + st[SCR + 5 * i + 3] * F[j, 3]
+                       + st[SCR + 5 * i + 4] * F[j, 4])
+            acc += QQ[i, j]
             st[P + 5 * i + j] = acc
             st[P + 5 * j + i] = acc
 
@@ -555,9 +568,9 @@ def _detect(st, pr, t, ev):
     return C_CONTACT
 
 
-@njit(cache=True)
-def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
-         ev):
+@njit(cache=True, inline="always")
+def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
+              ev):
     """One sample of one patch; returns the step-result bits (contact, started, ended).
 
     ``iv`` and ``drive``: the pump's table row and the Peltier drive applied over the coming
@@ -643,6 +656,13 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
 
 
 @njit(cache=True)
+def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh, ev):
+    """One sample of one patch (:func:`_step_one`); returns the step-result bits."""
+    return _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
+                     fresh, ev)
+
+
+@njit(cache=True)
 def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
         out, events):
     """:func:`step` over arrays; fills ``out`` (rows: q_i_hat, dq_i_hat, q estimate, its sd,
@@ -653,19 +673,64 @@ def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
     ne = 0
     cap = events.shape[0]
     for k in range(n):
-        c = step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k], T_w_cmd[k],
-                 iv[k], drive[k], fresh[k], ev)
-        out[0, k] = st[QIH]
-        out[1, k] = st[DQ]
-        out[2, k] = st[Q]
-        out[3, k] = st[SQ]
-        out[4, k] = st[CONTACT]
-        out[5, k] = st[GAP]
-        out[6, k] = st[X + 1]
-        out[7, k] = st[P + 7]
+        c = _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k],
+                      T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
+        _outputs(st, out, k)
         if c & C_ENDED:
             if ne < cap:
                 events[ne, :] = ev
+            ne += 1
+    return ne
+
+
+@njit(cache=True, inline="always")
+def _outputs(st, out, k):
+    out[0, k] = st[QIH]
+    out[1, k] = st[DQ]
+    out[2, k] = st[Q]
+    out[3, k] = st[SQ]
+    out[4, k] = st[CONTACT]
+    out[5, k] = st[GAP]
+    out[6, k] = st[X + 1]
+    out[7, k] = st[P + 7]
+
+
+# ---------------------------------------------------------------- many patches
+# ST[i] is patch i's state; its model (parameters and tables) is row mid[i] of PR and of the
+# tables Phi[m, v], Gam[m, v], ..., Rw[m, v] (patches with the same parameters share one).
+
+@njit(cache=True)
+def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
+              fresh, codes, EV):
+    """One sample of every patch: the readings are arrays over patches; ``codes[i]`` its bits,
+    ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``)."""
+    for i in range(ST.shape[0]):
+        m = mid[i]
+        codes[i] = _step_one(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t,
+                             T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
+
+
+@njit(cache=True)
+def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd, iv,
+             drive, fresh, out, events, ev_patch):
+    """A long-format log (one row per sample and patch, in time order): each row steps its
+    patch's state; fills ``out`` per row (as :func:`run`), ``events`` and ``ev_patch`` (the
+    patch of each); returns the event count."""
+    n = t.shape[0]
+    ev = np.empty(NEV)
+    ne = 0
+    cap = events.shape[0]
+    for k in range(n):
+        i = patch[k]
+        m = mid[i]
+        st = ST[i]
+        c = _step_one(st, PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t[k], T_w[k],
+                      T_p[k], T_a[k], T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
+        _outputs(st, out, k)
+        if c & C_ENDED:
+            if ne < cap:
+                events[ne, :] = ev
+                ev_patch[ne] = i
             ne += 1
     return ne
 

@@ -160,6 +160,12 @@ def build_tables(cfg: Config, t_s: float, v_values: tuple[float, ...] | list[flo
         Phi[i], Gam[i], Q[i] = van_loan(A, B, S, t_s)
         A, B, S = patch_matrices(cfg, R_w_of(v, cfg.skin), cfg.estimator.S_q_idle)
         Q_idle[i] = van_loan(A, B, S, t_s)[2]
+    # q_i and r_p are random walks: their rows of Phi are unit rows and of Gamma zero, up to
+    # the matrix exponential's rounding; made exact (the kernel relies on it)
+    for r in (I_Q, I_DTP):
+        assert np.allclose(Phi[:, r, :], np.eye(NX)[r], atol=1e-12) and np.allclose(Gam[:, r], 0.0)
+        Phi[:, r, :] = np.eye(NX)[r]
+        Gam[:, r, :] = 0.0
     tau_a = cfg.sensor.lag_T_a
     Aa, Sa = ambient_matrices(tau_a, cfg.estimator.S_a)
     Phi_a, _, Q_a = van_loan(Aa, np.zeros(2), Sa, t_s)

@@ -1,0 +1,311 @@
+"""The estimator in plain Python: the readable reference the compiled kernel is tested against.
+
+The same algorithm as :mod:`thermoskin.estimation.kernel` (see its docstring and
+``docs/model.md``), written the textbook way: matrices and vectors with ``numpy``, the paper's
+observer (eq. 8) from :class:`thermoskin.observer.ThermalExchangeObserver`, the detector as a
+small state machine. It is slow (tens of µs a sample) and not used at run time; the tests and
+``benchmarks/patches.py`` hold the kernel to it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thermoskin.estimation.model import I_DTP, I_Q, I_TG, I_TP, I_TW, ModelTables, build_tables
+from thermoskin.events import ContactEvent
+from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.params import Config
+from thermoskin.physics.convection import FlowResistance
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class _Cusum:
+    """One onset CUSUM: statistic, last time it was zero, evidence sums since then."""
+
+    design: float
+    g: float = 0.0
+    t_zero: float = 0.0
+    sum_ge: float = 0.0
+    sum_gg: float = 0.0
+
+    def reset(self, t: float) -> None:
+        self.g, self.t_zero, self.sum_ge, self.sum_gg = 0.0, t, 0.0, 0.0
+
+
+@dataclass
+class ReferenceEstimator:
+    """One patch: eq. 8, the Kalman filter on the network, the detector (plain Python)."""
+
+    cfg: Config
+    t_s: float
+    tables: ModelTables = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.tables = build_tables(self.cfg, self.t_s, (0.0, self.cfg.pump.v_on))
+        self.eq8 = ThermalExchangeObserver(self.cfg.skin, self.cfg.observer, self.t_s)
+        self.R_w = FlowResistance(self.cfg.skin)
+        d, es = self.cfg.detector, self.cfg.estimator
+        self.R = self.tables.R_T
+        self.n_warm = max(2, round(d.t_warmup / self.t_s))
+        self.stride = max(1, math.ceil(self.n_warm / 256))
+        self.n_arm = max(1, round(d.t_arm / self.t_s))
+        self.max_gap = max(1, round(es.max_gap_s / self.t_s))
+        self.n_max = max(1, round(d.max_contact_s / self.t_s))
+        eta = min(0.5, 2.0 * self.t_s / d.tau_sigma)
+        self.up, self.down = math.exp(0.5 * eta), math.exp(-0.5 * eta)
+        self.a_b = min(1.0, 1.25 * self.t_s / d.tau_baseline)
+        self.a_lvl = min(1.0, self.t_s / d.tau_level)
+        self.t_amb_hold = d.t_air + 3.0 * self.cfg.sensor.lag_T_a
+        self.vsw = 0.29 if self.t_s > 1.5 * self.cfg.sampling.t_s else 0.0
+        self.events: list[ContactEvent] = []
+        self.ready = False
+        self.x = np.zeros(5)
+        self.P = np.zeros((5, 5))
+        self.xa = np.zeros(2)
+        self.Pa = np.zeros((2, 2))
+        self.kappa, self.rate, self.t_last_w = 1.0, 0.0, -1e300
+        self.gap_run = 0
+        self.iv_prev = 0
+        self.cmd = math.nan
+        self.armed, self.n_in = False, 0
+        self.mode, self.n_seen, self.warm = "warm", 0, []
+        self.b = 0.0
+        self.cusums = [_Cusum(d.dq_design), _Cusum(-d.dq_design),
+                       _Cusum(d.dq_design_hi), _Cusum(-d.dq_design_hi)]
+        self.t_rel, self.last_sign = -1e300, 0.0
+        self.t_air, self.air_up, self.air_down = -1e300, 0.0, 0.0
+        self.contact = 0
+        self.dq = 0.0
+
+    # ---------------------------------------------------------------- the filter
+    def _update(self, i: int, y: float) -> tuple[float, float]:
+        """Scalar update of state ``i``; returns the evidence ``(g e / S, g² / S)``."""
+        S = self.P[i, i] + self.R
+        e = y - self.x[i]
+        sS = math.sqrt(S)
+        ge = gg = 0.0
+        if i == I_TP and abs(e) > self.cfg.estimator.tank_jump * self.kappa * sS:
+            self.P[I_TP, I_TP] += e * e
+            self.P[I_DTP, I_DTP] += (e / self.cfg.estimator.tank_jump_s) ** 2
+            S = self.P[i, i] + self.R
+        else:
+            g = self.P[i, I_Q] / self.P[I_Q, I_Q] if self.P[I_Q, I_Q] > 0 else 0.0
+            Se = self.kappa**2 * S
+            ge, gg = g * e / Se, g * g / Se
+            self.kappa *= self.up if abs(e) > 0.6745 * self.kappa * sS else self.down
+        K = self.P[:, i] / S
+        self.x = self.x + K * e
+        self.P = self.P - np.outer(K, self.P[i, :])
+        return ge, gg
+
+    def _ambient(self, t: float, y: float) -> None:
+        idx = self.tables.amb_idx
+        S = self.Pa[idx, idx] + self.R
+        e = y - self.xa[idx]
+        z = e / math.sqrt(S)
+        self.air_up = max(0.0, self.air_up + z - 1.0)
+        self.air_down = max(0.0, self.air_down - z - 1.0)
+        if self.air_up > 8.0 or self.air_down > 8.0:
+            self.Pa[0, 0] += 1.0
+            S = self.Pa[idx, idx] + self.R
+            self.t_air = t
+            self.air_up = self.air_down = 0.0
+        K = self.Pa[:, idx] / S
+        self.xa = self.xa + K * e
+        self.Pa = self.Pa - np.outer(K, self.Pa[idx, :])
+
+    # ---------------------------------------------------------------- one sample
+    def step(self, t: float, T_w: float, T_p: float, v: float, T_a: float,
+             T_w_cmd: float = math.nan, fresh: int = 7, drive: float = math.nan) -> int:
+        self.q_i_hat = self.eq8.step(T_w, T_p, v, T_a)
+        tb = self.tables
+        if v == v:
+            iv = tb.index(v)
+            if iv != self.iv_prev and self.vsw > 0 and self.ready:
+                dT = ((self.x[I_TP] - self.x[I_TW]) * (1 / self.R_w(tb.v_values[iv])
+                                                      - 1 / self.R_w(tb.v_values[self.iv_prev]))
+                      * self.t_s / self.cfg.skin.C_w)
+                self.x[I_TW] += 0.5 * dT
+                self.P[I_TW, I_TW] += (self.vsw * dT) ** 2
+            self.iv_prev = iv
+        else:
+            iv = self.iv_prev
+        self.gap = not (math.isfinite(T_w) and math.isfinite(T_p) and math.isfinite(T_a) and v == v)
+        ge = gg = 0.0
+        if not self.ready:
+            if self.gap:
+                return self.contact
+            self._init(T_w, T_p, T_a)
+        else:
+            if fresh & 4 and math.isfinite(T_a):
+                self._ambient(t, T_a)
+                if self.t_air == t and self.mode == "contact" and t - self.detected < 1.0:
+                    self.mode, self.contact = "idle", 0
+                    self.x[I_Q] = self.b
+                    self._reset_cusums(t)
+            if fresh & 1 and math.isfinite(T_w):
+                a, c = self._update(I_TW, T_w)
+                ge, gg = ge + a, gg + c
+                self.gap_run = 0
+                dt = t - self.t_last_w
+                if dt > 0:
+                    self.rate = 1 / dt if self.rate == 0 else self.rate + 0.05 * (1 / dt - self.rate)
+                self.t_last_w = t
+            else:
+                self.gap_run += 1
+            if fresh & 2 and math.isfinite(T_p):
+                a, c = self._update(I_TP, T_p)
+                ge, gg = ge + a, gg + c
+        self.sd = math.sqrt(self.P[I_Q, I_Q]) if self.ready else math.nan
+        if T_w_cmd == T_w_cmd:
+            if self.cmd == self.cmd and abs(T_w_cmd - self.cmd) > 1e-9:
+                self.P[I_DTP, I_DTP] += ((T_w_cmd - self.cmd) / 2.0) ** 2
+                self._reset_cusums(t)
+            self.cmd = T_w_cmd
+        if not self.armed:
+            if T_w_cmd != T_w_cmd:
+                self.armed = True
+            elif math.isfinite(T_w) and abs(T_w - T_w_cmd) <= self.cfg.detector.arm_band:
+                self.n_in += 1
+                self.armed = self.n_in >= self.n_arm
+            else:
+                self.n_in = 0
+        code = 0
+        if self.gap:
+            code = self.contact
+        elif self.armed:
+            code = self._detect(t, ge, gg)
+        else:
+            self.dq = self.x[I_Q] - self.b
+        # predict
+        self.xa = tb.Phi_a @ self.xa
+        self.Pa = tb.Phi_a @ self.Pa @ tb.Phi_a.T + tb.Q_a
+        Q = tb.Q[iv] if self.mode == "contact" else tb.Q_idle[iv]
+        u = np.array([self.xa[0], drive if drive == drive else 0.0])
+        self.x = tb.Phi[iv] @ self.x + tb.Gam[iv] @ u
+        self.P = tb.Phi[iv] @ self.P @ tb.Phi[iv].T + Q
+        if self.gap_run > self.max_gap:
+            self.ready = False
+        return code
+
+    def _init(self, T_w: float, T_p: float, T_a: float) -> None:
+        Rg, Rag, R = self.cfg.skin.R_g, self.cfg.skin.R_ag, self.R
+        self.x = np.array([T_w, (T_w / Rg + T_a / Rag) / (1 / Rg + 1 / Rag), 0.0, T_p, 0.0])
+        self.P = np.diag([R, R, 1.0, R, 1e-4])
+        self.xa = np.array([T_a, T_a])
+        self.Pa = np.full((2, 2), R)
+        self.ready = True
+        self.gap_run = 0
+
+    def _reset_cusums(self, t: float) -> None:
+        for c in self.cusums:
+            c.reset(t)
+
+    # ---------------------------------------------------------------- the detector
+    def _detect(self, t: float, ge: float, gg: float) -> int:
+        d = self.cfg.detector
+        q, sq = self.x[I_Q], math.sqrt(self.P[I_Q, I_Q])
+        if self.mode == "warm":
+            if self.n_seen % self.stride == 0 and len(self.warm) < 256:
+                self.warm.append(q)
+            self.n_seen += 1
+            self.b += (q - self.b) / self.n_seen
+            if self.n_seen >= self.n_warm:
+                self.b = float(np.median(self.warm))
+                self.mode = "idle"
+                self._reset_cusums(t)
+            self.dq = q - self.b
+            return 0
+        if self.mode == "idle":
+            rate = self.rate if self.rate > 0 else 1 / self.t_s
+            h = d.h_on + d.h_rate * math.log(max(rate, 1.0))
+            fire, best, quiet = None, 0.0, True
+            for c in self.cusums:
+                g = c.g + c.design * ge - 0.5 * c.design**2 * gg
+                if t - self.t_air < self.t_amb_hold or (
+                        t - self.t_rel < d.t_refractory and np.sign(c.design) != self.last_sign):
+                    g = 0.0
+                if g <= 0:
+                    c.reset(t)
+                else:
+                    c.g, c.sum_ge, c.sum_gg = g, c.sum_ge + ge, c.sum_gg + gg
+                    quiet = False
+                    if g > h and g - h > best:
+                        fire, best = c, g - h
+            if fire is not None:
+                sg = 1.0 if fire.design > 0 else -1.0
+                D = d.dq_design
+                jump = fire.sum_ge / fire.sum_gg if fire.sum_gg > 0 else sg * D
+                if sg * jump < D:
+                    jump = sg * D
+                self.x[I_Q] += jump
+                self.P[I_Q, I_Q] += 0.25 * jump**2
+                q = self.x[I_Q]
+                self.mode, self.contact, self.sign = "contact", 1, sg
+                self.onset, self.detected = fire.t_zero, t
+                dd = sg * (q - self.b)
+                self.peak = self.sum = self.level = self.level_max = dd
+                self.count, self.since = 1, 0
+                self.run_rel = self.run_lik = 0.0
+                self.t_below = self.t_lik = t
+                self._reset_cusums(t)
+                self.dq = q - self.b
+                return 3
+            if quiet and t - self.t_rel >= d.t_settle:
+                self.b += self.a_b * sq * (1 if q > self.b else -1)
+            self.dq = q - self.b
+            return 0
+        # in contact
+        sg, b = self.sign, self.b
+        dd = sg * (q - b)
+        self.dq = q - b
+        self.peak = max(self.peak, dd)
+        self.sum += dd
+        self.count += 1
+        self.since += 1
+        self.level += self.a_lvl * (dd - self.level)
+        self.level_max = max(self.level_max, self.level)
+        sd = d.z_scale * self.kappa * sq
+        thr = max(d.k_off * sd, d.f_off * self.level_max)
+        g = self.run_rel + ((thr - dd) / sd - d.k_rel) * self.t_s
+        if g <= 0:
+            g, self.t_below = 0.0, t
+        self.run_rel = g
+        Dr = -sg * max(self.level_max, d.dq_design)
+        gl = self.run_lik + Dr * ge - 0.5 * Dr * Dr * gg
+        if gl <= 0:
+            gl, self.t_lik = 0.0, t
+        self.run_lik = gl
+        if g > d.h_off:
+            t_rel = self.t_lik if self.detected <= self.t_lik < self.t_below else self.t_below
+            self._end(t_rel)
+            self.x[I_Q] = b
+            self.P[I_Q, I_Q] += 0.25 * self.level**2
+            self.dq = 0.0
+            return 4
+        if self.since >= self.n_max:
+            self._end(t)
+            self.b = q
+            return 4
+        return 1
+
+    def _end(self, t_release: float) -> None:
+        mean = self.sum / self.count
+        dur = t_release - self.onset
+        sg = self.sign
+        self.events.append(ContactEvent(onset=self.onset, detected_at=self.detected, release=t_release,
+                                        duration=dur, sign=int(sg), peak_dq=sg * self.peak,
+                                        mean_dq=sg * mean, energy=sg * mean * dur))
+        self.mode, self.contact = "idle", 0
+        self.t_rel, self.last_sign = t_release, sg
+        self._reset_cusums(t_release)
+
+    @property
+    def T_g_hat(self) -> float:
+        return float(self.x[I_TG])
