@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 # ---------------------------------------------------------------- state layout (one patch)
 X = 0          # x: T_w, T_g, q_i, T_p, dT_p (5)
@@ -229,33 +229,68 @@ def _predict(st, F, G, QQ, u, w):
 
     ``q_i`` and ``r_p`` are random walks: their rows of ``Phi`` are unit rows and of
     ``Gamma`` zero (:func:`thermoskin.estimation.model.build_tables` makes them exactly so),
-    which this uses: three full rows instead of five.
+    which this uses (rows 0, 1 and 3 of ``Phi`` only), with ``P`` symmetric: the 15 distinct
+    entries are computed once, in registers.
     """
     x0, x1, x2, x3, x4 = st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4]
-    for i in (0, 1, 3):
-        st[X + i] = (F[i, 0] * x0 + F[i, 1] * x1 + F[i, 2] * x2 + F[i, 3] * x3 + F[i, 4] * x4
-                     + G[i, 0] * u + G[i, 1] * w)
-    # FP = Phi P (rows 2 and 4 are P's own)
-    for i in (0, 1, 3):
-        f0, f1, f2, f3, f4 = F[i, 0], F[i, 1], F[i, 2], F[i, 3], F[i, 4]
-        for j in range(5):
-            st[SCR + 5 * i + j] = (f0 * st[P + j] + f1 * st[P + 5 + j] + f2 * st[P + 10 + j]
-                                   + f3 * st[P + 15 + j] + f4 * st[P + 20 + j])
-    for j in range(5):
-        st[SCR + 10 + j] = st[P + 10 + j]
-        st[SCR + 20 + j] = st[P + 20 + j]
-    # P = FP Phi' + Q (symmetric): columns 2 and 4 of FP Phi' are FP's own
-    for i in range(5):
-        for j in range(i, 5):
-            if j == 2 or j == 4:
-                acc = st[SCR + 5 * i + j]
-            else:
-                acc = (st[SCR + 5 * i] * F[j, 0] + st[SCR + 5 * i + 1] * F[j, 1]
-                       + st[SCR + 5 * i + 2] * F[j, 2] + st[SCR + 5 * i + 3] * F[j, 3]
-                       + st[SCR + 5 * i + 4] * F[j, 4])
-            acc += QQ[i, j]
-            st[P + 5 * i + j] = acc
-            st[P + 5 * j + i] = acc
+    a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
+    b0, b1, b2, b3, b4 = F[1, 0], F[1, 1], F[1, 2], F[1, 3], F[1, 4]
+    c0, c1, c2, c3, c4 = F[3, 0], F[3, 1], F[3, 2], F[3, 3], F[3, 4]
+    st[X] = a0 * x0 + a1 * x1 + a2 * x2 + a3 * x3 + a4 * x4 + G[0, 0] * u + G[0, 1] * w
+    st[X + 1] = b0 * x0 + b1 * x1 + b2 * x2 + b3 * x3 + b4 * x4 + G[1, 0] * u + G[1, 1] * w
+    st[X + 3] = c0 * x0 + c1 * x1 + c2 * x2 + c3 * x3 + c4 * x4 + G[3, 0] * u + G[3, 1] * w
+    p00, p01, p02, p03, p04 = st[P], st[P + 1], st[P + 2], st[P + 3], st[P + 4]
+    p11, p12, p13, p14 = st[P + 6], st[P + 7], st[P + 8], st[P + 9]
+    p22, p23, p24 = st[P + 12], st[P + 13], st[P + 14]
+    p33, p34 = st[P + 18], st[P + 19]
+    p44 = st[P + 24]
+    # rows 0, 1, 3 of Phi P
+    m00 = a0 * p00 + a1 * p01 + a2 * p02 + a3 * p03 + a4 * p04
+    m01 = a0 * p01 + a1 * p11 + a2 * p12 + a3 * p13 + a4 * p14
+    m02 = a0 * p02 + a1 * p12 + a2 * p22 + a3 * p23 + a4 * p24
+    m03 = a0 * p03 + a1 * p13 + a2 * p23 + a3 * p33 + a4 * p34
+    m04 = a0 * p04 + a1 * p14 + a2 * p24 + a3 * p34 + a4 * p44
+    m10 = b0 * p00 + b1 * p01 + b2 * p02 + b3 * p03 + b4 * p04
+    m11 = b0 * p01 + b1 * p11 + b2 * p12 + b3 * p13 + b4 * p14
+    m12 = b0 * p02 + b1 * p12 + b2 * p22 + b3 * p23 + b4 * p24
+    m13 = b0 * p03 + b1 * p13 + b2 * p23 + b3 * p33 + b4 * p34
+    m14 = b0 * p04 + b1 * p14 + b2 * p24 + b3 * p34 + b4 * p44
+    m30 = c0 * p00 + c1 * p01 + c2 * p02 + c3 * p03 + c4 * p04
+    m31 = c0 * p01 + c1 * p11 + c2 * p12 + c3 * p13 + c4 * p14
+    m32 = c0 * p02 + c1 * p12 + c2 * p22 + c3 * p23 + c4 * p24
+    m33 = c0 * p03 + c1 * p13 + c2 * p23 + c3 * p33 + c4 * p34
+    m34 = c0 * p04 + c1 * p14 + c2 * p24 + c3 * p34 + c4 * p44
+    # (Phi P) Phi' + Q, the distinct entries
+    n00 = m00 * a0 + m01 * a1 + m02 * a2 + m03 * a3 + m04 * a4 + QQ[0, 0]
+    n01 = m00 * b0 + m01 * b1 + m02 * b2 + m03 * b3 + m04 * b4 + QQ[0, 1]
+    n03 = m00 * c0 + m01 * c1 + m02 * c2 + m03 * c3 + m04 * c4 + QQ[0, 3]
+    n11 = m10 * b0 + m11 * b1 + m12 * b2 + m13 * b3 + m14 * b4 + QQ[1, 1]
+    n13 = m10 * c0 + m11 * c1 + m12 * c2 + m13 * c3 + m14 * c4 + QQ[1, 3]
+    n33 = m30 * c0 + m31 * c1 + m32 * c2 + m33 * c3 + m34 * c4 + QQ[3, 3]
+    n02 = m02 + QQ[0, 2]
+    n04 = m04 + QQ[0, 4]
+    n12 = m12 + QQ[1, 2]
+    n14 = m14 + QQ[1, 4]
+    n23 = m32 + QQ[2, 3]
+    n34 = m34 + QQ[3, 4]
+    n22 = p22 + QQ[2, 2]
+    n24 = p24 + QQ[2, 4]
+    n44 = p44 + QQ[4, 4]
+    st[P] = n00
+    st[P + 1] = st[P + 5] = n01
+    st[P + 2] = st[P + 10] = n02
+    st[P + 3] = st[P + 15] = n03
+    st[P + 4] = st[P + 20] = n04
+    st[P + 6] = n11
+    st[P + 7] = st[P + 11] = n12
+    st[P + 8] = st[P + 16] = n13
+    st[P + 9] = st[P + 21] = n14
+    st[P + 12] = n22
+    st[P + 13] = st[P + 17] = n23
+    st[P + 14] = st[P + 22] = n24
+    st[P + 18] = n33
+    st[P + 19] = st[P + 23] = n34
+    st[P + 24] = n44
 
 
 @njit(cache=True, inline="always")
@@ -705,6 +740,17 @@ def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T
     """One sample of every patch: the readings are arrays over patches; ``codes[i]`` its bits,
     ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``)."""
     for i in range(ST.shape[0]):
+        m = mid[i]
+        codes[i] = _step_one(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t,
+                             T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
+
+
+@njit(cache=True, parallel=True)
+def step_many_parallel(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
+                       drive, fresh, codes, EV):
+    """:func:`step_many` with the patches shared out over the cores (the patches are
+    independent, so the result is the same, bit for bit)."""
+    for i in prange(ST.shape[0]):
         m = mid[i]
         codes[i] = _step_one(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t,
                              T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])

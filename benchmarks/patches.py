@@ -1,0 +1,103 @@
+"""Estimation for many patches: the compiled kernel's tick time and its agreement with one patch.
+
+N patches (each the paper's single patch with its own thermocouple noise: N copies of a
+simulated log with independent noise) are stepped one sample at a time by
+:class:`~thermoskin.estimation.patches.PatchEstimators` (one compiled loop over state rows).
+Prints one JSON line ``{"n", "p50_us", "p99_us", "max_abs_diff_W", ...}``: the tick time (µs,
+over many ticks after a warm-up) and the largest difference of ``dq_i_hat`` and ``q_i_hat``
+from stepping the plain-Python one-patch reference (``estimation/reference.py``) on the same
+data, over ``--check`` patches (the reference is slow).
+
+    python benchmarks/patches.py --n 1000 [--ticks 5000] [--check 3] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation.patches import PatchEstimators
+from thermoskin.estimation.reference import ReferenceEstimator
+from thermoskin.params import load_config
+from thermoskin.sim.run import simulate
+from thermoskin.sim.scenarios import SCENARIOS
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=1000, help="patches")
+    ap.add_argument("--ticks", type=int, default=5000, help="samples timed (after 2000 of warm-up)")
+    ap.add_argument("--check", type=int, default=3, help="patches checked against the reference")
+    ap.add_argument("--threads", choices=("auto", "one", "all"), default="auto",
+                    help="one core, every core, or every core from 64 patches on (default)")
+    ap.add_argument("--json", action="store_true", help="only the JSON line")
+    a = ap.parse_args()
+    cfg = load_config()
+    warm = 2000
+    n_s = warm + a.ticks
+    log = simulate(SCENARIOS["one-finger"].with_duration(n_s * cfg.sampling.t_s + 1.0), cfg)
+    rng = np.random.default_rng(0)
+    noise = rng.normal(0.0, 0.005, (n_s, a.n))  # each patch its own extra noise
+    T_w = log["T_w"][:n_s, None] + noise
+    T_p = np.repeat(log["T_p"][:n_s, None], a.n, axis=1)
+    T_a = np.repeat(log["T_a"][:n_s, None], a.n, axis=1)
+    v = np.repeat(log["v"][:n_s, None], a.n, axis=1)
+    est = PatchEstimators(cfg, n=a.n, parallel=None if a.threads == "auto" else a.threads == "all")
+    refs = [ReferenceEstimator(cfg, cfg.sampling.t_s) for _ in range(min(a.check, a.n))]
+    times = np.empty(n_s)
+    worst = 0.0
+    t_s = cfg.sampling.t_s
+    iv = est.index(v[0])
+    for k in range(n_s):
+        if k and not np.array_equal(v[k], v[k - 1]):
+            iv = est.index(v[k])
+        t = k * t_s
+        t0 = time.perf_counter_ns()
+        est._step_many(est.ST, est.PR, est.mid, *est._tabs, t, T_w[k], T_p[k], T_a[k], est_cmd(a.n),
+                       iv, est_drive(a.n), est_fresh(a.n), est.codes, est.EV)
+        times[k] = (time.perf_counter_ns() - t0) * 1e-3
+        for i, r in enumerate(refs):
+            r.step(t, T_w[k, i], T_p[k, i], v[k, i], T_a[k, i])
+            for a_, b_ in ((est.ST[i, K.DQ], r.dq), (est.ST[i, K.QIH], r.q_i_hat)):
+                if a_ == a_ and b_ == b_:
+                    worst = max(worst, abs(a_ - b_))
+    tt = times[warm:]
+    out = {"n": a.n, "p50_us": round(float(np.percentile(tt, 50)), 2),
+           "p99_us": round(float(np.percentile(tt, 99)), 2), "max_us": round(float(tt.max()), 1),
+           "max_abs_diff_W": worst, "checked_patches": len(refs), "ticks": len(tt),
+           "ns_per_patch_p50": round(float(np.percentile(tt, 50)) * 1e3 / a.n, 1),
+           "contacts": int(len(est.events) + (est.codes & 1).sum()),
+           "parallel": est._step_many is K.step_many_parallel}
+    if not a.json:
+        print(out)
+    print(json.dumps(out))
+
+
+_CACHE: dict[str, np.ndarray] = {}
+
+
+def _const(name: str, n: int, value: float, dtype: type) -> np.ndarray:
+    key = f"{name}{n}"
+    if key not in _CACHE:
+        _CACHE[key] = np.full(n, value, dtype=dtype)
+    return _CACHE[key]
+
+
+def est_cmd(n: int) -> np.ndarray:
+    return _const("cmd", n, float("nan"), float)
+
+
+def est_drive(n: int) -> np.ndarray:
+    return _const("drive", n, float("nan"), float)
+
+
+def est_fresh(n: int) -> np.ndarray:
+    return _const("fresh", n, 7, np.int64)
+
+
+if __name__ == "__main__":
+    main()
