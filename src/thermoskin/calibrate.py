@@ -112,8 +112,9 @@ PAD_BEFORE = 0.5
 """Seconds left out before a flagged contact (the detector's latency)."""
 PAD_AFTER = 1.0
 """Seconds left out after a flagged contact (the sheet's and the pipe's recovery)."""
-SMOOTH_T_P = 0.1
-"""Width of the centred moving mean on ``T_p``, s (the tank cannot change within it)."""
+SMOOTH_T_P = 0.0
+"""Width of the centred moving mean on ``T_p``, s (0: none; the noise of ``T_p`` enters the
+covariance instead: a mean over 0.1 s biases the fit more, at the kinks of a ramping tank)."""
 SMOOTH_T_A = 1.0
 """Width of the centred moving mean on ``T_a``, s."""
 MIN_USABLE_S = 5.0
@@ -132,6 +133,8 @@ DEP_MIN = 0.001
 """A fitted parameter depends on a held one if the held one off by ×/÷ ``DEP_FACTOR`` would
 move it by more than its standard deviation (and the elasticity is at least ``DEP_MIN``)."""
 Z95 = 1.959963984540054
+N_DRAWS = 100
+"""Monte Carlo draws of the tank sensor's noise for the covariance."""
 
 
 class CalibrationError(ValueError):
@@ -399,6 +402,62 @@ def jacobian(fun: Callable[[Array], Array], theta: Array, h: float = 1e-5) -> Ar
     return np.column_stack(cols) if cols else np.zeros((fun(theta).size, 0))
 
 
+def input_noise(x: Array, blocks: Blocks) -> float:
+    """Standard deviation of an input's sensor noise from its first differences within blocks.
+
+    ``1.4826 MAD(diff x) / sqrt(2)``: the tank's temperature moves by far less than its noise
+    in one sample, so the differences are noise; the MAD ignores the rare fast moves.
+    """
+    d = np.diff(np.asarray(x, dtype=float))
+    same = np.zeros(d.size, dtype=bool)  # both rows in one block
+    for f, n in zip(blocks.first.tolist(), blocks.nlen.tolist(), strict=True):
+        same[f:f + n - 1] = True
+    d = d[same]
+    if d.size < 10:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+
+
+def covariance(blocks: Blocks, values: Mapping[str, float], cfg: Config, J: Array, e: Array,
+               svd: tuple[Array, Array], sigma_p: float, draws: int = N_DRAWS,
+               seed: int = 0) -> tuple[Array, float, float]:
+    """Covariance of ``ln p`` at the optimum, the residuals' ``tau`` and the colour factor.
+
+    The residual is ``e = w - G n_p + (model error)``: white sensor noise on ``T_w`` (variance
+    ``s_w^2`` per sample) and the tank sensor's noise ``n_p`` (``sigma_p``, white, ``sigma_p^2 / n_j``
+    on a block mean) filtered by the network. With ``H = J'J``::
+
+        Cov = f H^-1 (s_w^2 H + E[J' G n_p n_p' G' J]) H^-1
+
+    the expectation by ``draws`` Monte Carlo draws of ``n_p`` through the model (it is linear
+    in its inputs), ``s_w^2 = s^2 - mean (G n_p)^2``. ``f = max(1, tau / tau_model)`` inflates
+    for colour the noise model does not explain (model error): ``tau`` of the residuals over
+    ``tau`` of a residual drawn from the noise model (:func:`autocorrelation_time`).
+    """
+    S, Vt = svd
+    H_inv = (Vt.T / S**2) @ Vt
+    n, p = J.shape
+    s2 = float(e @ e) / max(n - p, 1)
+    rng = np.random.default_rng(seed)
+    e0 = residuals(blocks, values, cfg)
+    C_p = np.zeros((p, p))
+    var_p = 0.0
+    e_p = np.zeros(n)
+    if sigma_p > 0.0:
+        sd_block = sigma_p / np.sqrt(blocks.nlen.astype(float))
+        for _ in range(draws):
+            b = dataclasses.replace(blocks, Tp=blocks.Tp + sd_block * rng.standard_normal(n))
+            e_p = residuals(b, values, cfg) - e0
+            g = J.T @ e_p
+            C_p += np.outer(g, g) / draws
+            var_p += float(e_p @ e_p) / (n * draws)
+    s2_w = max(s2 - var_p, 0.0)
+    tau = autocorrelation_time(e)
+    tau_model = autocorrelation_time(math.sqrt(s2_w) * rng.standard_normal(n) + e_p)
+    colour = max(1.0, tau / tau_model)
+    return colour * (s2_w * H_inv + H_inv @ C_p @ H_inv), tau, colour
+
+
 def _svd(J: Array) -> tuple[Array, Array]:
     """Singular values (descending, floored at 1e-12 of the largest) and right vectors of ``J``.
 
@@ -451,7 +510,9 @@ class Calibration:
     prior_values: dict[str, float]
     rms: float
     sigma: float
+    sigma_p: float
     tau: float
+    colour: float
     n_samples: int
     n_stretches: int
     duration: float
@@ -476,13 +537,13 @@ class Calibration:
         return self.blocks.Tw - self.fitted
 
     def status(self, name: str) -> str:
-        """``fitted``, ``fitted, given held ...`` or ``held: why``."""
+        """``fitted``, ``fitted given R_ag, ...`` (its dependences) or ``held (why, short)``."""
         if name in self.held:
-            return f"held: {self.held[name]}"
+            why = self.held[name]
+            return ("held: pump never " + ("stops" if "stops" in why else "runs") if "pump" in why
+                    else "held: not determined")
         dep = self.dependence.get(name, {})
-        if dep:
-            return "fitted, given " + ", ".join(f"{q} (elasticity {e:+.2g})" for q, e in dep.items())
-        return "fitted"
+        return "fitted given " + ", ".join(dep) if dep else "fitted"
 
 
 def _check_log(log: Mapping[str, ArrayLike]) -> tuple[dict[str, Array], float]:
@@ -611,8 +672,9 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
                  f"the fit does not change along {combination(free, Vt[-1])}")
 
     z = Z95
+    sigma_p = input_noise(cols["T_p"], blocks)
     cov = np.zeros((0, 0))
-    tau = 1.0
+    tau = colour = 1.0
     fun = residual_fn([])
     theta = np.zeros(0)
     J = np.zeros((blocks.mode.size, 0))
@@ -626,10 +688,10 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
         theta = res.x
         e = fun(theta)
         J = jacobian(fun, theta)
-        s2 = float(e @ e) / max(e.size - theta.size, 1)
-        tau = autocorrelation_time(e)
+        vals = {**{q: estimate[q] for q in undetermined}, **dict(zip(free, np.exp(theta).tolist(),
+                                                                       strict=True))}
         S, Vt = _svd(J)
-        cov = (Vt.T / S**2) @ Vt * (s2 * tau)
+        cov, tau, colour = covariance(blocks, vals, cfg, J, e, (S, Vt), sigma_p)
         sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
         for i, p in enumerate(free):
             half = min(z * float(sd[i]), 700.0)  # beyond: a factor above 1e300, as good as none
@@ -677,7 +739,8 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
         covariance=cov, correlation=corr, held=held, dependence=dependence,
         prior_values={p: prior[p] for p in requested},
         rms=float(np.sqrt(np.mean((e / w) ** 2))),
-        sigma=float(np.sqrt((e @ e) / max(e.size - len(free), 1))), tau=tau,
+        sigma=float(np.sqrt((e @ e) / max(e.size - len(free), 1))), sigma_p=sigma_p, tau=tau,
+        colour=colour,
         n_samples=blocks.n_samples, n_stretches=int(blocks.w0.size),
         duration=float(cols["t"][-1] - cols["t"][0] + t_s), t_fit=blocks.m * t_s, nfev=nfev,
         wall_s=time.perf_counter() - t_start, blocks=blocks, fitted=blocks.Tw - e / w)
@@ -696,9 +759,10 @@ def summary_lines(cal: Calibration) -> list[str]:
         f"in blocks of {cal.t_fit * 1e3:.0f} ms; "
         f"{cal.nfev} model runs, {cal.wall_s:.1f} s",
         f"residual rms {cal.rms * 1e3:.2f} mK per block, {cal.sigma * 1e3:.1f} mK per sample; "
-        f"autocorrelation time {cal.tau:.2f} blocks (covariance multiplied by it: "
-        f"{cal.blocks.mode.size / cal.tau:.0f} effective blocks)",
-        "95 % intervals exp(ln p ± 1.96 sd), sd from the Jacobian at the optimum",
+        f"T_p noise {cal.sigma_p * 1e3:.1f} mK; residual autocorrelation time {cal.tau:.2f} blocks",
+        "95 % intervals exp(ln p ± 1.96 sd): Gauss-Newton covariance at the optimum with the T_w noise "
+        "white and the T_p noise carried through the network; colour beyond that model: covariance "
+        f"x {cal.colour:.2f}",
     ]
     if "C_w" not in cal.requested:
         lines.append(f"heat scale: C_w held at {_g(cal.prior.skin.C_w)} J/K (temperatures cannot fix it); "
@@ -778,7 +842,9 @@ def plot_fit(cal: Calibration, path: str | Path, title: str = "") -> Path:
     ax_z2.set_ylim(-0.1, 4.0)
     ax_z2.set_yticks([])
     ax_z.set_ylabel("T_w (°C), close-up")
-    ax_z.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncols=3, fontsize=8, frameon=False)
+    handles = ax_z.get_legend_handles_labels()[0] + ax_z2.get_legend_handles_labels()[0]
+    ax_z.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncols=3, fontsize=8,
+                frameon=False)
     r = cal.residuals * 1e3
     ax_r.plot(*decimate(t, r), color="tab:blue", lw=0.4, alpha=0.5, label="residual (block means)")
     n1 = max(1, round(1.0 / cal.t_fit))
