@@ -215,7 +215,8 @@ def test_a_touch_log_is_fitted_on_its_no_touch_stretches():
         lo, hi = res.interval(p)
         assert lo <= TRUE[p] <= hi, (p, res.estimate[p], lo, hi)
     blind = cal.calibrate(log, PRIOR_SHEET, IDENTIFIABLE, contact=np.zeros_like(log["t"]))
-    assert blind.rms > 1.5 * res.rms
+    assert blind.rms > 5 * res.rms
+    assert any(not blind.low[p] <= TRUE[p] <= blind.high[p] for p in IDENTIFIABLE)
 
 
 @pytest.mark.parametrize(("edit", "match"), [
