@@ -73,7 +73,8 @@ def test_prediction_is_the_simulated_skin_at_the_true_parameters():
     for sc, tol in ((Scenario("none", "", 5.0), 1e-9), (steps(10.0, 3), 1e-4)):
         log = log_of(sc, noise_T=0.0, quantum_T=0.0)
         t_s = 1e-3
-        blocks = cal.make_blocks(log, t_s, cal.usable_rows(log, t_s))
+        blocks = cal.make_blocks(log, t_s, cal.usable_rows(log, t_s), t_fit=0.01)
+        assert blocks.m == 10
         e = cal.residuals(blocks, TRUE, PRIOR) / np.sqrt(blocks.nlen)
         assert np.max(np.abs(e)) < tol
         # and a wrong parameter is seen
@@ -84,7 +85,7 @@ def test_blocks_never_straddle_a_pump_switch_and_cover_the_usable_rows(log60):
     t_s = 1e-3
     usable = cal.usable_rows(log60, t_s)
     usable[20_000:20_500] = False  # a gap
-    b = cal.make_blocks(log60, t_s, usable)
+    b = cal.make_blocks(log60, t_s, usable, t_fit=0.01)
     covered = np.zeros(usable.size, dtype=bool)
     for f, n in zip(b.first, b.nlen, strict=True):
         assert not covered[f:f + n].any()
@@ -114,6 +115,16 @@ def test_autocorrelation_time_of_an_ar1(phi):
     for k in range(1, w.size):
         x[k] = phi * x[k - 1] + w[k]
     assert cal.autocorrelation_time(x) == pytest.approx((1 + phi) / (1 - phi), rel=0.08)
+
+
+def test_input_noise_of_quantised_readings():
+    """sd of white noise read in 1/128 K steps: sqrt(sigma^2 + q^2/12) (Sheppard), on a slow ramp."""
+    rng = np.random.default_rng(2)
+    n, q = 50_000, 1 / 128
+    x = np.round((24.0 + 0.3e-3 * np.arange(n) + 0.02 * rng.standard_normal(n)) / q) * q
+    log = {"t": np.arange(n) * 1e-3, "T_w": x, "T_p": x, "T_a": x, "v": np.zeros(n)}
+    b = cal.make_blocks(log, 1e-3, np.ones(n, dtype=bool))
+    assert cal.input_noise(x, b) == pytest.approx(math.sqrt(0.02**2 + q**2 / 12), rel=0.03)
 
 
 def test_the_heat_scale_is_not_in_the_temperatures():
@@ -189,6 +200,20 @@ def test_what_the_log_cannot_determine_is_held_and_said(log60):
     moved = math.log(refit.estimate["R_g"] / res.estimate["R_g"])
     predicted = res.dependence["R_g"][q] * math.log(TRUE[q] / res.estimate[q])
     assert moved == pytest.approx(predicted, rel=0.3, abs=0.003)
+
+
+def test_sample_residuals_are_not_biased_by_the_pump_deciding_on_them():
+    """The pump logic switches on the measured T_w it is fitted to. Fitted sample by sample the
+    chattering log gives R_g and R_w_flowing within about 2 sd; 10 ms block means mix each
+    reading with the response to the switch it caused and come out more than 1.2 sd high."""
+    prior = PRIOR_SHEET.replace(skin={"R_w_stopped": 40.0})
+    for seed in range(2):
+        log = log_of(Scenario("none", "", 40.0), seed=seed)
+        for t_fit, lo, hi in ((0.0, -2.2, 2.2), (0.01, 1.2, 6.0)):
+            res = cal.calibrate(log, prior, ("R_g", "R_w_flowing"), t_fit=t_fit)
+            for p in res.names:
+                z = (math.log(res.estimate[p]) - math.log(TRUE[p])) / res.sd_log[p]
+                assert lo < z < hi, (seed, t_fit, p, z)
 
 
 def test_a_pump_that_never_stops_leaves_R_w_stopped_at_its_prior():

@@ -185,7 +185,8 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
 @click.option("--contact-column", default="contact", show_default=True,
               help="Column flagging touches; its rows (padded) are left out if the log has it.")
 @click.option("--t-fit", "t_fit", type=float, default=None,
-              help="Longest block of the fit, s (default 0.01).")
+              help="Fit block means of up to this many seconds (faster; biased where the pump "
+                   "chatters) instead of every sample (default).")
 @_user_errors
 def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, params: str | None,
               truth_path: Path | None, contact_column: str, t_fit: float | None) -> None:
