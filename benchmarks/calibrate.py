@@ -10,6 +10,8 @@ the fit starts from the preset with the true ``C_w`` (the heat scale, which no l
 - ``default``: the default parameters on the named ``calibration`` scenario (120 s) and on
   ``none`` (120 s, pump chattering): what is fitted, what held, errors, time.
 - ``touch``: 90 s with a touch every 10 s, fitted without the contact rows.
+- ``chattering``: ``none`` logs (the pump switching on the measured ``T_w`` every 50 ms),
+  ``R_g, R_w_flowing`` fitted with the rest given, every sample against 10 ms block means.
 
     python benchmarks/calibrate.py [--seeds 20] [--seconds 60] [--json]
 """
@@ -103,6 +105,18 @@ def main() -> None:
     res = calibrate(log, prior_sheet, IDENT)
     out["touch"] = summary(res, time.perf_counter() - t0) | {"stretches": res.n_stretches,
                                                              "usable_s": res.n_samples * 1e-3}
+    out["chattering"] = {}
+    prior_rest = prior_sheet.replace(skin={"R_w_stopped": 40.0})
+    for t_fit in (0.0, 0.01):
+        zc: dict[str, list[float]] = {"R_g": [], "R_w_flowing": []}
+        for seed in range(max(2, a.seeds // 2)):
+            log = sim(SCENARIOS["none"].with_duration(a.seconds), seed)
+            res = calibrate(log, prior_rest, tuple(zc), t_fit=t_fit)
+            for p in zc:
+                zc[p].append((math.log(res.estimate[p]) - math.log(TRUE[p])) / res.sd_log[p])
+        out["chattering"][f"t_fit={t_fit:g}"] = {
+            p: {"z_mean": float(np.mean(v)), "z_sd": float(np.std(v, ddof=1)),
+                "inside_95": float(np.mean(np.abs(v) < 1.96))} for p, v in zc.items()}
     out["machine"] = "shared two-core machine: wall times are noisy"
     print(json.dumps(out))
 

@@ -93,6 +93,7 @@ information about the skin.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import math
 import time
@@ -138,9 +139,10 @@ MIN_STRETCH_S = 0.2
 """Shorter usable stretches are dropped."""
 BOUND = 1000.0
 """Bounds of the fit: ``prior / BOUND <= p <= prior * BOUND``."""
-SD_MAX = 0.5
+SD_MAX = 0.2
 """A direction of ``ln p`` known to a standard deviation above this is not determined
-(95 % interval wider than ×/÷ 2.7)."""
+(95 % interval wider than ×/÷ 1.5): weakly determined directions are the first a small
+bias (the tank's noise, the pump deciding on the readings) throws off by several sd."""
 NULL_RTOL = 1e-6
 """A direction whose singular value is below this fraction of the largest is not seen at all."""
 DEP_FACTOR = 2.0
@@ -179,6 +181,11 @@ class Blocks:
     @property
     def n_samples(self) -> int:
         return int(self.nlen.sum())
+
+    @functools.cached_property
+    def weight(self) -> Array:
+        """``sqrt(n_j)``: every sample weighs alike."""
+        return np.sqrt(self.nlen.astype(float))
 
     @property
     def t_mid(self) -> Array:
@@ -356,15 +363,28 @@ def predict(blocks: Blocks, values: Mapping[str, float], cfg: Config) -> tuple[A
     return out, out_h
 
 
+@njit(cache=True)
+def _project(Tw, w, y, h, stretch, n_stretch, e):  # pragma: no cover - compiled
+    """``e = w (Tw - y)`` less, per stretch, its least-squares fit by ``w h`` (module doc)."""
+    num = np.zeros(n_stretch)
+    den = np.zeros(n_stretch)
+    for j in range(Tw.shape[0]):
+        e[j] = w[j] * (Tw[j] - y[j])
+        hw = w[j] * h[j]
+        num[stretch[j]] += hw * e[j]
+        den[stretch[j]] += hw * hw
+    for j in range(Tw.shape[0]):
+        k = stretch[j]
+        if den[k] > 0.0:
+            e[j] -= w[j] * h[j] * num[k] / den[k]
+
+
 def residuals(blocks: Blocks, values: Mapping[str, float], cfg: Config) -> Array:
     """Weighted block residuals ``e_j`` with each stretch's start projected out (module doc)."""
     y, h = predict(blocks, values, cfg)
-    w = np.sqrt(blocks.nlen.astype(float))
-    e = w * (blocks.Tw - y)
-    hw = w * h
-    k = blocks.w0.size
-    d = np.bincount(blocks.stretch, hw * e, k) / np.maximum(np.bincount(blocks.stretch, hw * hw, k), 1e-300)
-    return e - hw * d[blocks.stretch]
+    e = np.empty(y.size)
+    _project(blocks.Tw, blocks.weight, y, h, blocks.stretch, blocks.w0.size, e)
+    return e
 
 
 def prior_values(cfg: Config, v_on: float | None = None) -> dict[str, float]:
@@ -751,7 +771,7 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
             if dep:
                 dependence[p] = dep
 
-    w = np.sqrt(blocks.nlen.astype(float))
+    w = blocks.weight
     sd = np.sqrt(np.diag(cov))
     corr = cov / np.outer(sd, sd) if sd.size else cov
     return Calibration(
