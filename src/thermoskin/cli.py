@@ -252,7 +252,7 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
         cal_mod.save(res, output_toml, source=str(log_path))
         png = cal_mod.plot_fit(res, output_toml.with_suffix(".png"),
                                title=f"thermoskin calibrate {log_path.name}: residual rms "
-                                     f"{res.rms * 1e3:.2f} mK per block")
+                                     f"{res.rms * 1e3:.2f} mK")
     except OSError as e:
         raise UserError(f"cannot write {output_toml}: {e.strerror or e}") from None
     console.print(f"wrote {output_toml} and {png}")
