@@ -194,6 +194,18 @@ def random_scenario(seed: int, duration: float = 120.0, *, name: str | None = No
         T_p_drift=float(rng.uniform(0.01, 0.04)), T_p_period=float(rng.uniform(30.0, 90.0)))
 
 
+def step_schedule(duration: float, every: float = 5.0, lo: float = 22.0, hi: float = 26.0,
+                  seed: int = 0) -> tuple[tuple[float, float], ...]:
+    """Commands ``U(lo, hi)`` °C rounded to 0.5 K, a new one every ``every`` s (seeded).
+
+    Stepping the command up runs the pump for seconds; stepping it down stops it for
+    seconds: the long pump-on and pump-off stretches that identify ``R_w`` (``calibrate``).
+    """
+    rng = np.random.default_rng(seed)
+    times = np.arange(0.0, duration, every)
+    return tuple((float(t), float(np.round(rng.uniform(lo, hi) * 2.0) / 2.0)) for t in times)
+
+
 _FINGERS_DUR = [2.0, 2.5, 1.8, 2.2, 2.8, 1.6, 2.4, 3.0, 2.0]
 _FINGERS_GAP = [7.0, 6.0, 8.0, 5.5, 7.5, 6.5, 8.5, 6.0]
 
@@ -226,6 +238,10 @@ SCENARIOS: dict[str, Scenario] = {
         "setpoints", "commands 24, 26, 28 degC, 120 s each, no touch (Fig. 8)", duration=360.0,
         setpoints=((0.0, 24.0), (120.0, 26.0), (240.0, 28.0))),
     "realistic": random_scenario(2024, 120.0, name="realistic"),
+    "calibration": Scenario(
+        "calibration", "no touch; commands stepping every 5 s within 22-26 degC: long pump-on and "
+        "pump-off stretches, for `thermoskin calibrate`", duration=120.0,
+        setpoints=step_schedule(120.0, seed=15)),
 }
 """The named scenarios; ``fingers`` is the default."""
 
