@@ -112,46 +112,31 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     are used if present, as the loop used them, so a log written by `thermoskin run` gives the
     live run's estimates and contacts again. NaN samples are held over (`gap`).
     """
-    from thermoskin.estimation.freshness import CHANNELS, infer_fresh
-    from thermoskin.logio import read_log, write_log
-    from thermoskin.pipeline import INPUT_COLUMNS, sample_interval
-    from thermoskin.pipeline import observe as run_observe
+    from thermoskin.estimation.freshness import CHANNELS
+    from thermoskin.pipeline import observe_file
 
     cfg = _config(config_path)
-    log = read_log(input_csv, required=INPUT_COLUMNS)
-    t_s = sample_interval(log["t"])
+    with _progress_bar("observing") as bar:
+        task = bar.add_task(f"observing {input_csv.name}", total=None)
+        res = observe_file(input_csv, output_csv, cfg,
+                           progress=lambda k, n: bar.update(task, completed=k, total=n))
+    _write_events(events_path, res.events)
+    t_s = res.t_s
     if t_s > 0.02 + 1e-12:
         err_console.print(f"thermoskin: warning: {input_csv} is sampled at {1 / t_s:.3g} Hz; the "
                           "estimator is made for 50 Hz to 1 kHz: the pump switches faster than this "
                           "log can show, expect late or missed contacts")
-    _, periods = infer_fresh(log)
-    rates = ", ".join(f"{ch} every {periods[ch] * t_s * 1e3:.0f} ms" for ch in CHANNELS)
-    res = run_observe(log, cfg)
-    out = dict(log)
-    live = {k: log[k] for k in ("q_i_hat", "dq_i_hat", "contact", "gap") if k in log}
-    for k, x in live.items():
-        out[f"{k}_live"] = out.pop(k)
-        out[k] = x  # keeps the column order; replaced just below
-    out.update(res.columns)
-    for k in ("sd", "T_g_hat", "cov_qg"):
-        out.pop(k, None)
-    write_log(output_csv, out)
-    _write_events(events_path, res.events)
-    n_gap = int(np.sum(res.columns["gap"]))
+    rates = ", ".join(f"{ch} every {res.periods[ch] * t_s * 1e3:.0f} ms" for ch in CHANNELS)
     console.print(events_table(res.events))
-    console.print(f"{len(log['t'])} samples at {1 / t_s:.0f} Hz ({rates}), {len(res.events)} contacts, "
-                  f"{n_gap} NaN samples held over; wrote {output_csv}"
+    console.print(f"{res.rows} samples at {1 / t_s:.0f} Hz ({rates}), {len(res.events)} contacts, "
+                  f"{res.gaps} NaN samples held over; wrote {output_csv}"
                   + (f" and {events_path}" if events_path else ""))
-    if "contact" in live and "q_i_hat" in live:
-        dq = np.abs(res.columns["q_i_hat"] - live["q_i_hat"])
-        both = np.isfinite(dq)
-        mism = int(np.sum(res.columns["contact"] != np.nan_to_num(live["contact"]).astype(np.int8)))
+    if res.live_q_max_abs_diff is not None:
         console.print(f"against the log's own estimates: max |q_i_hat difference| "
-                      f"{float(dq[both].max()) if both.any() else 0.0:.3g} W, {mism} contact mismatches")
-    armed = res.columns["contact"].any() or res.events
-    if not armed and len(log["t"]) * t_s < cfg.detector.t_warmup + (cfg.detector.t_arm if "T_w_cmd" in log
-                                                                     else 0.0):
-        err_console.print(f"thermoskin: warning: the log lasts {len(log['t']) * t_s:.3g} s, less than "
+                      f"{res.live_q_max_abs_diff:.3g} W, {res.live_contact_mismatches or 0} contact "
+                      "mismatches")
+    if not res.events and res.duration_s < cfg.detector.t_warmup + cfg.detector.t_arm:
+        err_console.print(f"thermoskin: warning: the log lasts {res.duration_s:.3g} s, less than "
                           "the detector needs to arm and learn its baseline: no contact can be reported")
 
 

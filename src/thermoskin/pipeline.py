@@ -9,17 +9,27 @@ On a log written by ``thermoskin run`` it therefore reproduces the live estimate
 
 from __future__ import annotations
 
+import math
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.estimation.freshness import infer_fresh
+from thermoskin.estimation.freshness import FreshInference, infer_fresh
 from thermoskin.estimator import Observation, TouchEstimator
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 
 INPUT_COLUMNS = ("t", "T_w", "T_p", "v", "T_a")
 
-__all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "observe", "sample_interval"]
+__all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "StreamResult", "observe", "observe_file",
+           "sample_interval"]
+
+#: The estimator's columns written by :func:`observe_file` (a log that had them keeps its own
+#: as ``*_live``).
+OUTPUT_COLUMNS = ("q_i_hat", "dq_i_hat", "contact", "gap")
 
 
 def sample_interval(t: NDArray[np.float64]) -> float:
@@ -39,10 +49,76 @@ def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None 
     """
     t = np.asarray(log["t"], dtype=float)
     if t_s is None:
-        t_s = sample_interval(t)
-        if abs(t_s - cfg.sampling.t_s) <= 1e-3 * cfg.sampling.t_s:
-            t_s = cfg.sampling.t_s
+        t_s = _loop_t_s(sample_interval(t), cfg)
     fresh, _ = infer_fresh(log)
     est = TouchEstimator(cfg, t_s=t_s)
     return est.run(t, log["T_w"], log["T_p"], log["v"], log["T_a"],
                    T_w_cmd=log.get("T_w_cmd"), fresh=fresh, drive=log.get("drive"))
+
+
+def _loop_t_s(t_s: float, cfg: Config) -> float:
+    """The log's interval, or the configured one where they agree within 0.1 %."""
+    return cfg.sampling.t_s if abs(t_s - cfg.sampling.t_s) <= 1e-3 * cfg.sampling.t_s else t_s
+
+
+@dataclass
+class StreamResult:
+    """What :func:`observe_file` found: the contacts, the log's rate, the channels' update
+    periods (samples), gaps, and the largest difference from a log's own estimates."""
+
+    events: list[ContactEvent]
+    rows: int
+    t_s: float
+    periods: dict[str, float]
+    gaps: int
+    live_q_max_abs_diff: float | None = None
+    live_contact_mismatches: int | None = None
+    duration_s: float = 0.0
+
+
+def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg: Config,
+                 progress: Callable[[int, int | None], None] | None = None) -> StreamResult:
+    """:func:`observe` streamed from a log file to another (CSV or Parquet each), in chunks:
+    memory does not grow with the log's length. The output holds every input column, the
+    input's own estimates renamed ``*_live``, then ``q_i_hat, dq_i_hat, contact, gap``."""
+    from thermoskin.logio import LogReader, LogWriter
+
+    with LogReader(path, required=INPUT_COLUMNS) as reader:
+        names = list(reader.names)
+        live = [k for k in OUTPUT_COLUMNS if k in names]
+        out_names = [f"{k}_live" if k in live else k for k in names] + list(OUTPUT_COLUMNS)
+        fresh_inf = FreshInference()
+        est: TouchEstimator | None = None
+        gaps = rows = mism = 0
+        q_diff = 0.0
+        t_last = 0.0
+        t_s = math.nan
+        with LogWriter(out, out_names, atomic=True) as writer:  # whole, or not at all
+            for chunk in reader:
+                if est is None:
+                    t_s = _loop_t_s(sample_interval(chunk["t"]), cfg)
+                    est = TouchEstimator(cfg, t_s=t_s)
+                fresh = fresh_inf.feed(chunk)
+                cols, _ = est.feed(chunk["t"], chunk["T_w"], chunk["T_p"], chunk["v"], chunk["T_a"],
+                                   T_w_cmd=chunk.get("T_w_cmd"), fresh=fresh, drive=chunk.get("drive"))
+                if "q_i_hat" in live:
+                    d = np.abs(cols["q_i_hat"] - chunk["q_i_hat"])
+                    d = d[np.isfinite(d)]
+                    q_diff = max(q_diff, float(d.max()) if d.size else 0.0)
+                if "contact" in live:
+                    mism += int(np.sum(cols["contact"] != np.nan_to_num(chunk["contact"]).astype(np.int8)))
+                row = {(f"{k}_live" if k in live else k): chunk[k] for k in names}
+                row.update({k: cols[k] for k in OUTPUT_COLUMNS})
+                writer.write(row)
+                gaps += int(cols["gap"].sum())
+                rows += len(chunk["t"])
+                t_last = float(chunk["t"][-1])
+                if progress is not None:
+                    progress(rows, reader.n_rows)
+        assert est is not None  # a log has two rows at least (LogReader checks)
+        est.finish(t_last)
+    return StreamResult(events=list(est.events), rows=rows, t_s=t_s, periods=fresh_inf.periods or
+                        dict.fromkeys(("T_w", "T_p", "T_a"), 1.0), gaps=gaps,
+                        live_q_max_abs_diff=q_diff if "q_i_hat" in live else None,
+                        live_contact_mismatches=mism if "contact" in live else None,
+                        duration_s=rows * t_s)

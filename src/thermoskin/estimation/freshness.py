@@ -61,3 +61,42 @@ def infer_fresh(log: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.int6
         out |= np.where(fr, BITS[ch], 0)
         periods[ch] = per
     return out, periods
+
+
+class FreshInference:
+    """:func:`infer_fresh` chunk by chunk, for a log read in pieces (the same flags: each
+    channel's rate is decided on the first chunk; a change is taken against the previous
+    chunk's last value)."""
+
+    def __init__(self) -> None:
+        self._every: dict[str, bool] | None = None
+        self._last: dict[str, float] = {}
+        self.periods: dict[str, float] = {}
+
+    def feed(self, chunk: Mapping[str, NDArray[np.float64]]) -> NDArray[np.int64]:
+        n = len(chunk["t"])
+        if "fresh" in chunk:
+            f = np.nan_to_num(np.asarray(chunk["fresh"], dtype=float), nan=0.0).astype(np.int64)
+            if not self.periods:
+                for ch in CHANNELS:
+                    idx = np.flatnonzero(f & BITS[ch])
+                    self.periods[ch] = float(np.median(np.diff(idx))) if len(idx) > 2 else float(n)
+            return f
+        if self._every is None:
+            self._every = {}
+            for ch in CHANNELS:
+                fr, per = channel_fresh(chunk[ch])
+                self._every[ch] = bool(fr.all())
+                self.periods[ch] = per
+        out = np.zeros(n, dtype=np.int64)
+        for ch in CHANNELS:
+            x = np.asarray(chunk[ch], dtype=float)
+            if self._every[ch]:
+                changed = np.ones(n, dtype=bool)
+            else:
+                prev = np.concatenate([[self._last.get(ch, np.nan)], x[:-1]])
+                changed = (x != prev) & ~(np.isnan(x) & np.isnan(prev))
+            out |= np.where(changed, BITS[ch], 0)
+            if n:
+                self._last[ch] = float(x[-1])
+        return out
