@@ -55,13 +55,24 @@ def _config(path: Path | None, preset: str = "paper") -> Config:
     return load_config(path, preset=preset)
 
 
+#: More contacts than this are printed as the first and last few (the rest: --events).
+TABLE_ROWS = 40
+
+
 def events_table(events: list[ContactEvent], title: str = "Detected contacts") -> Table:
-    """The events as a rich table (heat flows signed: negative for heat out, a cold object)."""
+    """The events as a rich table (heat flows signed: negative for heat out, a cold object);
+    a long list shows its first and last rows."""
+    if len(events) > TABLE_ROWS:
+        half = TABLE_ROWS // 2
+        title = f"{title} (the first and last {half} of {len(events)}; all with --events)"
+        shown = list(enumerate(events[:half], 1)) + list(enumerate(events[-half:], len(events) - half + 1))
+    else:
+        shown = list(enumerate(events, 1))
     table = Table(title=title)
     for name in ("#", "onset s", "detected s", "release s", "duration s", "sign", "peak dq W",
                  "mean dq W", "energy J"):
         table.add_column(name, justify="right")
-    for i, e in enumerate(events, 1):
+    for i, e in shown:
         table.add_row(str(i), f"{e.onset:.3f}", f"{e.detected_at:.3f}", f"{e.release:.3f}",
                       f"{e.duration:.2f}", "+" if e.sign > 0 else "-", f"{e.peak_dq:.3f}",
                       f"{e.mean_dq:.3f}", f"{e.energy:.3f}")

@@ -140,6 +140,16 @@ class TouchEstimator:
             i = self._iv[v]
         return i
 
+    def rows_of(self, v: Array) -> NDArray[np.int64]:
+        """Table rows of an array of pump velocities (-1 for NaN)."""
+        iv = np.full(len(v), -2, dtype=np.int64)
+        for x, i in list(self._iv.items()):
+            iv[v == x] = i
+        iv[np.isnan(v)] = -1
+        for x in np.unique(v[iv == -2]).tolist():  # velocities not seen before: new tables
+            iv[v == x] = self._index(float(x))
+        return iv
+
     def reset(self) -> None:
         """Everything afresh; disarmed until the set-point is held (if there is one)."""
         self.st = K.new_state()
@@ -218,9 +228,7 @@ class TouchEstimator:
         drv = np.full(n, math.nan) if drive is None else np.ascontiguousarray(drive, dtype=float)
         fr = (np.full(n, 7, dtype=np.int64) if fresh is None
               else np.ascontiguousarray(fresh, dtype=np.int64))
-        vals, inv = np.unique(v, return_inverse=True)
-        idx = np.array([self._index(float(x)) for x in vals], dtype=np.int64)
-        iv = idx[inv].reshape(-1) if n else np.zeros(0, dtype=np.int64)
+        iv = self.rows_of(v)
         out = np.empty((8, n))
         events = np.empty((max(16, n // 50), K.NEV))
         ne = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out, events)

@@ -98,6 +98,7 @@ TLW = 96       # time of the last fresh pipe reading, s
 TAMB = 97      # time of the last sudden change of the air, s
 AGP = 98       # CUSUMs of the air sensor's innovations, up and down
 AGM = 99
+HTH = 102      # the onset threshold at the current reading rate
 RUNL = 100     # the release evidence CUSUM (dates the release)
 TFBL = 101     # last time it was zero, s
 CU = 104       # the onset CUSUMs, NCU of them, 4 fields each: statistic, last time it was
@@ -369,6 +370,7 @@ def _init(st, pr, T_w, T_p, T_a):
     st[PA + 3] = R
     st[READY] = 1.0
     st[GAPRUN] = 0.0
+    _threshold(st, pr)
 
 
 @njit(cache=True, inline="always")
@@ -426,6 +428,15 @@ def _eq8(st, pr, Rw, T_w, T_p, T_a, iv):
     st[F2Z0] = pr[PR_F2B1] * x - pr[PR_F2A1] * y
     y2 = st[F2Y0] + y
     st[QIH] = (y1 - y2) + (T_w - T_a) * pr[PR_IRAG]
+
+
+@njit(cache=True, inline="always")
+def _threshold(st, pr):
+    """The onset threshold for the current reading rate: more readings a second are more
+    chances of a false alarm, ``h = h_on + h_rate ln(readings/s)`` (no reading yet: one a
+    sample)."""
+    rate = st[RATE] if st[RATE] > 0.0 else 1.0 / pr[PR_TS]
+    st[HTH] = pr[PR_H] + pr[PR_HSLOPE] * math.log(rate if rate > 1.0 else 1.0)
 
 
 @njit(cache=True, inline="always")
@@ -491,9 +502,7 @@ def _detect(st, pr, t, ev):
         sge, sgg = st[SGE], st[SGG]
         hold_other = t - st[TREL] < pr[PR_TREF]  # no onset of the other sign after a release
         hold_all = t - st[TAMB] < pr[PR_TAMBH]  # the air changed: its sensor catches up first
-        # more readings per second are more chances of a false alarm: h = h_on + c ln(rate)
-        rate = st[RATE] if st[RATE] > 0.0 else 1.0 / pr[PR_TS]
-        h = pr[PR_H] + pr[PR_HSLOPE] * math.log(rate if rate > 1.0 else 1.0)
+        h = st[HTH]
         fire = -1
         best = 0.0
         quiet = True
@@ -648,6 +657,7 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
             if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is
                 r = 1.0 / dt
                 st[RATE] = r if st[RATE] == 0.0 else st[RATE] + pr[PR_ARATE] * (r - st[RATE])
+                _threshold(st, pr)
             st[TLW] = t
         else:
             st[GAPRUN] += 1.0

@@ -224,7 +224,7 @@ class ReferenceEstimator:
             return 0
         if self.mode == "idle":
             rate = self.rate if self.rate > 0 else 1 / self.t_s
-            h = d.h_on + d.h_rate * math.log(max(rate, 1.0))
+            h = d.h_on + d.h_rate * math.log(max(rate, 1.0))  # the kernel caches it per reading
             fire, best, quiet = None, 0.0, True
             for c in self.cusums:
                 g = c.g + c.design * ge - 0.5 * c.design**2 * gg
