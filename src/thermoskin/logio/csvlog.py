@@ -32,6 +32,7 @@ from thermoskin.logio.common import (
     NAN_STRINGS,
     Array,
     LogError,
+    arrow_float64,
     first_bad_value,
     is_number,
     parse_value,
@@ -165,7 +166,11 @@ def _arrow_parse(block: bytes | memoryview, names: list[str]) -> list[Array] | N
         )
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
         return None
-    return [writable(c.to_numpy()) for c in tab.columns]
+    out = []
+    for c in tab.columns:
+        got = arrow_float64(c)
+        out.append(got[0] if got is not None else writable(c.to_numpy()))
+    return out
 
 
 def _scan_lines(

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.logio.common import Array, LogError, short, writable
+from thermoskin.logio.common import Array, LogError, arrow_float64, short, writable
 
 #: Rows per row group (8 columns: 16 MiB before compression).
 ROW_GROUP_ROWS = 262_144
@@ -88,16 +88,23 @@ class ParquetSource:
     def batches(self, chunk_rows: int) -> Iterator[tuple[list[Array], list[np.ndarray | None]]]:
         """Float64 columns (nulls as NaN) per batch, with each column's null mask (None if no null)."""
         import pyarrow as pa
-        import pyarrow.compute as pc
 
         try:
             for batch in self._file.iter_batches(batch_size=chunk_rows, use_threads=True):
                 cols: list[Array] = []
                 nulls: list[np.ndarray | None] = []
                 for col in batch.columns:
-                    f = pc.cast(col, pa.float64())
-                    nulls.append(col.is_null().to_numpy(zero_copy_only=False) if col.null_count else None)
-                    cols.append(writable(f.to_numpy(zero_copy_only=False)))
+                    got = arrow_float64(col)
+                    if got is None:  # another type: Arrow's own cast (slow to import)
+                        import pyarrow.compute as pc
+
+                        f = pc.cast(col, pa.float64())
+                        nulls.append(col.is_null().to_numpy(zero_copy_only=False) if col.null_count
+                                     else None)
+                        cols.append(writable(f.to_numpy(zero_copy_only=False)))
+                    else:
+                        cols.append(got[0])
+                        nulls.append(got[1])
                 yield cols, nulls
         except _arrow_errors() as exc:
             raise LogError(f"{self.path}: cannot read the Parquet data ({_first_line(exc)})") from exc
