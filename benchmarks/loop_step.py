@@ -103,14 +103,14 @@ def loop_body(seconds: float) -> dict[str, object]:
         t0 = clock()
         v = pump.step(T_w, cmd)
         t1 = clock()
-        contact = est.step(t, T_w, T_p, v, T_a, cmd)
-        t2 = clock()
         T_p_cmd = mpc.step(T_w, T_a, cmd, v > 0.0)
-        t3 = clock()
+        t2 = clock()
         drive = inner.step(T_p, T_p_cmd, T_a)
+        t3 = clock()
+        contact = est.step(t, T_w, T_p, v, T_a, cmd, 7, drive)
         t4 = clock()
         row = dt_parts[k]
-        row[0], row[1], row[2], row[3] = t1 - t0, t2 - t1, t3 - t2, t4 - t3
+        row[0], row[1], row[2], row[3] = t1 - t0, t4 - t3, t2 - t1, t3 - t2
         parts_identical &= (drive == ctrl.drive and contact == ctrl.contact and v == ctrl.v)
         dev_fast_qp = max(dev_fast_qp, abs(ctrl.T_p_cmd - ctrl_qp.T_p_cmd))
         plant.apply(ctrl.drive, ctrl.v)
