@@ -170,12 +170,12 @@ class DetectorParams(_Validated):
                               "light fingertip) ...")
     dq_design_hi: float = _p(0.6, "W", 0.0, 100.0, lo_open=True,
                              doc="... and this one (two fingers and more)")
-    h_on: float = _p(6.5, "", 0.0, 1000.0, lo_open=True,
+    h_on: float = _p(6.0, "", 0.0, 1000.0, lo_open=True,
                      doc="onset threshold, log-likelihood ratio of a touch against none, for one "
                          "pipe reading a second ...")
-    h_rate: float = _p(1.3, "", 0.0, 100.0,
+    h_rate: float = _p(1.52, "", 0.0, 100.0,
                        doc="... plus this times ln(readings per second): more readings, more "
-                           "chances of a false alarm (10 Hz boards: 9.5, 1 kHz: 15.5)")
+                           "chances of a false alarm (10 Hz boards: 9.5, 100 Hz: 13.0, 1 kHz: 16.5)")
     k_off: float = _p(1.0, "sigma", 0.0, 100.0, doc="release threshold in noise standard deviations")
     f_off: float = _p(0.35, "", 0.0, 1.0,
                       doc="release threshold as a fraction of the contact's smoothed level")
