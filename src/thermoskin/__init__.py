@@ -31,7 +31,7 @@ _EXPORTS = {
     "save_config": "thermoskin.params",
     "TouchEstimator": "thermoskin.estimator",
     "Observation": "thermoskin.estimator",
-    "PatchEstimators": "thermoskin.estimation.patches",
+    "PatchEstimators": "thermoskin.patches",
     "ThermalExchangeObserver": "thermoskin.observer",
     "ContactEvent": "thermoskin.events",
     "EVENT_COLUMNS": "thermoskin.events",
@@ -96,13 +96,13 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs
-    from thermoskin.estimation.patches import PatchEstimators
     from thermoskin.estimator import Observation, TouchEstimator
     from thermoskin.evaluation import match_events
     from thermoskin.events import EVENT_COLUMNS, ContactEvent, write_events
     from thermoskin.logio import LogError, LogReader, LogWriter, read_log, write_log
     from thermoskin.observer import ThermalExchangeObserver
     from thermoskin.params import Config, ConfigError, load_config, save_config
+    from thermoskin.patches import PatchEstimators
     from thermoskin.physics.finger import Touch
     from thermoskin.pipeline import observe, observe_file
     from thermoskin.runtime.closed_loop import run_closed_loop

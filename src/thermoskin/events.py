@@ -19,6 +19,9 @@ from numpy.typing import NDArray
 
 #: Columns of the events table (``--events``): s, s, s, s, +1/-1, W, W, J.
 EVENT_COLUMNS = ("onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq", "energy")
+#: The compiled kernel's event record: these fields, in this order (``estimation.kernel``).
+EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
+NEV = 8
 
 
 @dataclass(frozen=True)
@@ -46,13 +49,11 @@ class ContactEvent:
 
     @classmethod
     def from_kernel(cls, ev: NDArray[np.float64]) -> ContactEvent:
-        """From the kernel's event record (:mod:`thermoskin.estimation.kernel`'s ``EV_*``)."""
-        from thermoskin.estimation import kernel as K  # noqa: N812
-
-        return cls(onset=float(ev[K.EV_ONSET]), detected_at=float(ev[K.EV_DETECTED]),
-                   release=float(ev[K.EV_RELEASE]), duration=float(ev[K.EV_DURATION]),
-                   sign=int(ev[K.EV_SIGN]), peak_dq=float(ev[K.EV_PEAK]),
-                   mean_dq=float(ev[K.EV_MEAN]), energy=float(ev[K.EV_ENERGY]))
+        """From the kernel's event record (the ``EV_*`` layout above)."""
+        return cls(onset=float(ev[EV_ONSET]), detected_at=float(ev[EV_DETECTED]),
+                   release=float(ev[EV_RELEASE]), duration=float(ev[EV_DURATION]),
+                   sign=int(ev[EV_SIGN]), peak_dq=float(ev[EV_PEAK]),
+                   mean_dq=float(ev[EV_MEAN]), energy=float(ev[EV_ENERGY]))
 
 
 def events_columns(events: Sequence[ContactEvent]) -> dict[str, NDArray[np.float64]]:
