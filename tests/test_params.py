@@ -21,7 +21,8 @@ from thermoskin.params import (
     to_toml,
 )
 
-# Table I of the paper, typed in from the paper's text (seed/000_..., lines 510-550).
+# Table I of the paper (*Detection of Human Contact by Thermal Exchange Observer of Robot Skin*),
+# typed in from its text.
 TABLE_I = {
     "C_w": 0.134,  # J/K
     "C_g": 0.0124,  # J/K

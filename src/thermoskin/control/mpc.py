@@ -1,7 +1,7 @@
 """Model predictive control of the pipe temperature ``T_w`` (Sec. V, eqs. 9-11).
 
 Prediction model (eq. 10, with the sampling time ``t_s`` restored on the loss term, see
-MODEL.md)::
+docs/model.md)::
 
     T_w(k+1) = (1 - t_s/(R_w C_w)) T_w(k) + t_s/(R_w C_w) T_p(k) - t_s q_loss(k)/C_w     (10)
 

@@ -1,6 +1,6 @@
 """Recording to MCAP (JSON-schema channels, viewable in Foxglove), reading back, export, replay.
 
-Topics (messages are JSON objects; signal names and units of ``MODEL.md``)::
+Topics (messages are JSON objects; signal names and units of ``docs/model.md``)::
 
     /skin/sample    {t, T_w, T_p, T_a, v, drive, fresh, stale, stuck, status, seq}
     /skin/estimate  {t, q_i_hat, dq_i_hat, contact, gap}
