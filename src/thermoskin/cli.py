@@ -113,12 +113,12 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     live run's estimates and contacts again. NaN samples are held over (`gap`).
     """
     from thermoskin.estimation.freshness import CHANNELS, infer_fresh
-    from thermoskin.logio import read_log, write_log
+    from thermoskin.logio import write_log
     from thermoskin.pipeline import INPUT_COLUMNS, sample_interval
     from thermoskin.pipeline import observe as run_observe
 
     cfg = _config(config_path)
-    log = read_log(input_csv, required=INPUT_COLUMNS)
+    log = _read_log(input_csv, INPUT_COLUMNS)
     t_s = sample_interval(log["t"])
     if t_s > 0.02 + 1e-12:
         err_console.print(f"thermoskin: warning: {input_csv} is sampled at {1 / t_s:.3g} Hz; the "
@@ -126,7 +126,10 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
                           "log can show, expect late or missed contacts")
     _, periods = infer_fresh(log)
     rates = ", ".join(f"{ch} every {periods[ch] * t_s * 1e3:.0f} ms" for ch in CHANNELS)
-    res = run_observe(log, cfg)
+    warn: list[str] = []
+    res = run_observe(log, cfg, warnings=warn)
+    for w in warn:
+        click.echo(f"thermoskin: warning: {input_csv}: {w}", err=True)
     out = dict(log)
     live = {k: log[k] for k in ("q_i_hat", "dq_i_hat", "contact", "gap") if k in log}
     for k, x in live.items():
@@ -152,6 +155,19 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
                                                                      else 0.0):
         err_console.print(f"thermoskin: warning: the log lasts {len(log['t']) * t_s:.3g} s, less than "
                           "the detector needs to arm and learn its baseline: no contact can be reported")
+
+
+def _read_log(path: Path, required: Any) -> dict[str, Any]:
+    """A whole log, also one whose writer was stopped mid-line (a killed run): its cut last
+    line is left out with one warning line saying where the log ends."""
+    from thermoskin.logio import partial_last_line, read_log
+
+    log = read_log(path, required=required, live=True)
+    if partial_last_line(path):
+        click.echo(f"thermoskin: warning: {path}: the last line is cut (its writer was stopped "
+                   f"while writing it): left out; the log ends at t = {float(log['t'][-1]):.3f} s",
+                   err=True)
+    return log
 
 
 def _scenario(name: str, duration: float | None) -> Any:

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
+from thermoskin.plausible import admit, limits
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.controller import SkinController
 from thermoskin.sim.plant import SimulatedPlant
@@ -81,6 +82,7 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     est = ctrl.estimator
     sup = sv.Supervisor(cfg)
     check = sup.check
+    lim = limits(cfg.plausible)
     truth = plant.truth
     k_sent = 0
 
@@ -111,10 +113,11 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
             setpoint_changes.pop(0)
         T_w, T_p, T_a = plant.measure()
         fresh = plant.fresh
-        if check(t, T_w, T_p, T_a):
+        w, p, a = admit(lim, T_w, T_p, T_a)  # implausible readings are no readings
+        if check(t, w, p, a):
             ctrl.safe()  # safe outputs first; the plant gets them below
         else:
-            ctrl.step(t, T_w, T_p, T_a, cmd, fresh)
+            ctrl.step(t, w, p, a, cmd, fresh)
         q_i, T_g, T_w_true, T_p_true = truth()
         c_t[k] = t
         c_Tw[k] = T_w

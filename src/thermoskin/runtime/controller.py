@@ -8,7 +8,9 @@ The same object runs against the simulated skin, a serial device, or a benchmark
     contact = estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)   eq. 8, Kalman filter,
                                                       detector (it feeds no control decision)
 
-Plain floats in, plain floats out; the results stay as attributes for a recorder.
+Plain floats in, plain floats out; the results stay as attributes for a recorder. The
+readings it is given have passed :func:`thermoskin.plausible.admit` (done by the loops,
+before the supervisor): an implausible reading arrives as NaN and is held over.
 """
 
 from __future__ import annotations

@@ -54,6 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.params import Config
+from thermoskin.plausible import admit, limits
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.closed_loop import COLUMNS, LoopResult
 from thermoskin.sim.scenarios import Scenario
@@ -166,6 +167,7 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
     is_sim = spec.device == "sim"
     ctrl = SkinController(cfg)
     sup = sv.Supervisor(cfg)
+    lim = limits(cfg.plausible)
     _warm_up(cfg, sc.T_a)
     summary["priority"] = _set_priority(spec.rt_priority)
     cmd_at = sc.T_w_cmd_at
@@ -216,7 +218,8 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
             if changes and t_dev >= changes[0]:
                 cmd = cmd_at(t_dev)
                 changes.pop(0)
-            code = sup.check(s.t, s.T_w, s.T_p, s.T_a, s.stale, s.stuck, s.status)
+            T_w, T_p, T_a = admit(lim, s.T_w, s.T_p, s.T_a)  # implausible readings are no readings
+            code = sup.check(s.t, T_w, T_p, T_a, s.stale, s.stuck, s.status)
             if dev_faults is not None and len(dev_faults) > faults_seen:
                 f = dev_faults[faults_seen][1]
                 faults_seen = len(dev_faults)
@@ -229,7 +232,7 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
                 q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, 0, 1
                 T_p_cmd = ctrl.T_p_cmd
             else:
-                ctrl.step(s.t, s.T_w, s.T_p, s.T_a, cmd, s.fresh)
+                ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh)
                 drive, v = sup.gate(ctrl.drive, ctrl.v)
                 est = ctrl.estimator
                 q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, ctrl.contact, est.gap

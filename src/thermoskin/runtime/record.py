@@ -800,6 +800,7 @@ def replay(path: str | os.PathLike[str], config: Any = None,
     :func:`iter_messages`) says what was lost.
     """
     from thermoskin.estimator import TouchEstimator
+    from thermoskin.plausible import admit, limits
 
     if config is None:
         params = read_mcap(path, ["/params"]).get("/params", [])
@@ -833,8 +834,10 @@ def replay(path: str | os.PathLike[str], config: Any = None,
             return worst
         return max(worst, abs(a - b)) if a == a and b == b else math.inf
 
+    lim = limits(config.plausible)
     for i in stepped:
-        c = est.step(t[i], T_w[i], T_p[i], v[i], T_a[i], cmd[i], fresh[i], drive[i])
+        w, p, a = admit(lim, T_w[i], T_p[i], T_a[i])  # as the loop admitted them
+        c = est.step(t[i], w, p, v[i], a, cmd[i], fresh[i], drive[i])
         q, dq = est.q_i_hat, est.dq_i_hat
         for k, x in (("t", t[i]), ("T_w", T_w[i]), ("T_p", T_p[i]), ("v", v[i]), ("T_a", T_a[i]),
                      ("q_i_hat", q), ("dq_i_hat", dq), ("contact", c), ("gap", int(est.gap)),
