@@ -175,9 +175,11 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     """
     from thermoskin.estimation.freshness import CHANNELS, infer_fresh
     from thermoskin.logio import write_log
+    from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.pipeline import INPUT_COLUMNS, sample_interval
     from thermoskin.pipeline import observe as run_observe
 
+    _outputs(("-o", output_csv, LOG_SUFFIXES, "log"), ("--events", events_path, (".csv",), "events file"))
     cfg = _config(config_path)
     log = _read_log(input_csv, INPUT_COLUMNS)
     t_s = sample_interval(log["t"])
