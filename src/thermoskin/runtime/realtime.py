@@ -290,7 +290,8 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
                     break
                 t_last_arrival = s.t_recv
         except (OSError, DeviceError) as e:
-            code = sup.link_error(mono() - t0 + t_first, f"{type(e).__name__}: {e}")
+            why = str(e) if isinstance(e, DeviceError) else f"{type(e).__name__}: {e}"
+            code = sup.link_error(mono() - t0 + t_first, why)
             summary["safe_sent"] = _try_safe(dev)  # as far as the link allows
             t_safe_host = mono()
         summary.update(overruns=overruns, rows=k, fault=sup.code, fault_name=sv.FAULTS[sup.code],
