@@ -297,14 +297,16 @@ EXCITATION = "excitation"
 @main.command()
 @click.argument("log_csv", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "output_toml", type=click.Path(path_type=Path), required=True,
-              help="TOML file for the identified ARX model.")
+              help="Config file (TOML) for `run --config`: the identified model as [peltier_model].")
 @click.option("--t-model", type=float, default=None,
               help="Model sample time, s (default: chosen from the data, 0.1-1 s).")
 @_user_errors
 def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
     """Fit a discrete ARX model of T_p against the Peltier drive (columns t, T_p, drive).
 
-    Orders chosen by BIC; the fit is the simulation NRMSE on the last 30 % held back.
+    Orders chosen by BIC; the fit is the simulation NRMSE on the last 30 % held back. The
+    output is a config file (a [peltier_model] table) that `thermoskin run --config` takes:
+    the inner loop then adds the model's steady-state drive as a feed-forward.
     """
     from thermoskin.identify import IdentifyError, save_model
     from thermoskin.identify import identify as fit
@@ -315,7 +317,17 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
         model = fit(log, t_model=t_model)
     except IdentifyError as e:
         raise UserError(str(e)) from None
-    save_model(model, output_toml)
+    from thermoskin.params import PeltierModelParams
+
+    use = "feedforward"
+    try:
+        PeltierModelParams(use=use, t_s=model.t_s, nk=model.nk, a=tuple(model.a), b=tuple(model.b),
+                           c=model.c, d=model.d, with_T_a=model.with_T_a)
+    except ConfigError as e:
+        use = "off"
+        click.echo(f"thermoskin: warning: the model cannot drive the controller ({e}); written with "
+                   'use = "off"', err=True)
+    save_model(model, output_toml, use=use)
     taus = ", ".join(f"{x:.1f}" for x in model.time_constants())
     console.print(f"ARX model at t_s = {model.t_s:g} s: orders na = {model.na}, nb = {model.nb}, "
                   f"delay nk = {model.nk} ({model.criterion.upper()}); time constants {taus} s; "
@@ -323,6 +335,10 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
     console.print(f"fit on held-back data (last 30 %, simulation): NRMSE {model.nrmse:.3f}, "
                   f"RMSE {model.rmse:.3f} K; estimation part NRMSE {model.nrmse_est:.3f}; "
                   f"wrote {output_toml}")
+    if use == "feedforward":
+        click.echo(f"{output_toml} is a config for `thermoskin run --config {output_toml}`: its "
+                   "[peltier_model] gives the inner loop a feed-forward, the drive that holds "
+                   "T_p_cmd in the model's steady state")
 
 
 @main.command()

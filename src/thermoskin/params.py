@@ -9,7 +9,7 @@ range. A TOML file overrides any subset of a preset::
     R_w_flowing = 0.25   # K/W, replaces the convection model while the pump runs
 
 Tables: ``[skin] [sampling] [observer] [estimator] [detector] [sensor] [pump] [peltier] [control]
-[safety] [plausible]``. Every number has a physical range on both sides: a value outside it
+[safety] [plausible] [peltier_model]``. Every number has a physical range on both sides: a value outside it
 (``C_w = 1e300``, ``t_s = 1e-12``) is refused with one line naming the key and the range.
 """
 
@@ -327,6 +327,74 @@ class SafetyParams(_Validated):
 
 
 @dataclass(frozen=True)
+class PeltierModelParams(_Validated):
+    """An identified model of the Peltier tank, as ``thermoskin identify`` writes it.
+
+    The ARX model ``A(q) T_p[k] = B(q) drive[k] + d T_a[k-1] + c`` at sample time ``t_s``
+    (``A = 1 + a_1 q^-1 + ...``, ``B = b_1 q^-nk + ...``; :mod:`thermoskin.identify`). With
+    ``use = "feedforward"`` the inner loop adds the drive that holds the commanded ``T_p`` in
+    the model's steady state, ``drive_ff = (T_p_cmd - T_a) A(1)/B(1)`` (without the ``T_a``
+    input; the tank at zero drive sits at the air) or ``(A(1) T_p_cmd - d T_a - c)/B(1)``
+    (with it), and its PI only corrects the rest (``control.inner``). ``use = "off"``
+    keeps the model for reference only. The fit figures are informational.
+    """
+
+    section = "peltier_model"
+    use: str = _p("off", "", choices=("off", "feedforward"),
+                  doc="what the controller does with the model: nothing, or a feedforward on the drive")
+    t_s: float = _p(0.1, "s", 1e-4, 60.0, doc="the model's sample time")
+    nk: int = _p(0, "samples", 0, 100, doc="input delay of B(q)")
+    a: tuple[float, ...] = ()
+    """``a_1 .. a_na`` (1 to 20 values)."""
+    b: tuple[float, ...] = ()
+    """``b_1 .. b_nb`` (1 to 20 values)."""
+    c: float = _p(0.0, "K", -1e6, 1e6, doc="constant of the ARX equation")
+    d: float = _p(0.0, "", -1e3, 1e3, doc="coefficient of T_a[k-1] (0 without that input)")
+    with_T_a: bool = False
+    nrmse: float | None = _p(None, "", -1e9, 1.0, optional=True,
+                             doc="simulation fit on the held-back data (1 = perfect)")
+    nrmse_est: float | None = _p(None, "", -1e9, 1.0, optional=True,
+                                 doc="simulation fit on the estimation data")
+    rmse: float | None = _p(None, "K", 0.0, 1e6, optional=True, doc="RMSE on the held-back data")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("a", "b"):
+            raw = getattr(self, name)
+            if not isinstance(raw, list | tuple) or len(raw) > 20:
+                raise ConfigError(f"peltier_model.{name} = {raw!r} must be a list of at most 20 numbers")
+            vals = []
+            for x in raw:
+                if isinstance(x, bool) or not isinstance(x, int | float) or not -1e6 <= x <= 1e6:
+                    raise ConfigError(f"peltier_model.{name} = {raw!r}: {x!r} is not a number within "
+                                      "[-1e6, 1e6]")
+                vals.append(float(x))
+            object.__setattr__(self, name, tuple(vals))
+        if not isinstance(self.with_T_a, bool):
+            raise ConfigError(f"peltier_model.with_T_a = {self.with_T_a!r} must be true or false")
+        if self.use == "off" and not self.a and not self.b:
+            return
+        if not self.a or not self.b:
+            raise ConfigError("peltier_model: a and b must each hold at least one coefficient "
+                              "(write the table with `thermoskin identify`)")
+        A1 = 1.0 + sum(self.a)
+        gain = sum(self.b) / A1 if A1 != 0.0 else math.inf
+        if not (math.isfinite(gain) and gain > 0.0):
+            raise ConfigError(f"peltier_model: the steady-state gain B(1)/A(1) = {gain:g} K per unit "
+                              "drive must be > 0 (heating warms the tank)")
+        import numpy as np
+
+        poles = np.roots((1.0, *self.a))
+        if not np.all(np.abs(poles) < 1.0):
+            raise ConfigError("peltier_model: the model is unstable (a pole of A(q) on or outside the "
+                              f"unit circle, |p| = {float(np.max(np.abs(poles))):.4g})")
+
+    def steady_state_gain(self) -> float:
+        """``B(1)/A(1)``, K per unit drive."""
+        return sum(self.b) / (1.0 + sum(self.a))
+
+
+@dataclass(frozen=True)
 class PlausibleParams(_Validated):
     """Physical ranges of the measured columns (``thermoskin.plausible``).
 
@@ -371,6 +439,7 @@ class Config:
     control: ControlParams = field(default_factory=ControlParams)
     safety: SafetyParams = field(default_factory=SafetyParams)
     plausible: PlausibleParams = field(default_factory=PlausibleParams)
+    peltier_model: PeltierModelParams = field(default_factory=PeltierModelParams)
 
     def __post_init__(self) -> None:
         if self.control.T_p_min >= self.control.T_p_max:
@@ -396,7 +465,8 @@ class Config:
 _SECTION_TYPES = {"skin": SkinParams, "sampling": SamplingParams, "observer": ObserverParams,
                   "estimator": EstimatorParams, "detector": DetectorParams, "sensor": SensorParams,
                   "pump": PumpParams, "peltier": PeltierParams, "control": ControlParams,
-                  "safety": SafetyParams, "plausible": PlausibleParams}
+                  "safety": SafetyParams, "plausible": PlausibleParams,
+                  "peltier_model": PeltierModelParams}
 
 PRESETS: dict[str, Config] = {
     "paper": Config(),
@@ -462,7 +532,14 @@ def to_toml(cfg: Config) -> str:
             value = getattr(section, f.name)
             if value is None:
                 continue
-            text = f'"{value}"' if isinstance(value, str) else repr(value)
+            if isinstance(value, str):
+                text = f'"{value}"'
+            elif isinstance(value, bool):
+                text = "true" if value else "false"
+            elif isinstance(value, tuple | list):
+                text = "[" + ", ".join(repr(float(x)) for x in value) + "]"
+            else:
+                text = repr(value)
             unit = f.metadata.get("unit", "")
             lines.append(f"{f.name} = {text}" + (f"  # {unit}" if unit else ""))
         lines.append("")
