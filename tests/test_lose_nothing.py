@@ -158,3 +158,65 @@ def test_killed_run_keeps_its_log_and_recording(tmp_path: Path) -> None:
         time.sleep(0.05)
     assert all(gone(pid) for pid in children), children
     assert ours and not (ours & set(os.listdir("/dev/shm")))
+
+
+def test_cut_log_read_with_a_warning_and_plotted(tmp_path: Path) -> None:
+    """A log whose writer was killed inside a line: `plot` (and every command reading logs)
+    reads it up to its last whole line and says in one line where it ends."""
+    from click.testing import CliRunner
+
+    from thermoskin.cli import main
+    from thermoskin.logio import partial_last_line, write_log
+
+    n = 2000
+    t = np.arange(n) * 1e-3
+    cols = {"t": t, "T_w": 24 + 0.1 * np.sin(t), "T_p": np.full(n, 25.0), "v": np.full(n, 0.141),
+            "T_a": np.full(n, 20.0), "q_i_hat": np.zeros(n), "contact": (t > 1.0).astype(np.int8)}
+    log = tmp_path / "cut.csv"
+    write_log(log, cols)
+    assert not partial_last_line(log)
+    with open(log, "ab") as fh:
+        fh.write(b"2.0,24.0,25")  # the row being written when the writer was killed
+    assert partial_last_line(log)
+    r = CliRunner().invoke(main, ["plot", str(log)])
+    assert r.exit_code == 0, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "last line is cut" in lines[0] and "t = 1.999 s" in lines[0]
+    assert "2000 samples" in r.stdout and "1 contacts" in r.stdout
+    assert (tmp_path / "cut.png").stat().st_size > 10_000
+
+
+def test_stop_request_by_real_signals() -> None:
+    """SIGHUP, SIGTERM, SIGINT only set the flag (no exception in the middle of a write); the
+    exit code is 128 + the signal; a second signal raises KeyboardInterrupt."""
+    from thermoskin.runtime.stopping import StopRequest
+
+    for sig in (signal.SIGHUP, signal.SIGTERM, signal.SIGINT):
+        with StopRequest() as stop:
+            os.kill(os.getpid(), sig)
+            for _ in range(100):  # the handler runs between bytecodes of the main thread
+                if stop.is_set():
+                    break
+                time.sleep(0.001)
+            assert stop.is_set() and stop.signum == sig and stop.exit_code == 128 + sig
+            with pytest.raises(KeyboardInterrupt):
+                os.kill(os.getpid(), sig)
+                time.sleep(0.5)
+        assert signal.getsignal(sig) is not stop._handle  # the previous handler is back
+
+
+def test_stopped_run_scores_only_what_it_could_see() -> None:
+    """Touches scripted after the stop, or cut by it before any detection, are not misses."""
+    from thermoskin.evaluation import match_events
+    from thermoskin.events import ContactEvent
+    from thermoskin.physics.finger import Touch
+
+    touches = [Touch(t_on=t, duration=2.0, n_fingers=1) for t in (5.0, 15.0, 25.0)]
+    ev = [ContactEvent(t + 0.02, t + 0.1, t + 2.0, 2.0, 1, 0.5, 0.4, 0.8) for t in (5.0, 15.0)]
+    whole = match_events(touches, ev)
+    assert (whole.hits, whole.misses, whole.not_scored) == (2, 1, 0)
+    assert (lambda m: (m.hits, m.misses, m.not_scored))(match_events(touches, ev, t_end=16.0)) == (2, 0, 1)
+    m = match_events(touches, ev[:1], t_end=15.05)  # the second touch cut before its detection
+    assert (m.hits, m.misses, m.not_scored, m.false_alarms) == (1, 0, 2, 0)
+    m = match_events(touches, ev[:1], t_end=19.0)  # its whole window seen: a miss
+    assert (m.hits, m.misses, m.not_scored) == (1, 1, 1)
