@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import math
 import os
 import select
@@ -457,6 +458,8 @@ class PtyEmulator:
         t_s = core.t_s
         master = self._master
         stop = self._stop
+        gc.collect()
+        gc.freeze()  # the start-up heap is never traversed again: collections stay short
         while not stop.is_set() and not self.connected.is_set():
             r, _, _ = select.select([master], [], [], 0.05)
             if r:
