@@ -125,6 +125,7 @@ def test_killed_run_keeps_its_log_and_recording(tmp_path: Path) -> None:
         time.sleep(0.2)
         emu.send_signal(signal.SIGCONT)  # ... and owes 200 samples
         wait_log(log, log_end(log) + 1.5, host)
+        time.sleep(0.35)  # the kill falls between two hand-overs of the log, not just after one
         children = [int(x) for x in subprocess.run(["pgrep", "-P", str(host.pid)], capture_output=True,
                                                    text=True).stdout.split()]
         ours = set(os.listdir("/dev/shm")) - shm0
