@@ -836,14 +836,14 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
 
     if output is None and live_addr is None:
         raise UserError("replay: give -o OUT.csv, --live [HOST:]PORT, or both")
-    from thermoskin.paths import LOG_SUFFIXES
-
-    _outputs(("-o", output, LOG_SUFFIXES, "log"))
-    _recording(recording)
     if speed is not None and live_addr is None:
         raise UserError("--speed plays into the live server: give --live too")
     if speed is not None and not (speed > 0 and math.isfinite(speed)):
         raise UserError(f"--speed {speed}: must be > 0")
+    from thermoskin.paths import LOG_SUFFIXES
+
+    _outputs(("-o", output, LOG_SUFFIXES, "log"))
+    _recording(recording)
     if output is None:
         _replay_live(recording, live_addr, live_rate, live_wait, speed or 1.0)
         return
