@@ -19,7 +19,7 @@ SK = CFG.skin  # Table I: C_w 0.134, C_g 0.0124, R_g 10, R_aw 2100, R_ag 1
 
 
 def rhs(skin: SkinParams, Rw: float, T_p: float, T_a: float, G_c: float, T_f: float, q_x: float):
-    """The network of MODEL.md, written out again for the test."""
+    """The network of docs/model.md, written out again for the test."""
     def f(_t, x):
         T_w, T_g = x
         q_p = (T_p - T_w) / Rw

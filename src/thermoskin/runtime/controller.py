@@ -4,16 +4,19 @@ The same object runs against the simulated skin, a serial device, or a benchmark
 
     v       = pump.step(T_w, T_w_cmd)                 Sec. V: stop while T_w is above its command
     T_p_cmd = mpc.step(T_w, T_a, T_w_cmd)             eqs. 9-11
-    drive   = inner.step(T_p, T_p_cmd, T_a)           PI on the Peltier drive (Table I)
+    drive   = inner.step(T_p, T_p_cmd, T_a)           PI on the Peltier drive (Table I), plus the
+                                                      identified model's feed-forward if configured
     contact = estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)   eq. 8, Kalman filter,
                                                       detector (it feeds no control decision)
 
-Plain floats in, plain floats out; the results stay as attributes for a recorder.
+Plain floats in, plain floats out; the results stay as attributes for a recorder. The
+readings it is given have passed :func:`thermoskin.plausible.admit` (done by the loops,
+before the supervisor): an implausible reading arrives as NaN and is held over.
 """
 
 from __future__ import annotations
 
-from thermoskin.control.inner import InnerLoop
+from thermoskin.control.inner import InnerLoop, model_feedforward
 from thermoskin.control.mpc import Mpc
 from thermoskin.control.pump import PumpLogic
 from thermoskin.estimator import TouchEstimator
@@ -30,7 +33,7 @@ class SkinController:
         self.estimator = TouchEstimator(cfg)
         self.pump = PumpLogic(cfg.pump, t_s)
         self.mpc = Mpc(cfg.skin, cfg.control, t_s, v_on=cfg.pump.v_on)
-        self.inner = InnerLoop(cfg.control, t_s)
+        self.inner = InnerLoop(cfg.control, t_s, feedforward=model_feedforward(cfg.peltier_model))
         self.reset()
 
     def reset(self, T_p: float | None = None) -> None:

@@ -1,6 +1,6 @@
 """Recording to MCAP (JSON-schema channels, viewable in Foxglove), reading back, export, replay.
 
-Topics (messages are JSON objects; signal names and units of ``MODEL.md``)::
+Topics (messages are JSON objects; signal names and units of ``docs/model.md``)::
 
     /skin/sample    {t, T_w, T_p, T_a, v, drive, fresh, stale, stuck, status, seq}
     /skin/estimate  {t, q_i_hat, dq_i_hat, contact, gap}
@@ -800,6 +800,7 @@ def replay(path: str | os.PathLike[str], config: Any = None,
     :func:`iter_messages`) says what was lost.
     """
     from thermoskin.estimator import TouchEstimator
+    from thermoskin.plausible import admit_arrays, limits
 
     if config is None:
         params = read_mcap(path, ["/params"]).get("/params", [])
@@ -827,9 +828,12 @@ def replay(path: str | os.PathLike[str], config: Any = None,
     inputs = {k: col(k) for k in ("T_w", "T_p", "T_a")}
     v = col("v_cmd")
     fresh = np.nan_to_num(col("fresh", 7.0), nan=7.0).astype(np.int64)
+    # the readings as the loop admitted them
+    admitted = dict(zip(("T_w", "T_p", "T_a"), admit_arrays(limits(config.plausible), inputs["T_w"],
+                                                            inputs["T_p"], inputs["T_a"]), strict=True))
     est = TouchEstimator(config)
     # the commanded drive (control.drive), as the loop gave it to the estimator
-    res, _ = est.feed(t, inputs["T_w"], inputs["T_p"], v, inputs["T_a"], T_w_cmd=col("T_w_cmd"),
+    res, _ = est.feed(t, admitted["T_w"], admitted["T_p"], v, admitted["T_a"], T_w_cmd=col("T_w_cmd"),
                       fresh=fresh, drive=col("control.drive"))
     est.finish(float(t[-1]))
     q_live, dq_live, c_live = col("q_i_hat"), col("dq_i_hat"), col("contact")
