@@ -1,4 +1,4 @@
-"""Command line: ``thermoskin observe | simulate | run | plot | calibrate | device-emulator | export | replay | ...``.
+"""Command line: ``thermoskin observe | simulate | run | plot | calibrate | export | replay | ...``.
 
 User errors (a bad log, a bad config, an unknown scenario) print one line,
 ``thermoskin: error: ...``, and exit with code 2; never a traceback.
@@ -185,9 +185,9 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     live run's estimates and contacts again. NaN samples are held over (`gap`).
     """
     from thermoskin.estimation.freshness import CHANNELS
-    from thermoskin.pipeline import observe_file
     from thermoskin.logio import partial_last_line
     from thermoskin.paths import LOG_SUFFIXES
+    from thermoskin.pipeline import observe_file
 
     _outputs(("-o", output_csv, LOG_SUFFIXES, "log"), ("--events", events_path, (".csv",), "events file"))
     cfg = _config(config_path)
