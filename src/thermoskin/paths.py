@@ -65,7 +65,7 @@ def check_output(path: Path, option: str, suffixes: Iterable[str] | None = None,
         if p.suffix.lower() not in allowed:
             raise PathError(f"{option} {p}: the {what} name must end in {' or '.join(allowed)}")
     if p.is_dir():
-        raise PathError(f"{option} {p} is a directory; give a {what} name")
+        raise PathError(f"{option} {p} is a directory, not a file; give the {what} a file name")
     base = _nearest_existing(p)
     if not base.is_dir():
         raise PathError(f"{option} {p}: cannot write there: {base} is a file, not a folder")

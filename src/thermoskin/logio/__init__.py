@@ -94,9 +94,10 @@ def read_log(
 
 def partial_last_line(path: str | os.PathLike[str]) -> bool:
     """Whether a CSV log ends in a line without its line end (not blank): the line a writer
-    was killed inside, which ``read_log(..., live=True)`` leaves out. Always False for Parquet."""
+    was killed inside, which ``read_log(..., live=True)`` leaves out. Always False for Parquet
+    (and for a path that is not a readable file: its reader says why)."""
     p = Path(path)
-    if log_format(p) != "csv":
+    if not p.is_file() or log_format(p) != "csv":
         return False
     with open(p, "rb") as fh:
         size = fh.seek(0, os.SEEK_END)
