@@ -94,13 +94,15 @@ class SkinRun:
 def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None, *,
              tank: str = "peltier", start: str = "equilibrium", block: int = 1000,
              progress: Callable[[float], None] | None = None,
-             on_block: Callable[[dict[str, Array]], None] | None = None) -> SkinRun:
+             on_block: Callable[[dict[str, Array]], None] | None = None,
+             step_times: NDArray[np.int64] | None = None) -> SkinRun:
     """Run ``scenario`` on ``skin`` in closed loop; write the log to ``path`` (if given).
 
     ``start``: ``"equilibrium"`` (every loop warm at its command, pump running, the drive that
     holds its tank) or ``"ambient"`` (everything at the air). ``on_block(columns)`` gets every
     block of rows as written (long format). ``tank="prescribed"``: the scenario's ``T_p(t)``,
-    the controllers' pumps only.
+    the controllers' pumps only. ``step_times`` (an int64 array of at least the run's samples):
+    each sample's wall time, ns (a benchmark's; ``time.perf_counter_ns``).
     """
     from thermoskin.logio import LogWriter
 
@@ -139,6 +141,8 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
     rec = plant.rec
     Tw0 = plant.T_w_read[0]
     Tp, Ta = plant.T_p_read, plant.T_a_read
+    clock = time.perf_counter_ns
+    ns0 = clock()
     wall0 = time.perf_counter()
     try:
         for k in range(n):
@@ -172,6 +176,10 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
                 k0 = k + 1
             if progress is not None and k % every == 0:
                 progress(k / n)
+            if step_times is not None:
+                ns1 = clock()
+                step_times[k] = ns1 - ns0
+                ns0 = ns1
     except BaseException:
         if writer is not None:
             writer._discard()
