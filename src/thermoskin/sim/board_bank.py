@@ -25,13 +25,13 @@ JITTER_CHUNK = 64
 
 
 @njit(cache=True)
-def _read(x, noise, pos, y, a, b, lagged, noise_T, quantum, period, t_s, jit, jpos, jidx, nxt, k, value,
-          fresh):  # pragma: no cover - compiled
+def _read(x, noise, pos, y, a, b, lagged, noise_T, quantum, period, t_s, jit, jpos, jlen, jidx, nxt, k,
+          value, fresh):  # pragma: no cover - compiled
     """One sample of every board (``Board.read``, term for term); returns False if a board ran
     out of jitter draws before scheduling its next conversion (then nothing was changed)."""
     nb = x.shape[0]
     for i in range(nb):  # jitter draws needed this sample must be there first
-        if k >= nxt[i] and period[i] > 0.0 and jpos[i] + 8 > jit.shape[1]:
+        if k >= nxt[i] and period[i] > 0.0 and jpos[i] + 8 > jlen[i]:
             return False
     for i in range(nb):
         xi = x[i]
@@ -95,6 +95,7 @@ class BoardBank:
         self.jidx = np.zeros(nb, dtype=np.int64)
         self.jit = np.zeros((nb, 0))
         self.jpos = np.zeros(nb, dtype=np.int64)
+        self.jlen = np.zeros(nb, dtype=np.int64)
         self.value[:] = math.nan
         self.fresh[:] = False
         self.k = 0
@@ -103,7 +104,7 @@ class BoardBank:
     def _refill_jitter(self) -> None:
         """Keep each periodic board's unused draws and add :data:`JITTER_CHUNK` more."""
         nb = len(self.boards)
-        keep = [self.jit[i, self.jpos[i]:] for i in range(nb)]
+        keep = [self.jit[i, self.jpos[i]:self.jlen[i]] for i in range(nb)]
         new = []
         for i in range(nb):
             J = self.J[i]
@@ -117,6 +118,7 @@ class BoardBank:
         self.jit = np.zeros((nb, max(width, 1)))
         for i, r in enumerate(new):
             self.jit[i, :len(r)] = r
+            self.jlen[i] = len(r)
         self.jpos[:] = 0
 
     def read(self, x: Array) -> None:
@@ -128,7 +130,7 @@ class BoardBank:
             for i, rng in enumerate(self._noise_rng):
                 self.noise[i] = rng.standard_normal(BLOCK)
         while not _read(x, self.noise, pos, self.y, self.a, self.b, self.lagged, self.noise_T, self.quantum,
-                        self.period, self.t_s, self.jit, self.jpos, self.jidx, self.nxt, k, self.value,
-                        self.fresh):
+                        self.period, self.t_s, self.jit, self.jpos, self.jlen, self.jidx, self.nxt, k,
+                        self.value, self.fresh):
             self._refill_jitter()
         self.k = k + 1
