@@ -446,14 +446,19 @@ def scenarios() -> None:
 
 
 @main.command()
-@SCENARIO_OPT
+@click.option("--scenario", default=None,
+              help="Named scenario (see `thermoskin scenarios`; default: fingers, with --skin: multi).")
 @DURATION_OPT
 @CONFIG_OPT
 @click.option("-o", "--output", "output_csv", type=click.Path(path_type=Path), required=True,
               help="Log CSV (measured columns and the simulator's truth q_i, T_g).")
+@click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
+              help="A skin of many patches (TOML, see examples/forearm.toml): simulated in closed loop, "
+                   "one controller per water loop; the log has one row per sample and patch: "
+                   "t,patch,T_w,T_p,v,T_a[,T_w2..],q_i,contact_true,position_true,fresh.")
 @_user_errors
-def simulate(scenario: str, duration: float | None, config_path: Path | None,
-             output_csv: Path) -> None:
+def simulate(scenario: str | None, duration: float | None, config_path: Path | None,
+             output_csv: Path, skin_path: Path | None) -> None:
     """Simulate the skin under a named scenario and write its log."""
     from thermoskin.logio import write_log
     from thermoskin.paths import LOG_SUFFIXES
@@ -461,6 +466,10 @@ def simulate(scenario: str, duration: float | None, config_path: Path | None,
 
     _outputs(("-o", output_csv, LOG_SUFFIXES, "log"))
     cfg = _config(config_path)
+    if skin_path is not None:
+        _simulate_skin(skin_path, scenario or "multi", duration, cfg, output_csv)
+        return
+    scenario = scenario or "fingers"
     if scenario == EXCITATION:
         from thermoskin.sim.excitation import simulate_excitation
 
@@ -483,6 +492,37 @@ def simulate(scenario: str, duration: float | None, config_path: Path | None,
     write_log(output_csv, log)
     console.print(f"simulated {sc.duration:g} s of '{sc.name}' ({len(sc.touches)} touches, "
                   f"{len(log['t'])} samples); wrote {output_csv}")
+
+
+def _simulate_skin(skin_path: Path, scenario: str, duration: float | None, cfg: Config,
+                   output: Path) -> None:
+    """``simulate --skin``: the skin of many patches in closed loop, its long-format log."""
+    from thermoskin.logio import log_format
+    from thermoskin.runtime.skin_loop import run_skin
+    from thermoskin.sim.skin_scenarios import skin_scenario
+    from thermoskin.skin import load_skin
+
+    skin = load_skin(skin_path, cfg)
+    log_format(output)
+    if duration is not None and not (duration > 0 and math.isfinite(duration)):
+        raise UserError(f"--duration {duration} must be > 0 s")
+    try:
+        sc = skin_scenario(scenario, skin, duration)
+    except (KeyError, ValueError) as e:
+        raise UserError(str(e).strip("'\"")) from None
+    with _progress_bar(f"simulating {sc.name} on {skin.name}") as bar:
+        task = bar.add_task(f"simulating {sc.name} on {skin.name}", total=1.0)
+        try:
+            res = run_skin(skin, sc, output, progress=lambda f: bar.update(task, completed=f))
+        except ValueError as e:
+            raise UserError(str(e)) from None
+        except OSError as e:
+            raise UserError(f"cannot write {output}: {e.strerror or e}") from None
+    names = ", ".join(f"{p.index} {p.name}" for p in skin.patches)
+    console.print(f"simulated {sc.duration:g} s of '{sc.name}' on {skin.name} ({len(skin.patches)} patches "
+                  f"on {len(skin.loops)} loops, {len(sc.contacts)} contacts) at "
+                  f"{res.realtime_factor:.0f}x real time; {res.n * len(skin.patches)} rows; patch: {names}; "
+                  f"wrote {output}")
 
 
 def _live_options(fn: F) -> F:

@@ -28,9 +28,12 @@ class SkinController:
 
     __slots__ = ("T_p_cmd", "contact", "drive", "estimator", "inner", "mpc", "pump", "v")
 
-    def __init__(self, cfg: Config) -> None:
+    def __init__(self, cfg: Config, *, estimate: bool = True) -> None:
+        """``estimate=False``: temperature control only (pump, MPC, inner loop), no estimator
+        (``estimator`` is None, ``contact`` stays 0): a water loop of many patches, whose
+        patches are estimated elsewhere (``estimation.patches``)."""
         t_s = cfg.sampling.t_s
-        self.estimator = TouchEstimator(cfg)
+        self.estimator = TouchEstimator(cfg) if estimate else None
         self.pump = PumpLogic(cfg.pump, t_s)
         self.mpc = Mpc(cfg.skin, cfg.control, t_s, v_on=cfg.pump.v_on)
         self.inner = InnerLoop(cfg.control, t_s, feedforward=model_feedforward(cfg.peltier_model))
@@ -38,7 +41,8 @@ class SkinController:
 
     def reset(self, T_p: float | None = None) -> None:
         """Start every block afresh; ``T_p`` seeds the MPC's previous command."""
-        self.estimator.reset()
+        if self.estimator is not None:
+            self.estimator.reset()
         self.pump.reset(on=True)
         self.mpc.reset(T_p)
         self.inner.reset(0.0)
@@ -57,7 +61,8 @@ class SkinController:
         drive = self.inner.step(T_p, T_p_cmd, T_a)
         self.drive = drive
         # last: the estimator models the interval to come with the pump and the drive applied
-        self.contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)
+        if self.estimator is not None:
+            self.contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)
 
     def safe(self) -> None:
         """The safe outputs: Peltier drive 0, pump off."""
