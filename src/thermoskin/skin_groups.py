@@ -132,5 +132,5 @@ def group_events(skin: Skin, events: list[SkinEvent], *, reach: float = REACH,
 def groups_columns(groups: list[BodyContact]) -> dict[str, np.ndarray]:
     """The groups as columns of :data:`GROUP_COLUMNS` (numbered from 1)."""
     rows = [g.row(k + 1) for k, g in enumerate(groups)]
-    obj = ("link", "patches")
-    return {c: np.array([r[c] for r in rows], dtype=object if c in obj else float) for c in GROUP_COLUMNS}
+    kind = {"link": object, "patches": object, "contact": np.int64, "n_patches": np.int64}
+    return {c: np.array([r[c] for r in rows], dtype=kind.get(c, float)) for c in GROUP_COLUMNS}

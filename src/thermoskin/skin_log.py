@@ -155,3 +155,33 @@ def long_columns(log: SkinLog, extra: dict[str, Array], drop: tuple[str, ...] = 
 
 def finite_or_nan(x: float) -> float:
     return x if math.isfinite(x) else math.nan
+
+
+def write_table(path: str | os.PathLike[str], columns: dict[str, NDArray[np.generic]]) -> Path:
+    """A small table with text columns (events, groups) as CSV, written atomically; floats in their
+    shortest round-trip form, NaN as an empty field."""
+    import csv
+    import tempfile
+
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    names = list(columns)
+    n = len(next(iter(columns.values()))) if columns else 0
+
+    def cell(x: object) -> str:
+        if isinstance(x, float | np.floating):
+            return "" if math.isnan(x) else repr(float(x))
+        return str(x)
+
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", newline="", encoding="utf-8") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(names)
+            for r in range(n):
+                w.writerow([cell(columns[c][r]) for c in names])
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return p

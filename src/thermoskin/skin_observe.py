@@ -131,7 +131,7 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
             bits = [1] + [4 << j for j in range(1, len(skin.patches[i].thermocouples))]
             fr_i = None if fresh is None else [(fresh[:, i] & b) != 0 for b in bits]
             pos = loc.locate(k_on, k_off, T_in[:, i], c["T_a"][:, i], c["v"][:, i],
-                             [y[:, i] for y in Y[:len(bits)]], fr_i)
+                             [y[:, i] for y in Y[:len(bits)]], fr_i, out["dq_i_hat"][:, i])
         events.append(SkinEvent(i, skin.patches[i].name, ev, pos))
     events.sort(key=lambda e: (e.event.onset, e.patch))
     return SkinObservation(out, events, T_in, fr)
@@ -143,5 +143,5 @@ def events_columns(events: list[SkinEvent]) -> dict[str, NDArray[np.generic]]:
     out: dict[str, NDArray[np.generic]] = {}
     for k in SKIN_EVENT_COLUMNS:
         vals = [r[k] for r in rows]
-        out[k] = np.array(vals, dtype=object if k == "patch" else float)
+        out[k] = np.array(vals, dtype=object if k == "patch" else np.int64 if k == "sign" else float)
     return out

@@ -9,8 +9,9 @@ sequence. Over a window around a contact, with the log's own inputs (the patch's
 
 ``y0`` the model's response to the inputs alone (from its steady state), ``c_j`` an offset
 per thermocouple (the model's error; fitted on the samples before the onset), ``h_j(t; s)``
-the response to a step of 1 W into the sheet at position ``s`` from the onset on (the
-contact's footprint on the cells, ``contact_cells``), ``a`` the heat (W, fitted). For every
+the response to the estimator's heat ``dq_i_hat(t)`` (its time course: a touch's heat falls as
+the sheet under it warms) put into the sheet at position ``s`` (the contact's footprint on the
+cells, ``contact_cells``) from the onset on, ``a`` its scale (fitted). For every
 ``s`` on the grid, ``a`` is the least-squares fit and ``RSS(s)`` the residual; the likelihood is
 ``exp(-(RSS(s) - RSS_min) / (2 sigma^2))`` with ``sigma^2 = RSS_min / (m - 2)`` (the noise as the
 best fit leaves it, so a model error widens the answer rather than hiding in it); its mean
@@ -114,10 +115,11 @@ class PatchLocator:
         return got
 
     def locate(self, k_on: int, k_off: int, T_in: Array, T_a: Array, v: Array, Y: list[Array],
-               fresh: list[NDArray[np.bool_]] | None = None) -> Position:
+               fresh: list[NDArray[np.bool_]] | None = None, dq: Array | None = None) -> Position:
         """The position of a contact from sample ``k_on`` to ``k_off`` (module doc), from the
-        patch's inlet ``T_in``, air ``T_a``, pump ``v`` and thermocouple readings ``Y[j]`` (all
-        over the whole log; ``fresh[j]`` marks the readings to use, default all)."""
+        patch's inlet ``T_in``, air ``T_a``, pump ``v``, thermocouple readings ``Y[j]`` and the
+        estimated heat ``dq`` (all over the whole log; ``fresh[j]`` marks the readings to use,
+        default all; ``dq`` None: a step of 1 W)."""
         t_s = self.t_s
         k0 = max(0, k_on - round(PRE_S / t_s))
         k1 = min(len(v), k_off, k_on + round(MAX_S / t_s))
@@ -144,7 +146,10 @@ class PatchLocator:
             h[r] = H[cells]
             F, Gu, Gq = mats[float(vv[r])]
             x = F @ x + Gu @ np.array([T_in[k], T_a[k]])
-            H = F @ H + (Gq if k >= k_on else 0.0)
+            if k >= k_on:
+                H = F @ H + Gq * (1.0 if dq is None else float(dq[k]))
+            else:
+                H = F @ H
         pre = slice(0, k_on - k0)
         rs, hs = [], []
         for j in range(len(cells)):
