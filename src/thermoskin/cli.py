@@ -667,11 +667,18 @@ SETTLE_S = 10.0
 @click.option("--record", "record_path", type=click.Path(path_type=Path), default=None,
               help="Record every signal, command, event and the parameters to this MCAP file.")
 @_live_options
+@click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
+              help="Run a whole skin of many patches (TOML) in closed loop on the simulated device "
+                   "(scenario default: multi): the long-format log, every patch estimated (events with "
+                   "patch,position,position_sd), the body contacts (--groups) and the layout picture.")
+@click.option("--groups", "groups_path", type=click.Path(path_type=Path), default=None,
+              help="With --skin: also write the body contacts, one row each.")
 @_user_errors
 def run(scenario: str, duration: float | None, setpoint: float | None,
         config_path: Path | None, log_path: Path, plot_path: Path | None, events_path: Path | None,
         device: str, realtime: bool, record_path: Path | None, live_addr: str | None,
-        live_rate: float, live_wait: float) -> None:
+        live_rate: float, live_wait: float, skin_path: Path | None = None,
+        groups_path: Path | None = None) -> None:
     """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
 
     From ambient, the MPC and the inner loop bring T_w to its command while the observer
@@ -696,6 +703,15 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     from thermoskin.runtime.runlog import RunLog
     from thermoskin.runtime.stopping import StopRequest
 
+    if skin_path is not None:
+        if device != "sim" or realtime or record_path is not None or live_addr is not None or setpoint is not None:
+            raise UserError("--skin runs the simulated skin in this process: --device, --realtime, --record, "
+                            "--live and --setpoint are for the single patch")
+        _run_skin(skin_path, None if scenario == "fingers" else scenario, duration, config_path, log_path,
+                  plot_path, events_path, groups_path)
+        return
+    if groups_path is not None:
+        raise UserError("--groups needs --skin (a skin of many patches)")
     serial = device.startswith("serial://")
     if device != "sim" and not serial:
         raise UserError(f"--device {device!r}: must be sim or serial://PATH")
@@ -828,6 +844,50 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         click.echo(f"thermoskin: {why} at t = {n * cfg.sampling.t_s:.3f} s; the device is in its "
                    "safe state; log, plot and recording written", err=True)
         sys.exit(stop.exit_code)
+
+
+def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, config_path: Path | None,
+              log_path: Path, plot_path: Path | None, events_path: Path | None,
+              groups_path: Path | None) -> None:
+    """``run --skin``: the whole skin in closed loop (one controller per water loop,
+    ``runtime/skin_loop.py``), then every patch estimated over the log as written
+    (``skin_observe``): events, body contacts, the layout picture beside the log."""
+    from thermoskin.paths import LOG_SUFFIXES, distinct
+    from thermoskin.runtime.skin_loop import run_skin
+    from thermoskin.sim.skin_scenarios import skin_scenario
+    from thermoskin.skin import load_skin
+    from thermoskin.skin_log import read_skin_log
+    from thermoskin.skin_observe import observe_skin
+
+    if plot_path is None:
+        plot_path = log_path.with_suffix(".png")
+    _outputs(("--log", log_path, LOG_SUFFIXES, "log"), ("--plot", plot_path, (".png",), "picture"),
+             ("--events", events_path, (".csv",), "events file"), ("--groups", groups_path, (".csv",), "groups file"))
+    distinct(("--log", log_path), ("--plot", plot_path), ("--events", events_path), ("--groups", groups_path))
+    cfg = _config(config_path)
+    skin = load_skin(skin_path, cfg)
+    if duration is not None:
+        _check_duration(duration, cfg.sampling.t_s)
+    try:
+        sc = skin_scenario(scenario or "multi", skin, duration)
+    except (KeyError, ValueError) as e:
+        raise UserError(str(e).strip("'\"")) from None
+    console.print(f"[bold]thermoskin run --skin[/]: {skin.name} ({len(skin.patches)} patches on {len(skin.loops)} "
+                  f"loops) in closed loop on the simulated skin, scenario '{sc.name}' ({len(sc.contacts)} "
+                  f"contacts), {sc.duration:g} s")
+    with _progress_bar("running") as bar:
+        task = bar.add_task("closed loop", total=1.0)
+        try:
+            res = run_skin(skin, sc, log_path, progress=lambda f: bar.update(task, completed=f))
+        except OSError as e:
+            raise UserError(f"cannot write {log_path}: {e.strerror or e}") from None
+    obs = observe_skin(read_skin_log(log_path, skin), skin)
+    _skin_report(skin, obs.events, plot_path, events_path, groups_path, f"thermoskin run --skin {sc.name}")
+    track = ", ".join(f"{lp.name} {e:.3f} K" for lp, e in zip(skin.loops, res.tracking, strict=True))
+    console.print(f"{sc.duration:g} s in {res.wall_s:.1f} s ({res.realtime_factor:.1f}x real time, the closed "
+                  f"loop); mean |T_w - T_w_cmd| over the second half: {track}; {len(obs.events)} contacts; "
+                  f"wrote {log_path} and {plot_path}" + (f", {events_path}" if events_path else "")
+                  + (f", {groups_path}" if groups_path else ""))
 
 
 def _loop_figures(res: Any, n: int) -> None:
