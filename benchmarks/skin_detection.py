@@ -31,7 +31,7 @@ from thermoskin.skin_observe import observe_skin
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def score(log, obs, skin) -> dict[str, object]:  # noqa: ANN001
+def score(log, obs, skin) -> dict[str, object]:
     """Touches found, latencies, false alarms and position errors of one run (module doc)."""
     t = log.t
     lat, missed, false, pos_err, pos_none = [], [], [], [], 0

@@ -35,7 +35,7 @@ def test_inlet_is_the_upstream_outlet_delayed_and_cooled():
     T_p = np.full((n, P), 25.0)
     v = np.full((n, P), 0.141)
     T_a = np.full((n, P), 20.0)
-    T_in, fr = inlet_inputs(skin, t_s, [T_w, np.full((n, P), math.nan)], T_p, v, T_a, None)
+    T_in, _fr = inlet_inputs(skin, t_s, [T_w, np.full((n, P), math.nan)], T_p, v, T_a, None)
     lp = skin.loops[0]
     up, down = lp.patches[0], lp.patches[1]
     pipe: Pipe = lp.pipes[1]

@@ -704,7 +704,9 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     from thermoskin.runtime.stopping import StopRequest
 
     if skin_path is not None:
-        if device != "sim" or realtime or record_path is not None or live_addr is not None or setpoint is not None:
+        single_only = (device != "sim", realtime, record_path is not None, live_addr is not None,
+                       setpoint is not None)
+        if any(single_only):
             raise UserError("--skin runs the simulated skin in this process: --device, --realtime, --record, "
                             "--live and --setpoint are for the single patch")
         _run_skin(skin_path, None if scenario == "fingers" else scenario, duration, config_path, log_path,
@@ -862,7 +864,8 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     if plot_path is None:
         plot_path = log_path.with_suffix(".png")
     _outputs(("--log", log_path, LOG_SUFFIXES, "log"), ("--plot", plot_path, (".png",), "picture"),
-             ("--events", events_path, (".csv",), "events file"), ("--groups", groups_path, (".csv",), "groups file"))
+             ("--events", events_path, (".csv",), "events file"),
+             ("--groups", groups_path, (".csv",), "groups file"))
     distinct(("--log", log_path), ("--plot", plot_path), ("--events", events_path), ("--groups", groups_path))
     cfg = _config(config_path)
     skin = load_skin(skin_path, cfg)
@@ -872,9 +875,9 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
         sc = skin_scenario(scenario or "multi", skin, duration)
     except (KeyError, ValueError) as e:
         raise UserError(str(e).strip("'\"")) from None
-    console.print(f"[bold]thermoskin run --skin[/]: {skin.name} ({len(skin.patches)} patches on {len(skin.loops)} "
-                  f"loops) in closed loop on the simulated skin, scenario '{sc.name}' ({len(sc.contacts)} "
-                  f"contacts), {sc.duration:g} s")
+    console.print(f"[bold]thermoskin run --skin[/]: {skin.name} ({len(skin.patches)} patches on "
+                  f"{len(skin.loops)} loops) in closed loop on the simulated skin, scenario '{sc.name}' "
+                  f"({len(sc.contacts)} contacts), {sc.duration:g} s")
     with _progress_bar("running") as bar:
         task = bar.add_task("closed loop", total=1.0)
         try:
@@ -884,8 +887,9 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     obs = observe_skin(read_skin_log(log_path, skin), skin)
     _skin_report(skin, obs.events, plot_path, events_path, groups_path, f"thermoskin run --skin {sc.name}")
     track = ", ".join(f"{lp.name} {e:.3f} K" for lp, e in zip(skin.loops, res.tracking, strict=True))
-    console.print(f"{sc.duration:g} s in {res.wall_s:.1f} s ({res.realtime_factor:.1f}x real time, the closed "
-                  f"loop); mean |T_w - T_w_cmd| over the second half: {track}; {len(obs.events)} contacts; "
+    console.print(f"{sc.duration:g} s in {res.wall_s:.1f} s ({res.realtime_factor:.1f}x real time, the "
+                  f"closed loop); mean |T_w - T_w_cmd| over the second half: {track}; "
+                  f"{len(obs.events)} contacts; "
                   f"wrote {log_path} and {plot_path}" + (f", {events_path}" if events_path else "")
                   + (f", {groups_path}" if groups_path else ""))
 

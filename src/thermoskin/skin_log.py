@@ -64,7 +64,7 @@ def _table(path: Path) -> dict[str, NDArray[np.generic]]:
             import pyarrow.csv as pc
 
             tab = pc.read_csv(path)
-    except Exception as e:  # noqa: BLE001 - any parse failure is a user error here
+    except Exception as e:
         msg = " ".join(str(e).split())
         raise LogError(f"{path}: cannot be read as a {fmt.upper()} log: {msg[:160]}") from None
     out: dict[str, NDArray[np.generic]] = {}
@@ -72,7 +72,7 @@ def _table(path: Path) -> dict[str, NDArray[np.generic]]:
         col = tab[name]
         try:
             a = col.to_numpy(zero_copy_only=False)
-        except Exception:  # noqa: BLE001
+        except Exception:
             a = np.asarray(col.to_pylist(), dtype=object)
         out[name] = a
     return out

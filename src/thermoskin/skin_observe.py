@@ -80,7 +80,8 @@ class SkinEvent:
     def row(self) -> dict[str, float | str]:
         r: dict[str, float | str] = {"patch": self.name}
         r.update(self.event.row())
-        r.update({"position": self.position.mean, "position_sd": self.position.sd, "heat": self.position.heat})
+        pos = self.position
+        r.update({"position": pos.mean, "position_sd": pos.sd, "heat": pos.heat})
         return r
 
 
@@ -126,8 +127,8 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
         pos = NAN_POSITION
         if locate and len(skin.patches[i].thermocouples) >= 2:
             loc = locators.get(i) or locators.setdefault(i, PatchLocator(skin, i, log.t_s))
-            k_on = int(round((ev.onset - log.t[0]) / log.t_s))
-            k_off = int(round((ev.release - log.t[0]) / log.t_s))
+            k_on = round((ev.onset - log.t[0]) / log.t_s)
+            k_off = round((ev.release - log.t[0]) / log.t_s)
             bits = [1] + [4 << j for j in range(1, len(skin.patches[i].thermocouples))]
             fr_i = None if fresh is None else [(fresh[:, i] & b) != 0 for b in bits]
             pos = loc.locate(k_on, k_off, T_in[:, i], c["T_a"][:, i], c["v"][:, i],

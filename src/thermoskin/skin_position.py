@@ -146,10 +146,7 @@ class PatchLocator:
             h[r] = H[cells]
             F, Gu, Gq = mats[float(vv[r])]
             x = F @ x + Gu @ np.array([T_in[k], T_a[k]])
-            if k >= k_on:
-                H = F @ H + Gq * (1.0 if dq is None else float(dq[k]))
-            else:
-                H = F @ H
+            H = F @ H + Gq * (1.0 if dq is None else float(dq[k])) if k >= k_on else F @ H
         pre = slice(0, k_on - k0)
         rs, hs = [], []
         for j in range(len(cells)):
