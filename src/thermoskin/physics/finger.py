@@ -112,7 +112,8 @@ class Touch:
         allowed = (0, 1, 2, 3) if free else (1, 2, 3)
         if isinstance(self.n_fingers, bool) or self.n_fingers not in allowed:
             raise ValueError(f"Touch at t_on = {self.t_on}: n_fingers = {self.n_fingers!r} must be 1, 2 or 3"
-                             + (" (or 0 with G or a toucher)" if free else ""))
+                             + (" (or 0 with G)" if self.G is not None else
+                                " (or 0 with a toucher)" if free else ""))
         if self.toucher is not None:
             _preset(self)  # a known kind, its area and pressure in range
         elif self.area is not None or self.pressure is not None:
