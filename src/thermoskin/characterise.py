@@ -197,6 +197,33 @@ def _reservoir_film(kind: str, T_mid: float) -> float | None:
     return ct.h_natural_water(T_mid, pre.reservoir.height)
 
 
+def _wall_capacity(kind: str) -> float:
+    """Heat capacity of an object's wall per area, J/(m² K)."""
+    from thermoskin.physics import contact as ct
+
+    return sum(ct.MATERIALS[m].rho * ct.MATERIALS[m].c * d for m, d in ct.OBJECTS[kind].plies)
+
+
+FIT_TAU = np.linspace(0.2, 3.0, 57)
+"""Times (s after the onset) over which a wall-and-contents response is read as ``(G', κ)``."""
+
+
+def _wall_response(G1: Array, H: Array, C: Array) -> tuple[Array, Array]:
+    """A thin wall (capacity ``C``, J/K) between the contact ``G1`` and a film ``H`` (W/K) to
+    well-mixed contents: the flow falls from ``G1`` to the series value ``G_s`` as
+    ``G_s + (G1 - G_s) e^{-t/τ_w}``, ``τ_w = C/(G1 + H)``. Read as the model's ``c F(κ sqrt(t))``
+    by least squares over :data:`FIT_TAU` (grid ``κ``, ``c`` in closed form): returns the
+    ``(c G1, κ)`` the characteriser would find on noise-free data."""
+    Gs = G1 * H / (G1 + H)
+    tw = C / (G1 + H)
+    resp = (Gs[:, None] + (G1 - Gs)[:, None] * np.exp(-FIT_TAU[None, :] / tw[:, None])) / G1[:, None]
+    F = flux_kernel(KAPPA[:, None], FIT_TAU[None, :])  # (κ, t)
+    c = resp @ F.T / np.sum(F * F, axis=1)[None, :]     # (draw, κ)
+    rss = np.sum(resp ** 2, axis=1)[:, None] - c ** 2 * np.sum(F * F, axis=1)[None, :]
+    k = np.argmin(rss, axis=1)
+    return c[np.arange(len(k)), k] * G1, KAPPA[k]
+
+
 @lru_cache(maxsize=8)
 def component_priors(R_par: float, T_room_ref: float = 20.0) -> tuple[Component, ...]:
     """The world's touchers (:mod:`thermoskin.physics.world`) as prior components for a skin
@@ -227,10 +254,8 @@ def component_priors(R_par: float, T_room_ref: float = 20.0) -> tuple[Component,
             T_mid = 0.5 * (lo + hi) + (T_room_ref if how == "room" else 0.0)
             film = _reservoir_film(kind, T_mid)
             e_true = ct.MATERIALS[ct.OBJECTS[kind].material_true.name].effusivity
-            if film is not None:  # contents behind a thin wall: a conductance to a store
-                G = 1.0 / (1.0 / G + 1.0 / (film * A))
-                G1 = G / (1.0 + G * R_par)
-                kap = np.zeros(n)
+            if film is not None:  # contents behind a thin wall: the wall, then a film to a store
+                G1, kap = _wall_response(G / (1.0 + G * R_par), film * A, _wall_capacity(kind) * A)
                 e = np.full(n, e_true)
             else:
                 e = ct.MATERIALS[pre.plies[0][0]].effusivity * np.exp(rng.normal(0.0, 0.05, n))
