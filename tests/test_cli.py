@@ -152,6 +152,12 @@ def test_excitation_then_identify(tmp_path: Path) -> None:
     assert code == 0 and "NRMSE" in stdout
     m = load_model(model)
     assert m.na >= 1 and np.isfinite(m.nrmse) and m.steady_state_gain() > 0  # heating warms
+    # what identify writes is a config that run accepts (the inner loop's feed-forward)
+    assert "[peltier_model]" in model.read_text() and "run --config" in stdout
+    code, stdout, err = invoke("run", "--scenario", "none", "--duration", "12", "--config", str(model),
+                               "--log", str(tmp_path / "ff.csv"))
+    assert code == 0, err
+    assert "tracking T_w_cmd 24 degC" in stdout
 
 
 def test_identify_bad_log_exit_2(sim_log: Path, tmp_path: Path) -> None:

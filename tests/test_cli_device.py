@@ -152,15 +152,17 @@ def test_killed_recording_loses_at_most_a_second(tmp_path: Path) -> None:
 
 
 def test_interrupted_recording_is_finished(tmp_path: Path) -> None:
-    """SIGINT and SIGTERM to real `thermoskin run --record` processes (in process and the
-    fixed-rate loop): the recording is finished (summary, footer) and the `mcap` library
-    reads it to its end; SIGINT exits 130, SIGTERM still ends the process by the signal."""
+    """SIGINT, SIGTERM and SIGHUP to real `thermoskin run --record` processes (in process
+    and the fixed-rate loop) all stop the run the same clean way: the safe-state line, exit
+    128 + the signal number, the log and the plot written, the recording finished (summary,
+    footer) and read to its end by the `mcap` library."""
     from mcap.reader import make_reader
     from mcap.records import Footer
     from mcap.stream_reader import StreamReader
 
     cases = [("sim", signal.SIGINT, []), ("sim-term", signal.SIGTERM, []),
-             ("rt", signal.SIGINT, ["--realtime"])]
+             ("rt", signal.SIGINT, ["--realtime"]), ("rt-term", signal.SIGTERM, ["--realtime"]),
+             ("rt-hup", signal.SIGHUP, ["--realtime"])]
     procs = []
     for name, _, extra in cases:
         p = subprocess.Popen([*CMD, "run", *extra, "--scenario", "none", "--duration", "60",
@@ -181,7 +183,13 @@ def test_interrupted_recording_is_finished(tmp_path: Path) -> None:
         p.send_signal(sig)
     for p, (name, sig, _) in zip(procs, cases, strict=True):
         _, err = p.communicate(timeout=30)
-        assert p.returncode == (130 if sig == signal.SIGINT else -signal.SIGTERM), (name, err)
+        assert p.returncode == 128 + sig, (name, err)
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and "safe state" in lines[0], (name, err)
+        if sig != signal.SIGINT:
+            assert f"stopped by {signal.Signals(sig).name}" in lines[0]
+        log = read_log(tmp_path / f"{name}.csv")
+        assert len(log["t"]) > 100 and (tmp_path / f"{name}.png").stat().st_size > 10_000
         path = tmp_path / f"{name}.mcap"
         with open(path, "rb") as fh:
             assert isinstance(list(StreamReader(fh, validate_crcs=True).records)[-1], Footer)
@@ -194,6 +202,7 @@ def test_interrupted_recording_is_finished(tmp_path: Path) -> None:
         t = [ti for _, ti, _ in iter_messages(path, ["/skin/sample"], info)]
         assert info["complete"] and len(t) > 100, name
         assert np.allclose(np.diff(t), 1e-3)
+        np.testing.assert_array_equal(t, log["t"])  # the log and the recording hold the same rows
 
 
 def test_serial_run_detects_with_10hz_boards_scored_against_truth(tmp_path: Path) -> None:
@@ -227,7 +236,8 @@ def test_serial_run_detects_with_10hz_boards_scored_against_truth(tmp_path: Path
     with open(tmp_path / "ev.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert list(rows[0]) == ["onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq",
-                             "energy"]
+                             "energy", "kind", "toucher", "material", "p_human", "G_hat", "G_sd",
+                             "T_f_hat", "T_f_sd", "effusivity_hat"]
     events = [ContactEvent(float(x["onset"]), float(x["detected"]), float(x["release"]),
                            float(x["duration"]), int(x["sign"]), float(x["peak_dq"]),
                            float(x["mean_dq"]), float(x["energy"])) for x in rows]

@@ -85,7 +85,7 @@ def test_contact_coefficient_power_law():
     ps = [0.5e3, 1e3, 2e3, 5e3, 10e3, 50e3]
     hs = [h_contact(p) for p in ps]
     assert all(a < b for a, b in itertools.pairwise(hs))
-    # a finger pad at 1 N keeps MODEL.md's fingertip conductance (0.045-0.055 W/K)
+    # a finger pad at 1 N keeps docs/model.md's fingertip conductance (0.045-0.055 W/K)
     assert 0.045 <= contact.G_contact(1.5e-4, 1.0 / 1.5e-4) <= 0.055
     for bad in (0.0, -1.0, math.nan, 1e6):
         with pytest.raises(ValueError, match="pressure"):

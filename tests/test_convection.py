@@ -43,7 +43,7 @@ def test_h_flowing_is_sieder_tate(T: float, v: float) -> None:
 
 
 def test_model_md_numbers_at_24C() -> None:
-    """MODEL.md: Re ~ 460, Nu ~ 8.0, h ~ 1.6 kW/m^2K, R_w ~ 0.19 K/W with real water at 24 degC."""
+    """docs/model.md: Re ~ 460, Nu ~ 8.0, h ~ 1.6 kW/m^2K, R_w ~ 0.19 K/W with real water at 24 degC."""
     w = water_properties(24.0)
     re = reynolds(V_ON, D, w)
     h = h_flowing(V_ON, D, L, w)
@@ -121,7 +121,7 @@ def test_C_w_from_tank_eq2() -> None:
     w = water_properties(24.0)
     c = C_w_from_tank(SkinParams())
     assert c == pytest.approx(w.c_p * w.rho * V, rel=1e-12)
-    assert c == pytest.approx(134.0, rel=0.01)  # MODEL.md
+    assert c == pytest.approx(134.0, rel=0.01)  # docs/model.md
     # about a thousand times Table I's identified C_w
     assert c / SkinParams().C_w == pytest.approx(1000.0, rel=0.01)
 

@@ -109,3 +109,39 @@ def test_errors():
         identify({**d, "T_a": np.full(600, 20.0)}, t_model=1.0, with_T_a=True)
     with pytest.raises(IdentifyError, match="criterion"):
         identify(d, criterion="xyz")
+
+
+def test_written_model_is_a_config_the_controller_uses(tmp_path, peltier_log):
+    """`identify` writes [peltier_model]: `load_config` takes it, and the inner loop's
+    feed-forward is the drive that holds T_p_cmd in the model's steady state, checked by
+    running the model itself (its free run, tested against lfilter above) to steady state."""
+    from thermoskin.params import load_config
+    from thermoskin.runtime.controller import SkinController
+
+    m = identify(peltier_log)
+    cfg = load_config(save_model(m, tmp_path / "peltier.toml"))
+    pm = cfg.peltier_model
+    assert pm.use == "feedforward" and pm.a == tuple(m.a) and pm.b == tuple(m.b)
+    inner = SkinController(cfg).inner
+    T_a, T_p_cmd = 20.0, 30.0
+    inner.reset(0.0)
+    u = inner.step(T_p_cmd, T_p_cmd, T_a)  # no error: the feed-forward alone
+    assert u == pytest.approx(inner.ff) and inner.ff != 0.0
+    T_zero = m.simulate(np.zeros(20_000), T_a)[-1]  # the tank's zero-drive temperature in the model
+    T_ss = m.simulate(np.full(20_000, u), T_zero, u0=0.0)[-1]
+    assert T_ss - T_zero == pytest.approx(T_p_cmd - T_a, rel=1e-6)
+    # without it the same loop has no feed-forward
+    assert SkinController(load_config()).inner.step(T_p_cmd, T_p_cmd, T_a) == 0.0
+
+
+def test_model_config_refuses_what_cannot_drive_a_loop(tmp_path):
+    from thermoskin.params import ConfigError, load_config
+
+    p = tmp_path / "m.toml"
+    for body, needle in (('use = "feedforward"\na = [-1.5]\nb = [-0.1]\n', "unstable"),
+                         ('use = "feedforward"\na = [-0.5]\nb = [-0.1]\n', "must be > 0"),
+                         ('use = "feedforward"\na = [-0.5]\n', "at least one"),
+                         ('a = ["x"]\n', "not a number")):
+        p.write_text("[peltier_model]\n" + body)
+        with pytest.raises(ConfigError, match=needle):
+            load_config(p)

@@ -29,7 +29,7 @@ RW = [0.19, 57.0, 2.0]
 
 
 def rhs_by_hand(x: np.ndarray, u: np.ndarray, s: SkinParams, Rw: float, Gc: float) -> np.ndarray:
-    """The ODE of MODEL.md written out term by term."""
+    """The ODE of docs/model.md written out term by term."""
     Tw, Tg = x
     Tp, Ta, qx, Tf = u
     q_p = (Tp - Tw) / Rw
@@ -145,7 +145,7 @@ def test_D_and_Q_polynomials_by_hand() -> None:
     num6, den6 = tf_touch_path_eq6(s)
     np.testing.assert_allclose(num6, expanded, rtol=1e-12)
     np.testing.assert_allclose(den6, D_poly(s), rtol=1e-12)
-    # R_g C_w ~ 1.3 s (MODEL.md)
+    # R_g C_w ~ 1.3 s (docs/model.md)
     assert Rg * Cw == pytest.approx(1.34)
 
 

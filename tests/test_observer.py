@@ -1,12 +1,12 @@
 """The thermal exchange observer (eq. 8) on logs simulated here, independently of the package.
 
-The simulator integrates the two-node network of MODEL.md exactly (zero-order hold through
+The simulator integrates the two-node network of docs/model.md exactly (zero-order hold through
 ``scipy.linalg.expm`` of the augmented matrix), with the pump's velocity, an imposed heat
 flow ``q_x`` and a contact conductance ``G_c`` to a finger at ``T_f`` held over each sample
 interval: row ``k`` is the state at ``t_k``, its ``v`` acts over ``[t_k, t_k+1)``.
 
 The same augmented system also carries the ideal continuous-time outputs the observer's
-docstring and MODEL.md define, so that they are exact at the samples:
+docstring and docs/model.md define, so that they are exact at the samples:
 
 - ``q_hat = Q(s)(q_i - q_ag)``, ``Q = 1/((R_g C_w s+1)(R_g C_g s+1))``
 - ``dq_i_hat = Q(s)(q_i - (T_g - T_g0)/R_ag)`` with ``T_g0`` the no-touch sheet
@@ -282,7 +282,7 @@ def test_touch_steady_state_by_hand(name: str) -> None:
 @pytest.mark.parametrize("T_w", [24.0, 25.9])
 def test_steady_log_is_flat_from_first_sample(T_w: float) -> None:
     """A steady log gives constant outputs from sample 0: the no-touch value
-    q_i_hat = (T_w - T_g)/R_ag (MODEL.md: ~3.6 W at T_w = 24 degC), dq = r = 0."""
+    q_i_hat = (T_w - T_g)/R_ag (docs/model.md: ~3.6 W at T_w = 24 degC), dq = r = 0."""
     Rw = 0.19
     skin = SkinParams(R_w_flowing=Rw)
     p = TABLE_I

@@ -284,9 +284,9 @@ def test_user_errors(synthetic: Path, tmp_path: Path) -> None:
     ros = export_ros2(synthetic, tmp_path / "ros.mcap")
     y = str(tmp_path / "y.mcap")
     cases = [
-        ([str(synthetic), "--ros2", "-o", str(tmp_path / "x.csv")], "the extension must be .mcap"),
+        ([str(synthetic), "--ros2", "-o", str(tmp_path / "x.csv")], "the output name must end in .mcap"),
         ([str(synthetic), "-o", str(tmp_path / "x.mcap")], "needs --ros2"),
-        ([str(synthetic), "--ros2", "-o", str(tmp_path / "dir.mcap")], "it is a directory"),
+        ([str(synthetic), "--ros2", "-o", str(tmp_path / "dir.mcap")], "is a directory"),
         ([str(synthetic), "--ros2", "-o", str(synthetic)], "it is the recording itself"),
         ([str(tmp_path / "none.mcap"), "--ros2", "-o", y], "does not exist"),
         ([str(tmp_path / "text.mcap"), "--ros2", "-o", y], "not an MCAP file"),

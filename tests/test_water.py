@@ -55,7 +55,7 @@ def test_trends_with_temperature() -> None:
 
 
 def test_prandtl_near_table_value_at_5C() -> None:
-    """MODEL.md: Table I's Pr = 11.35 is water's near 5 degC."""
+    """docs/model.md: Table I's Pr = 11.35 is water's near 5 degC."""
     assert water_properties(5.0).Pr == pytest.approx(11.35, rel=0.03)
 
 

@@ -1,3 +1,111 @@
-"""Thermoskin: touch sensing and temperature control for soft thermal robot skins."""
+"""Thermoskin: touch sensing and temperature control for soft thermal robot skins.
+
+The objects a lab composes in its own code (``docs/api.md`` shows each with examples)::
+
+    import thermoskin as ts
+
+    cfg = ts.load_config()                        # the paper's Table I, or ts.load_config("my.toml")
+    est = ts.TouchEstimator(cfg)                  # eq. 8, the Kalman filter, the detector: one patch
+    contact = est.step(t, T_w, T_p, v, T_a)       # one sample (floats), in a loop of your own
+    res = est.run(t, T_w, T_p, v, T_a)            # or numpy arrays: res.columns, res.events
+    obs = ts.observe(log, cfg)                    # a log as a dict of arrays (its own rate, fresh flags)
+    many = ts.PatchEstimators(cfg, n=100)         # many patches, one compiled loop
+    log = ts.read_log("run.csv")                  # CSV or Parquet; ts.write_log, ts.LogReader, ts.LogWriter
+    ts.write_events("events.csv", res.events)     # one row per contact
+
+Names are imported on first use, so ``import thermoskin`` stays light.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
+
+#: Public name -> module that defines it.
+_EXPORTS = {
+    "Config": "thermoskin.params",
+    "ConfigError": "thermoskin.params",
+    "load_config": "thermoskin.params",
+    "save_config": "thermoskin.params",
+    "TouchEstimator": "thermoskin.estimator",
+    "Observation": "thermoskin.estimator",
+    "PatchEstimators": "thermoskin.patches",
+    "ThermalExchangeObserver": "thermoskin.observer",
+    "ContactEvent": "thermoskin.events",
+    "EVENT_COLUMNS": "thermoskin.events",
+    "write_events": "thermoskin.events",
+    "observe": "thermoskin.pipeline",
+    "observe_file": "thermoskin.pipeline",
+    "read_log": "thermoskin.logio",
+    "write_log": "thermoskin.logio",
+    "LogReader": "thermoskin.logio",
+    "LogWriter": "thermoskin.logio",
+    "LogError": "thermoskin.logio",
+    "simulate": "thermoskin.sim.run",
+    "Scenario": "thermoskin.sim.scenarios",
+    "SCENARIOS": "thermoskin.sim.scenarios",
+    "Touch": "thermoskin.physics.finger",
+    "run_closed_loop": "thermoskin.runtime.closed_loop",
+    "SkinController": "thermoskin.runtime.controller",
+    "match_events": "thermoskin.evaluation",
+}
+
+__all__ = [
+    "EVENT_COLUMNS",
+    "SCENARIOS",
+    "Config",
+    "ConfigError",
+    "ContactEvent",
+    "LogError",
+    "LogReader",
+    "LogWriter",
+    "Observation",
+    "PatchEstimators",
+    "Scenario",
+    "SkinController",
+    "ThermalExchangeObserver",
+    "Touch",
+    "TouchEstimator",
+    "__version__",
+    "load_config",
+    "match_events",
+    "observe",
+    "observe_file",
+    "read_log",
+    "run_closed_loop",
+    "save_config",
+    "simulate",
+    "write_events",
+    "write_log",
+]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'thermoskin' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
+
+if TYPE_CHECKING:  # for type checkers and IDEs
+    from thermoskin.estimator import Observation, TouchEstimator
+    from thermoskin.evaluation import match_events
+    from thermoskin.events import EVENT_COLUMNS, ContactEvent, write_events
+    from thermoskin.logio import LogError, LogReader, LogWriter, read_log, write_log
+    from thermoskin.observer import ThermalExchangeObserver
+    from thermoskin.params import Config, ConfigError, load_config, save_config
+    from thermoskin.patches import PatchEstimators
+    from thermoskin.physics.finger import Touch
+    from thermoskin.pipeline import observe, observe_file
+    from thermoskin.runtime.closed_loop import run_closed_loop
+    from thermoskin.runtime.controller import SkinController
+    from thermoskin.sim.run import simulate
+    from thermoskin.sim.scenarios import SCENARIOS, Scenario

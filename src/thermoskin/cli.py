@@ -1,4 +1,4 @@
-"""Command line: ``thermoskin observe | simulate | run | calibrate | device-emulator | export | replay``.
+"""Command line: ``thermoskin observe | simulate | run | plot | calibrate | export | replay | ...``.
 
 User errors (a bad log, a bad config, an unknown scenario) print one line,
 ``thermoskin: error: ...``, and exit with code 2; never a traceback.
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -21,6 +22,7 @@ from rich.table import Table
 from thermoskin import __version__
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config, ConfigError, load_config
+from thermoskin.paths import PathError
 
 F = TypeVar("F", bound=Callable[..., Any])
 console = Console(highlight=False, soft_wrap=True)
@@ -40,7 +42,7 @@ def _user_errors(fn: F) -> F:
 
         try:
             return fn(*args, **kwargs)
-        except (ConfigError, LogError, UserError) as e:
+        except (ConfigError, LogError, PathError, UserError) as e:
             msg = " ".join(str(e).split())  # one line, whatever the message held
             click.echo(f"thermoskin: error: {msg}", err=True)
             sys.exit(2)
@@ -57,6 +59,65 @@ def _config(path: Path | None, preset: str = "paper") -> Config:
 
 #: More contacts than this are printed as the first and last few (the rest: --events).
 TABLE_ROWS = 40
+
+
+def _outputs(*items: tuple[str, Path | None, Any, str]) -> None:
+    """Check every output path before any work: ``(option, path, suffixes or None, what)``."""
+    from thermoskin.paths import check_output
+
+    for option, path, suffixes, what in items:
+        if path is not None:
+            check_output(path, option, suffixes, what)
+
+
+def _check_loop(cfg: Config) -> None:
+    """Refuse, with one line, a configuration the loop's blocks cannot run at (before any output)."""
+    from thermoskin.control.mpc import check_step
+    from thermoskin.physics.convection import R_w
+
+    check_step(cfg.skin, R_w(cfg.pump.v_on, cfg.skin), cfg.sampling.t_s)
+
+
+#: Memory a simulated or logged sample takes while a command holds a whole run, bytes (measured:
+#: about 430 for `simulate`, 250 for `run`; rounded up).
+BYTES_PER_SAMPLE = 500
+
+
+def _available_memory() -> int:
+    """Bytes of memory available to a new allocation (``MemAvailable``), or 4 GiB if unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return 4 << 30
+
+
+def _size(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"):
+        if n < 1024 or unit == "EiB":
+            return f"{n:.3g} {unit}"
+        n /= 1024
+    return f"{n:.3g} EiB"
+
+
+def _check_duration(duration: float, t_s: float, option: str = "--duration") -> None:
+    """A finite duration > 0 whose samples fit in this machine's memory, else one line."""
+    if not (math.isfinite(duration) and duration > 0):
+        raise UserError(f"{option} {duration:g}: must be a finite number of seconds > 0")
+    n = duration / t_s
+    need = n * BYTES_PER_SAMPLE
+    avail = _available_memory()
+    if need > 0.8 * avail:
+        most = 0.8 * avail / BYTES_PER_SAMPLE * t_s
+        raise UserError(f"{option} {duration:g} s is {n:.3g} samples at {1 / t_s:g} Hz, about "
+                        f"{_size(need)} in memory: more than this machine has free ({_size(avail)}); "
+                        f"at most about {most:.3g} s here")
 
 
 def events_table(events: list[ContactEvent], title: str = "Detected contacts") -> Table:
@@ -124,15 +185,23 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     live run's estimates and contacts again. NaN samples are held over (`gap`).
     """
     from thermoskin.estimation.freshness import CHANNELS
+    from thermoskin.logio import partial_last_line
+    from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.pipeline import observe_file
 
+    _outputs(("-o", output_csv, LOG_SUFFIXES, "log"), ("--events", events_path, (".csv",), "events file"))
     cfg = _config(config_path)
+    if partial_last_line(input_csv):
+        click.echo(f"thermoskin: warning: {input_csv}: the last line is cut (its writer was stopped "
+                   "while writing it): left out", err=True)
     with _progress_bar("observing") as bar:
         task = bar.add_task(f"observing {input_csv.name}", total=None)
         res = observe_file(input_csv, output_csv, cfg,
                            progress=lambda k, n: bar.update(task, completed=k, total=n))
     _write_events(events_path, res.events)
     t_s = res.t_s
+    for w in res.warnings:
+        click.echo(f"thermoskin: warning: {input_csv}: {w}", err=True)
     if t_s > 0.02 + 1e-12:
         err_console.print(f"thermoskin: warning: {input_csv} is sampled at {1 / t_s:.3g} Hz; the "
                           "estimator is made for 50 Hz to 1 kHz: the pump switches faster than this "
@@ -151,7 +220,50 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
                           "the detector needs to arm and learn its baseline: no contact can be reported")
 
 
-def _scenario(name: str, duration: float | None) -> Any:
+def _read_log(path: Path, required: Any) -> dict[str, Any]:
+    """A whole log, also one whose writer was stopped mid-line (a killed run): its cut last
+    line is left out with one warning line saying where the log ends."""
+    from thermoskin.logio import partial_last_line, read_log
+
+    log = read_log(path, required=required, live=True)
+    if partial_last_line(path):
+        click.echo(f"thermoskin: warning: {path}: the last line is cut (its writer was stopped "
+                   f"while writing it): left out; the log ends at t = {float(log['t'][-1]):.3f} s",
+                   err=True)
+    return log
+
+
+@main.command()
+@click.argument("log_path", type=click.Path(path_type=Path))
+@click.option("-o", "--output", "output", type=click.Path(path_type=Path), default=None,
+              help="The plot (.png, .pdf or .svg; default: beside the log, LOG.png).")
+@click.option("--title", default=None, help="Title (default: the log's file name).")
+@_user_errors
+def plot(log_path: Path, output: Path | None, title: str | None) -> None:
+    """Plot a log (`thermoskin run`, `observe` or `simulate`): its temperatures, estimates,
+    truth and commands, with the contacts of its `contact` column shaded.
+
+    A log whose writer was stopped (a killed run) is plotted up to where it ends, with a
+    warning saying where that is.
+    """
+    from thermoskin.plotting import FORMATS, plot_log
+
+    output = output if output is not None else log_path.with_suffix(".png")
+    _outputs(("-o", output, FORMATS, "plot"))
+    log = _read_log(log_path, ("t",))
+    plot_log(log, output, title=title or f"thermoskin: {log_path.name}")
+    n_c = len(_contact_runs(log))
+    console.print(f"{len(log['t'])} samples, t = {float(log['t'][0]):.3f} to {float(log['t'][-1]):.3f} s, "
+                  f"{n_c} contacts; wrote {output}")
+
+
+def _contact_runs(log: dict[str, Any]) -> list[Any]:
+    from thermoskin.plotting import contact_spans
+
+    return contact_spans(log["t"], log["contact"]) if "contact" in log else []
+
+
+def _scenario(name: str, duration: float | None, t_s: float = 1e-3) -> Any:
     from thermoskin.sim.scenarios import SCENARIOS
 
     if name not in SCENARIOS:
@@ -159,8 +271,7 @@ def _scenario(name: str, duration: float | None) -> Any:
         raise UserError(f"unknown scenario {name!r} (known: {known})")
     sc = SCENARIOS[name]
     if duration is not None:
-        if not duration > 0:
-            raise UserError(f"--duration {duration} must be > 0 s")
+        _check_duration(duration, t_s)
         sc = sc.with_duration(duration)
     return sc
 
@@ -186,23 +297,37 @@ EXCITATION = "excitation"
 @main.command()
 @click.argument("log_csv", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "output_toml", type=click.Path(path_type=Path), required=True,
-              help="TOML file for the identified ARX model.")
+              help="Config file (TOML) for `run --config`: the identified model as [peltier_model].")
 @click.option("--t-model", type=float, default=None,
               help="Model sample time, s (default: chosen from the data, 0.1-1 s).")
 @_user_errors
 def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
     """Fit a discrete ARX model of T_p against the Peltier drive (columns t, T_p, drive).
 
-    Orders chosen by BIC; the fit is the simulation NRMSE on the last 30 % held back.
+    Orders chosen by BIC; the fit is the simulation NRMSE on the last 30 % held back. The
+    output is a config file (a [peltier_model] table) that `thermoskin run --config` takes:
+    the inner loop then adds the model's steady-state drive as a feed-forward.
     """
     from thermoskin.identify import IdentifyError, save_model
     from thermoskin.identify import identify as fit
 
+    _outputs(("-o", output_toml, (".toml",), "config"))
+    log = _read_log(log_csv, ("t", "T_p", "drive"))
     try:
-        model = fit(log_csv, t_model=t_model)
+        model = fit(log, t_model=t_model)
     except IdentifyError as e:
         raise UserError(str(e)) from None
-    save_model(model, output_toml)
+    from thermoskin.params import PeltierModelParams
+
+    use = "feedforward"
+    try:
+        PeltierModelParams(use=use, t_s=model.t_s, nk=model.nk, a=tuple(model.a), b=tuple(model.b),
+                           c=model.c, d=model.d, with_T_a=model.with_T_a)
+    except ConfigError as e:
+        use = "off"
+        click.echo(f"thermoskin: warning: the model cannot drive the controller ({e}); written with "
+                   'use = "off"', err=True)
+    save_model(model, output_toml, use=use)
     taus = ", ".join(f"{x:.1f}" for x in model.time_constants())
     console.print(f"ARX model at t_s = {model.t_s:g} s: orders na = {model.na}, nb = {model.nb}, "
                   f"delay nk = {model.nk} ({model.criterion.upper()}); time constants {taus} s; "
@@ -210,6 +335,10 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
     console.print(f"fit on held-back data (last 30 %, simulation): NRMSE {model.nrmse:.3f}, "
                   f"RMSE {model.rmse:.3f} K; estimation part NRMSE {model.nrmse_est:.3f}; "
                   f"wrote {output_toml}")
+    if use == "feedforward":
+        click.echo(f"{output_toml} is a config for `thermoskin run --config {output_toml}`: its "
+                   "[peltier_model] gives the inner loop a feed-forward, the drive that holds "
+                   "T_p_cmd in the model's steady state")
 
 
 @main.command()
@@ -317,25 +446,35 @@ def scenarios() -> None:
 
 
 @main.command()
-@SCENARIO_OPT
+@click.option("--scenario", default=None,
+              help="Named scenario (see `thermoskin scenarios`; default: fingers, with --skin: multi).")
 @DURATION_OPT
 @CONFIG_OPT
 @click.option("-o", "--output", "output_csv", type=click.Path(path_type=Path), required=True,
               help="Log CSV (measured columns and the simulator's truth q_i, T_g).")
+@click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
+              help="A skin of many patches (TOML, see examples/forearm.toml): simulated in closed loop, "
+                   "one controller per water loop; the log has one row per sample and patch: "
+                   "t,patch,T_w,T_p,v,T_a[,T_w2..],q_i,contact_true,position_true,fresh.")
 @_user_errors
-def simulate(scenario: str, duration: float | None, config_path: Path | None,
-             output_csv: Path) -> None:
+def simulate(scenario: str | None, duration: float | None, config_path: Path | None,
+             output_csv: Path, skin_path: Path | None) -> None:
     """Simulate the skin under a named scenario and write its log."""
     from thermoskin.logio import write_log
+    from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.sim.run import simulate as run_sim
 
+    _outputs(("-o", output_csv, LOG_SUFFIXES, "log"))
     cfg = _config(config_path)
+    if skin_path is not None:
+        _simulate_skin(skin_path, scenario or "multi", duration, cfg, output_csv)
+        return
+    scenario = scenario or "fingers"
     if scenario == EXCITATION:
         from thermoskin.sim.excitation import simulate_excitation
 
         dur = 600.0 if duration is None else duration
-        if not dur > 0:
-            raise UserError(f"--duration {dur} must be > 0 s")
+        _check_duration(dur, cfg.sampling.t_s)
         with _progress_bar("excitation") as bar:
             task = bar.add_task("simulating the Peltier under excitation", total=1.0)
             log = simulate_excitation(cfg, dur, seed=cfg.sensor.seed,
@@ -344,13 +483,46 @@ def simulate(scenario: str, duration: float | None, config_path: Path | None,
         console.print(f"simulated {dur:g} s of the Peltier tank under a rich drive "
                       f"({len(log['t'])} samples); wrote {output_csv}")
         return
-    sc = _scenario(scenario, duration)
+    sc = _scenario(scenario, duration, cfg.sampling.t_s)
+    if duration is None:
+        _check_duration(sc.duration, cfg.sampling.t_s, "the scenario's duration")
     with _progress_bar(f"simulating {sc.name}") as bar:
         task = bar.add_task(f"simulating {sc.name}", total=1.0)
         log = run_sim(sc, cfg, progress=lambda f: bar.update(task, completed=f))
     write_log(output_csv, log)
     console.print(f"simulated {sc.duration:g} s of '{sc.name}' ({len(sc.touches)} touches, "
                   f"{len(log['t'])} samples); wrote {output_csv}")
+
+
+def _simulate_skin(skin_path: Path, scenario: str, duration: float | None, cfg: Config,
+                   output: Path) -> None:
+    """``simulate --skin``: the skin of many patches in closed loop, its long-format log."""
+    from thermoskin.logio import log_format
+    from thermoskin.runtime.skin_loop import run_skin
+    from thermoskin.sim.skin_scenarios import skin_scenario
+    from thermoskin.skin import load_skin
+
+    skin = load_skin(skin_path, cfg)
+    log_format(output)
+    if duration is not None and not (duration > 0 and math.isfinite(duration)):
+        raise UserError(f"--duration {duration} must be > 0 s")
+    try:
+        sc = skin_scenario(scenario, skin, duration)
+    except (KeyError, ValueError) as e:
+        raise UserError(str(e).strip("'\"")) from None
+    with _progress_bar(f"simulating {sc.name} on {skin.name}") as bar:
+        task = bar.add_task(f"simulating {sc.name} on {skin.name}", total=1.0)
+        try:
+            res = run_skin(skin, sc, output, progress=lambda f: bar.update(task, completed=f))
+        except ValueError as e:
+            raise UserError(str(e)) from None
+        except OSError as e:
+            raise UserError(f"cannot write {output}: {e.strerror or e}") from None
+    names = ", ".join(f"{p.index} {p.name}" for p in skin.patches)
+    console.print(f"simulated {sc.duration:g} s of '{sc.name}' on {skin.name} ({len(skin.patches)} patches "
+                  f"on {len(skin.loops)} loops, {len(sc.contacts)} contacts) at "
+                  f"{res.realtime_factor:.0f}x real time; {res.n * len(skin.patches)} rows; patch: {names}; "
+                  f"wrote {output}")
 
 
 def _live_options(fn: F) -> F:
@@ -424,18 +596,39 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     From ambient, the MPC and the inner loop bring T_w to its command while the observer
     and the detector run every sample; the scenario's touches start after a settling time.
     Use --scenario none for no touch. With --device serial://PATH or --realtime the loop
-    runs at t_s against absolute deadlines in a process of its own. A fault (the safety
-    supervisor: T_p bounds, touch-safe surface limit, sensor faults, link) puts the device
-    in its safe state (Peltier drive 0, pump off), ends the run with exit code 3 and one
-    line saying why; start a new run to restart.
-    """
-    from thermoskin.logio import FLAG_COLUMNS, write_log
-    from thermoskin.plotting import plot_run
-    from thermoskin.runtime.closed_loop import COLUMNS, TRUTH, run_closed_loop
+    runs at t_s against absolute deadlines in a process of its own. The log is written as
+    the run goes (a CSV is flushed at least every second, so a killed run keeps it to
+    within a second); the plot is drawn from the log at the end (`thermoskin plot LOG`
+    draws it again).
 
+    Exit codes: 0 done; 2 a user error (nothing run, nothing written); 3 a fault (the
+    safety supervisor: T_p bounds, touch-safe surface limit, sensor faults, the link lost
+    or failing): the device is put in its safe state (Peltier drive 0, pump off), one line
+    says why, log, plot and recording are written; start a new run to restart. SIGINT
+    (Ctrl-C), SIGTERM and SIGHUP stop the run the same clean way (safe state, log, plot,
+    a complete recording) and exit with 130, 143 and 129 (128 + the signal number).
+    """
+    from thermoskin.logio import read_log
+    from thermoskin.paths import LOG_SUFFIXES, distinct
+    from thermoskin.plotting import FORMATS, plot_log
+    from thermoskin.runtime.closed_loop import COLUMNS, TRUTH, run_closed_loop
+    from thermoskin.runtime.runlog import RunLog
+    from thermoskin.runtime.stopping import StopRequest
+
+    serial = device.startswith("serial://")
+    if device != "sim" and not serial:
+        raise UserError(f"--device {device!r}: must be sim or serial://PATH")
+    if serial and len(device) <= len("serial://"):
+        raise UserError("--device serial://PATH: the path is missing")
     if plot_path is None:
         plot_path = log_path.with_suffix(".png")
+    _outputs(("--log", log_path, LOG_SUFFIXES, "log"), ("--plot", plot_path, FORMATS, "plot"),
+             ("--events", events_path, (".csv",), "events file"),
+             ("--record", record_path, (".mcap",), "recording"))
+    distinct(("--log", log_path), ("--plot", plot_path), ("--events", events_path),
+             ("--record", record_path))
     cfg = _config(config_path)
+    _check_loop(cfg)
     sc = _scenario(scenario, None)
     if not sc.setpoints:
         sc = sc.shifted(SETTLE_S)
@@ -446,16 +639,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                             f"the T_p_cmd bounds [{lo:g}, {hi:g}] degC")
         sc = sc.with_setpoint(setpoint)
     if duration is not None:
-        if not duration > 0:
-            raise UserError(f"--duration {duration} must be > 0 s")
+        _check_duration(duration, cfg.sampling.t_s)
         sc = sc.with_duration(duration)
-    serial = device.startswith("serial://")
-    if device != "sim" and not serial:
-        raise UserError(f"--device {device!r}: must be sim or serial://PATH")
-    if serial and len(device) <= len("serial://"):
-        raise UserError("--device serial://PATH: the path is missing")
-    if record_path is not None and record_path.suffix.lower() != ".mcap":
-        raise UserError(f"--record {record_path}: the file name must end in .mcap")
     cmd_txt = (", ".join(f"{c:g} degC from {t0:g} s" for t0, c in sc.setpoints)
                if sc.setpoints else f"{sc.T_w_cmd:g} degC")
     where = (f"the device at {device[len('serial://'):]}" if serial else
@@ -463,96 +648,126 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     console.print(f"[bold]thermoskin run[/]: closed loop on {where}, scenario '{sc.name}'"
                   + (", " if serial else f" ({len(sc.touches)} touches), ")
                   + f"T_w_cmd {cmd_txt}, {sc.duration:g} s at {1 / cfg.sampling.t_s:.0f} Hz")
-    recorder = None
-    if record_path is not None:
-        from thermoskin.runtime.record import LoopRecorder
+    names = [k for k in COLUMNS if not serial or k not in TRUTH]
+    stop = StopRequest().install()
+    try:
+        recorder = None
+        if record_path is not None:
+            from thermoskin.runtime.record import LoopRecorder, RecordingError
 
-        recorder = LoopRecorder(record_path, cfg)
-    if live_addr is not None:
-        from thermoskin.live import Fanout
-
+            try:
+                recorder = LoopRecorder(record_path, cfg)
+            except RecordingError as e:
+                raise UserError(str(e)) from None
+        runlog: RunLog | None = None
+        res = None
         try:
-            recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg))
-        except BaseException:
+            if live_addr is not None:
+                from thermoskin.live import Fanout
+
+                recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg))
+            if recorder is not None:
+                recorder.event(0.0, "run-start", device=device, scenario=sc.name,
+                               realtime=bool(realtime or serial))
+            try:
+                runlog = RunLog(log_path, names)
+            except OSError as e:
+                raise UserError(f"cannot write {log_path}: {e.strerror or e}") from None
+
+            def on_block(block: dict[str, Any]) -> None:
+                runlog.write(block)  # type: ignore[union-attr]
+                if recorder is not None:
+                    recorder.write_rows(block)
+
+            if serial or realtime:
+                res = _run_fixed_rate(sc, cfg, device, on_block, stop)
+            else:
+                with _progress_bar("running") as bar:
+                    task = bar.add_task("closed loop", total=1.0)
+
+                    def started(t: float) -> None:
+                        bar.console.print(f"  t = {t:7.3f} s  contact detected")
+
+                    def ended(e: ContactEvent) -> None:
+                        bar.console.print(f"  t = {e.release:7.3f} s  released after {e.duration:.2f} s, "
+                                          f"peak dq {e.peak_dq * 1e3:.1f} mW, mean {e.mean_dq * 1e3:.1f} mW")
+
+                    res = run_closed_loop(sc, cfg, on_start=started, on_event=ended,
+                                          progress=lambda f: bar.update(task, completed=f),
+                                          on_block=on_block, stop=stop)
+            if recorder is not None:
+                _record_end(recorder, res)
+        finally:
             if recorder is not None:
                 recorder.close()
-            raise
-    if recorder is not None:
-        recorder.event(0.0, "run-start", device=device, scenario=sc.name, realtime=bool(realtime or serial))
-    try:
-        if serial or realtime:
-            res = _run_fixed_rate(sc, cfg, device, recorder)
-        else:
-            with _progress_bar("running") as bar:
-                task = bar.add_task("closed loop", total=1.0)
-
-                def started(t: float) -> None:
-                    bar.console.print(f"  t = {t:7.3f} s  contact detected")
-
-                def ended(e: ContactEvent) -> None:
-                    bar.console.print(f"  t = {e.release:7.3f} s  released after {e.duration:.2f} s, "
-                                      f"peak dq {e.peak_dq * 1e3:.1f} mW, mean {e.mean_dq * 1e3:.1f} mW")
-
-                res = run_closed_loop(sc, cfg, on_start=started, on_event=ended,
-                                      progress=lambda f: bar.update(task, completed=f),
-                                      on_block=recorder.write_rows if recorder else None)
+            if runlog is not None:
+                runlog.close()
+                if runlog.rows == 0:  # nothing ran: no log at all rather than a header
+                    log_path.unlink(missing_ok=True)
+            if res is None and recorder is not None and getattr(recorder, "rows", 1) == 0:
+                record_path.unlink(missing_ok=True)  # type: ignore[union-attr]
         summary = res.summary
-        if recorder is not None:
-            _record_end(recorder, res)
+        n = runlog.rows if runlog is not None else 0
+        out: dict[str, Any] = {}
+        if n:
+            out = read_log(log_path, required=("t",))
+            plot_log(out, plot_path, title=f"thermoskin run: {sc.name}, closed loop")
+        _write_events(events_path, res.events)
+        if res.events:
+            console.print(events_table(res.events))
+        stopped = bool(summary.get("interrupted"))
+        if n > 1 and not res.fault:
+            if serial:
+                _tracking(out)
+            else:
+                t_stop = float(out["t"][-1]) + cfg.sampling.t_s if stopped else math.inf
+                _summary(sc, out, res.events, t_stop)
+        if serial or realtime:
+            _loop_figures(res, n)
+        wrote = f"wrote {log_path} and {plot_path}" if n else "no samples"
+        if events_path is not None:
+            wrote += f", {events_path}"
+        if record_path is not None:
+            wrote += f" and {record_path}"
+        console.print(f"{n * cfg.sampling.t_s:g} s in {res.wall_s:.1f} s "
+                      f"({res.realtime_factor:.1f}x real time); {wrote}")
     finally:
-        if recorder is not None:
-            recorder.close()
-    names = [k for k in COLUMNS if not serial or k not in TRUTH]
-    out = {k: res.columns[k] for k in names}
-    for k in FLAG_COLUMNS:
-        if k in out:
-            out[k] = np.nan_to_num(out[k]).astype(np.int8)
-    if len(out["t"]):
-        write_log(log_path, out)
-        plot_run(out, res.events, plot_path, title=f"thermoskin run: {sc.name}, closed loop")
-    _write_events(events_path, res.events)
-    if res.events:
-        console.print(events_table(res.events))
-    if len(out["t"]) > 1 and not res.fault:
-        if serial:
-            _tracking(out)
-        else:
-            _summary(sc, out, res.events)
-    n = len(out["t"])
-    if serial or realtime:
-        tm = res.timing()
-        g = dict.fromkeys(("late_p50_us", "late_p99_us", "late_max_us", "busy_p99_us", "lag_p50_us",
-                           "lag_p99_us", "lag_max_us"), math.nan) | tm
-        console.print(f"[bold]loop[/]: {n} steps; lateness p50 {g['late_p50_us']:.0f} µs, "
-                      f"p99 {g['late_p99_us']:.0f} µs, max {g['late_max_us']:.0f} µs (host lag p50 "
-                      f"{g['lag_p50_us']:.0f}, p99 {g['lag_p99_us']:.0f}, max {g['lag_max_us']:.0f} µs); "
-                      f"step p99 {g['busy_p99_us']:.0f} µs; {tm['overruns']:.0f} overruns, "
-                      f"{tm['lost_rows']:.0f} rows lost; priority {summary.get('priority', '?')}")
-        if "link" in summary:
-            ln = summary["link"]
-            console.print(f"[bold]link[/]: {ln['frames']} frames, {ln['corrupted']} corrupted, "
-                          f"{ln['lost']} lost, {ln['repeated']} repeated")
-    wrote = f"wrote {log_path} and {plot_path}" if n else "no samples"
-    if events_path is not None:
-        wrote += f", {events_path}"
-    if record_path is not None:
-        wrote += f" and {record_path}"
-    console.print(f"{n * cfg.sampling.t_s:g} s in {res.wall_s:.1f} s "
-                  f"({res.realtime_factor:.1f}x real time); {wrote}")
+        stop.restore()
     if res.fault:
         t_f, t_safe = summary.get("t_fault", math.nan), summary.get("t_safe", math.nan)
+        safe = (f"safe state (Peltier drive 0, pump off) commanded at t = {t_safe:.3f} s"
+                if summary.get("safe_sent", True) else
+                "the safe state could not be sent (the link is down): the device's own command "
+                "watchdog stops it")
         click.echo(f"thermoskin: fault: {res.fault} at t = {t_f:.3f} s ({summary.get('detail', '')}); "
-                   f"safe state (Peltier drive 0, pump off) commanded at t = {t_safe:.3f} s; "
-                   "restart with a new `thermoskin run`", err=True)
+                   f"{safe}; restart with a new `thermoskin run`", err=True)
         sys.exit(3)
-    if summary.get("interrupted"):
-        click.echo("thermoskin: interrupted; the device is in its safe state", err=True)
-        sys.exit(130)
+    if stopped:
+        why = f"stopped by {stop.name}" if stop.signum else "interrupted"
+        click.echo(f"thermoskin: {why} at t = {n * cfg.sampling.t_s:.3f} s; the device is in its "
+                   "safe state; log, plot and recording written", err=True)
+        sys.exit(stop.exit_code)
 
 
+def _loop_figures(res: Any, n: int) -> None:
+    """The fixed-rate loop's timing and the link's figures."""
+    summary = res.summary
+    tm = res.timing()
+    g = dict.fromkeys(("late_p50_us", "late_p99_us", "late_max_us", "busy_p99_us", "lag_p50_us",
+                       "lag_p99_us", "lag_max_us"), math.nan) | tm
+    console.print(f"[bold]loop[/]: {n} steps; lateness p50 {g['late_p50_us']:.0f} µs, "
+                  f"p99 {g['late_p99_us']:.0f} µs, max {g['late_max_us']:.0f} µs (host lag p50 "
+                  f"{g['lag_p50_us']:.0f}, p99 {g['lag_p99_us']:.0f}, max {g['lag_max_us']:.0f} µs); "
+                  f"step p99 {g['busy_p99_us']:.0f} µs; {tm['overruns']:.0f} overruns, "
+                  f"{tm['lost_rows']:.0f} rows lost; priority {summary.get('priority', '?')}")
+    if "link" in summary:
+        ln = summary["link"]
+        console.print(f"[bold]link[/]: {ln['frames']} frames, {ln['corrupted']} corrupted, "
+                      f"{ln['lost']} lost, {ln['repeated']} repeated")
 
 
-def _run_fixed_rate(sc: Any, cfg: Config, device: str, recorder: Any) -> Any:
+def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[str, Any]], None],
+                    stop: Any) -> Any:
     """The fixed-rate loop process; contacts and faults printed as they come."""
     from thermoskin.runtime.realtime import LoopSpec, run_realtime
 
@@ -569,16 +784,15 @@ def _run_fixed_rate(sc: Any, cfg: Config, device: str, recorder: Any) -> Any:
             ok = f == 0
             if ok.any():
                 state["contact"] = int(c[ok][-1])
-        if recorder is not None:
-            recorder.write_rows(block)
+        on_block(block)
 
     spec = LoopSpec(cfg, sc, device=device, duration=sc.duration)
-    res = run_realtime(spec, on_rows=on_rows)
+    res = run_realtime(spec, on_rows=on_rows, stop=stop)
     err = res.summary.get("error")
     if err:
         if res.summary.get("device_error"):
             raise UserError(err.removeprefix("DeviceError: "))
-        raise RuntimeError(err)
+        raise UserError(f"the loop process failed: {err}")
     return res
 
 
@@ -587,7 +801,9 @@ def _record_end(recorder: Any, res: Any) -> None:
     import dataclasses
 
     for e in res.events:
-        recorder.event(e.onset, "contact", **dataclasses.asdict(e))
+        detail = dataclasses.asdict(e)
+        detail["touch_kind"] = detail.pop("kind")  # ``kind`` names the record's kind
+        recorder.event(e.onset, "contact", **detail)
     s = res.summary
     t_end = float(res.columns["t"][-1]) if len(res.columns["t"]) else 0.0
     if res.fault:
@@ -610,16 +826,20 @@ def _tracking(log: dict[str, Any], with_T_p_cmd: bool = False) -> None:
                       f"{seg.t0:.1f}-{seg.t1:.1f} s{bounds}")
 
 
-def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent]) -> None:
-    """Tracking of each command (with T_p_cmd's range); touches vs detections."""
+def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent], t_stop: float = math.inf) -> None:
+    """Tracking of each command (with T_p_cmd's range); touches vs detections (a run stopped
+    at ``t_stop`` scores only the touches it could tell)."""
     from thermoskin.evaluation import match_events
 
     _tracking(log, with_T_p_cmd=True)
-    m = match_events(sc.touches, events)
+    m = match_events(sc.touches, events, t_end=t_stop)
     lat = m.latencies
     lat_txt = (f"onset latency median {np.median(lat) * 1e3:.0f} ms, max {np.max(lat) * 1e3:.0f} ms"
                if len(lat) else "no latency (nothing detected)")
-    console.print(f"[bold]summary[/]: {len(sc.touches)} touches scripted, {m.hits} detected, "
+    n_scored = len(sc.touches) - m.not_scored
+    cut = (f" before the stop at t = {t_stop:.3f} s ({m.not_scored} more after it or cut by it, not "
+           "counted)" if math.isfinite(t_stop) else "")
+    console.print(f"[bold]summary[/]: {n_scored} touches scripted{cut}, {m.hits} detected, "
                   f"{m.misses} missed, {m.false_alarms} false alarms; {lat_txt}")
 
 
@@ -649,10 +869,14 @@ def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_perio
     sample sent up to the stop.
     """
     from thermoskin.devices.emulator import main as emulator_main
+    from thermoskin.paths import check_output
 
     try:
         cfg = _config(config_path)
-    except ConfigError as e:
+        check_output(link, "--link", None, "link")
+        if truth_path is not None:
+            check_output(truth_path, "--truth", (".csv",), "truth file")
+    except (ConfigError, PathError) as e:
         click.echo(f"thermoskin: error: {' '.join(str(e).split())}", err=True)
         sys.exit(2)
     sys.exit(emulator_main(str(link), scenario, list(faults), tc_period, cfg, jitter=jitter,
@@ -684,6 +908,8 @@ def export(recording: Path, output: Path, ros2: bool) -> None:
         from thermoskin.runtime.ros2 import export_ros2 as do_export
     elif output.suffix.lower() == ".mcap":
         raise UserError(f"cannot export to {output}: an .mcap output needs --ros2 (ROS 2 messages)")
+    _outputs(("-o", output, (".mcap",) if ros2 else (".csv", ".parquet"), "output"))
+    _recording(recording)
     info: dict[str, Any] = {}
     try:
         out = do_export(recording, output, info=info)
@@ -695,6 +921,13 @@ def export(recording: Path, output: Path, ros2: bool) -> None:
     for line in info.get("warnings", ()):
         click.echo(f"thermoskin: warning: {recording}: {line}", err=True)
     _recording_warnings(info["report"])
+
+
+def _recording(path: Path) -> None:
+    """A recording to read: it exists and is a file (one line otherwise)."""
+    from thermoskin.paths import check_input
+
+    check_input(path, "recording")
 
 
 def _recording_warnings(report: Any) -> None:
@@ -738,6 +971,10 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
         raise UserError("--speed plays into the live server: give --live too")
     if speed is not None and not (speed > 0 and math.isfinite(speed)):
         raise UserError(f"--speed {speed}: must be > 0")
+    from thermoskin.paths import LOG_SUFFIXES
+
+    _outputs(("-o", output, LOG_SUFFIXES, "log"))
+    _recording(recording)
     if output is None:
         _replay_live(recording, live_addr, live_rate, live_wait, speed or 1.0)
         return
@@ -797,7 +1034,9 @@ def reproduce(out_dir: Path, only: str | None) -> None:
     """Reproduce the paper's Figs. 8 and 12-19 on the simulated skin, with a report."""
     from thermoskin.experiments.reproduce import FIGURES
     from thermoskin.experiments.reproduce import reproduce as run_reproduce
+    from thermoskin.paths import check_output_dir
 
+    check_output_dir(out_dir, "--out")
     figs = None
     if only is not None:
         figs = [f.strip() for f in only.split(",") if f.strip()]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -23,29 +24,39 @@ class Match:
     latencies: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     missed: list[Touch] = field(default_factory=list)
     spurious: list[ContactEvent] = field(default_factory=list)
+    not_scored: int = 0
+    """Touches left out because the run ended (``t_end``) before they could be told."""
 
 
 def match_events(touches: Sequence[Touch], events: Sequence[ContactEvent],
-                 late: float = 1.0) -> Match:
+                 late: float = 1.0, t_end: float = math.inf) -> Match:
     """Pair each touch with the first event detected in ``[t_on, t_on + duration + late]``.
 
     Every other event (detected outside a touch's window, or a second event in the same
-    window) is a false alarm.
+    window) is a false alarm. A run that ended at ``t_end`` (stopped early) scores only
+    what it could see: a touch scripted from ``t_end`` on, or one whose window was cut
+    by ``t_end`` with no detection in it yet, is neither a hit nor a miss (``not_scored``).
     """
     used: set[int] = set()
     lat: list[float] = []
     missed: list[Touch] = []
+    not_scored = 0
     for tc in touches:
+        if tc.t_on >= t_end:
+            not_scored += 1
+            continue
         hit = next((i for i, e in enumerate(events) if i not in used
                     and tc.t_on <= e.detected_at <= tc.t_on + tc.duration + late), None)
-        if hit is None:
+        if hit is None and tc.t_on + tc.duration + late > t_end:
+            not_scored += 1
+        elif hit is None:
             missed.append(tc)
         else:
             used.add(hit)
             lat.append(events[hit].detected_at - tc.t_on)
     spurious = [e for i, e in enumerate(events) if i not in used]
     return Match(hits=len(lat), misses=len(missed), false_alarms=len(spurious),
-                 latencies=np.asarray(lat), missed=missed, spurious=spurious)
+                 latencies=np.asarray(lat), missed=missed, spurious=spurious, not_scored=not_scored)
 
 
 def touches_from_truth(t: NDArray[np.float64], contact_true: NDArray[np.float64],

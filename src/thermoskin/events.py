@@ -36,6 +36,9 @@ CHARACTER_COLUMNS = ("kind", "toucher", "material", "p_human", "G_hat", "G_sd", 
 EVENT_COLUMNS = DETECTION_COLUMNS + CHARACTER_COLUMNS
 #: The text columns among them (the others are numbers).
 TEXT_COLUMNS = ("kind", "toucher", "material")
+#: The compiled kernel's event record: these fields, in this order (``estimation.kernel``).
+EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
+NEV = 8
 
 
 @dataclass(frozen=True)
@@ -51,8 +54,18 @@ class ContactEvent:
     peak_dq: float
     mean_dq: float
     energy: float
+    # what touched (:mod:`thermoskin.characterise`): empty text and NaN where not identified
+    kind: str = ""
+    toucher: str = ""
+    material: str = ""
+    p_human: float = math.nan
+    G_hat: float = math.nan
+    G_sd: float = math.nan
+    T_f_hat: float = math.nan
+    T_f_sd: float = math.nan
+    effusivity_hat: float = math.nan
 
-    def as_dict(self) -> dict[str, float]:
+    def as_dict(self) -> dict[str, float | str]:
         return asdict(self)
 
     def row(self) -> dict[str, float | str]:
@@ -64,13 +77,11 @@ class ContactEvent:
 
     @classmethod
     def from_kernel(cls, ev: NDArray[np.float64]) -> ContactEvent:
-        """From the kernel's event record (:mod:`thermoskin.estimation.kernel`'s ``EV_*``)."""
-        from thermoskin.estimation import kernel as K  # noqa: N812
-
-        return cls(onset=float(ev[K.EV_ONSET]), detected_at=float(ev[K.EV_DETECTED]),
-                   release=float(ev[K.EV_RELEASE]), duration=float(ev[K.EV_DURATION]),
-                   sign=int(ev[K.EV_SIGN]), peak_dq=float(ev[K.EV_PEAK]),
-                   mean_dq=float(ev[K.EV_MEAN]), energy=float(ev[K.EV_ENERGY]))
+        """From the kernel's event record (the ``EV_*`` layout above)."""
+        return cls(onset=float(ev[EV_ONSET]), detected_at=float(ev[EV_DETECTED]),
+                   release=float(ev[EV_RELEASE]), duration=float(ev[EV_DURATION]),
+                   sign=int(ev[EV_SIGN]), peak_dq=float(ev[EV_PEAK]),
+                   mean_dq=float(ev[EV_MEAN]), energy=float(ev[EV_ENERGY]))
 
 
 def events_columns(events: Sequence[ContactEvent]) -> dict[str, NDArray[Any]]:

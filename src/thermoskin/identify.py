@@ -143,8 +143,10 @@ class ArxModel:
                          u, ta_prev, np.asarray(yp, float), np.asarray(up, float))
 
     # -- TOML ----------------------------------------------------------------------------
-    def to_toml(self) -> str:
-        """The model as TOML text (``[arx]`` table; the metrics in ``[arx.fit]``)."""
+    def to_toml(self, use: str = "feedforward") -> str:
+        """The model as a configuration file that ``thermoskin run --config`` accepts: a
+        ``[peltier_model]`` table (:class:`~thermoskin.params.PeltierModelParams`) whose
+        ``use = "feedforward"`` makes the inner loop add the model's steady-state drive."""
         def num(x: float) -> str:
             return repr(float(x)) if math.isfinite(x) else ("nan" if math.isnan(x) else
                                                             ("inf" if x > 0 else "-inf"))
@@ -153,37 +155,59 @@ class ArxModel:
             return "[" + ", ".join(num(v) for v in x) + "]"
 
         lines = [
-            "# ARX model of T_p against the Peltier drive: A(q) T_p = B(q) drive + d T_a[k-1] + c",
-            "[arx]",
-            f"na = {self.na}", f"nb = {self.nb}", f"nk = {self.nk}",
+            "# thermoskin identify: an ARX model of T_p against the Peltier drive,",
+            "#   A(q) T_p[k] = B(q) drive[k] + d T_a[k-1] + c   (at t_s, q the shift operator)",
+            f"# orders na = {self.na}, nb = {self.nb}, nk = {self.nk} by {self.criterion.upper()} "
+            f"({self.criterion} = {num(self.ic)}); {self.n_est} samples for the fit, {self.n_val} held "
+            f"back; log sampled every {num(self.t_s_log)} s.",
+            f"# steady-state gain {num(self.steady_state_gain())} K per unit drive.",
+            "# A config for `thermoskin run --config FILE` (alone or added to another config):",
+            '# with use = "feedforward" the inner loop adds the drive that holds T_p_cmd in the',
+            "# model's steady state, and its PI corrects the rest.",
+            "[peltier_model]",
+            f'use = "{use}"',
+            f"t_s = {num(self.t_s)}  # s",
+            f"nk = {self.nk}",
             f"a = {arr(self.a)}", f"b = {arr(self.b)}",
             f"c = {num(self.c)}", f"d = {num(self.d)}",
             f"with_T_a = {'true' if self.with_T_a else 'false'}",
-            f"t_s = {num(self.t_s)}  # s",
-            "",
-            "[arx.fit]",
-            f"nrmse = {num(self.nrmse)}", f"nrmse_est = {num(self.nrmse_est)}",
-            f"rmse = {num(self.rmse)}  # K",
-            f'criterion = "{self.criterion}"', f"ic = {num(self.ic)}",
-            f"n_est = {self.n_est}", f"n_val = {self.n_val}",
-            f"t_s_log = {num(self.t_s_log)}  # s",
-            "",
         ]
-        return "\n".join(lines)
+        for name in ("nrmse", "nrmse_est", "rmse"):
+            x = getattr(self, name)
+            if math.isfinite(x):
+                lines.append(f"{name} = {num(x)}")
+        return "\n".join([*lines, ""])
 
     @classmethod
     def from_toml(cls, text: str) -> ArxModel:
-        """Parse :meth:`to_toml`'s text; raises :class:`IdentifyError` on a bad file."""
+        """Parse :meth:`to_toml`'s text (``[peltier_model]``, or the older ``[arx]`` table);
+        raises :class:`IdentifyError` on a bad file."""
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise IdentifyError(f"model is not valid TOML: {e}") from None
+        if isinstance(data.get("peltier_model"), dict):
+            from thermoskin.params import ConfigError, PeltierModelParams
+
+            t = dict(data["peltier_model"])
+            t.pop("use", None)
+            try:
+                pm = PeltierModelParams(**{"use": "off", **t})
+            except (ConfigError, TypeError) as e:
+                raise IdentifyError(f"bad [peltier_model]: {e}") from None
+            if not pm.a or not pm.b:
+                raise IdentifyError("model lacks key(s) a, b in [peltier_model]")
+            kw: dict[str, Any] = {"na": len(pm.a), "nb": len(pm.b), "nk": pm.nk, "a": pm.a, "b": pm.b,
+                                  "c": pm.c, "d": pm.d, "t_s": pm.t_s, "with_T_a": pm.with_T_a}
+            kw.update({k: getattr(pm, k) for k in ("nrmse", "nrmse_est", "rmse")
+                       if getattr(pm, k) is not None})
+            return cls(**kw)
         t = data.get("arx")
         if not isinstance(t, dict):
-            raise IdentifyError("model has no [arx] table")
+            raise IdentifyError("model has no [peltier_model] (or [arx]) table")
         fit = t.pop("fit", {})
         known = {f.name for f in dataclasses.fields(cls)}
-        kw: dict[str, Any] = {}
+        kw = {}
         for key, value in [*t.items(), *fit.items()]:
             if key not in known:
                 raise IdentifyError(f"unknown key {key!r} in the model's [arx] table")
@@ -196,16 +220,18 @@ class ArxModel:
         except (TypeError, ValueError) as e:
             raise IdentifyError(f"bad model: {e}") from None
 
-    def save_model(self, path: str | os.PathLike[str]) -> Path:
+    def save_model(self, path: str | os.PathLike[str], use: str = "feedforward") -> Path:
         """Write :meth:`to_toml` to ``path``."""
-        return save_model(self, path)
+        return save_model(self, path, use)
 
 
-def save_model(model: ArxModel, path: str | os.PathLike[str]) -> Path:
-    """Write the model as TOML; returns the path."""
+def save_model(model: ArxModel, path: str | os.PathLike[str], use: str = "feedforward") -> Path:
+    """Write the model as a config file (:meth:`ArxModel.to_toml`), atomically; returns the path."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(model.to_toml(), encoding="utf-8")
+    tmp = p.with_name(f".{p.name}.tmp")
+    tmp.write_text(model.to_toml(use), encoding="utf-8")
+    os.replace(tmp, p)
     return p
 
 

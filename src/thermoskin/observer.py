@@ -7,7 +7,7 @@ Inputs per sample: ``T_w, T_p, v, T_a``. With ``q_p = (T_p - T_w)/R_w(v)`` (eq. 
 
 is run as two proper filters, ``q_hat = F1(s) T_w - F2(s) q_net`` with
 ``F1 = D(s)/((R_g C_w s+1)(R_g C_g s+1))`` and ``F2 = 1/(R_g C_w s+1)``. On the network of
-MODEL.md it returns ``Q(s)(q_i - q_ag)``. The paper then adds ``q_ag`` computed with
+docs/model.md it returns ``Q(s)(q_i - q_ag)``. The paper then adds ``q_ag`` computed with
 ``T_w`` in place of the unmeasured ``T_g``:
 
     q_i_hat = q_hat + (T_w - T_a)/R_ag.

@@ -9,7 +9,8 @@ range. A TOML file overrides any subset of a preset::
     R_w_flowing = 0.25   # K/W, replaces the convection model while the pump runs
 
 Tables: ``[skin] [sampling] [observer] [estimator] [detector] [sensor] [pump] [peltier] [control]
-[safety]``.
+[safety] [plausible] [peltier_model]``. Every number has a physical range on both sides: a value outside it
+(``C_w = 1e300``, ``t_s = 1e-12``) is refused with one line naming the key and the range.
 """
 
 from __future__ import annotations
@@ -89,18 +90,18 @@ class SkinParams(_Validated):
     """
 
     section = "skin"
-    C_w: float = _p(0.134, "J/K", 0, lo_open=True, doc="thermal capacitance of the water pipe")
-    C_g: float = _p(0.0124, "J/K", 0, lo_open=True, doc="thermal capacitance of the graphite sheet")
-    R_g: float = _p(10.0, "K/W", 0, lo_open=True, doc="thermal resistance pipe to sheet")
-    R_aw: float = _p(2100.0, "K/W", 0, lo_open=True, doc="thermal resistance pipe to air")
-    R_ag: float = _p(1.0, "K/W", 0, lo_open=True, doc="thermal resistance sheet to air")
-    A: float = _p(3.2e-3, "m^2", 0, lo_open=True, doc="heat-exchange area of the water tank (eq. 1)")
-    V: float = _p(3.2e-5, "m^3", 0, lo_open=True, doc="volume of the water tank (eq. 2)")
-    d: float = _p(3.0e-3, "m", 0, 0.1, lo_open=True, doc="characteristic pipe diameter")
-    L: float = _p(0.11, "m", 0, 10.0, lo_open=True, doc="length of the pipe and the tank")
-    R_w_flowing: float | None = _p(None, "K/W", 0, lo_open=True, optional=True,
+    C_w: float = _p(0.134, "J/K", 1e-4, 1e4, doc="thermal capacitance of the water pipe")
+    C_g: float = _p(0.0124, "J/K", 1e-5, 1e3, doc="thermal capacitance of the graphite sheet")
+    R_g: float = _p(10.0, "K/W", 1e-3, 1e4, doc="thermal resistance pipe to sheet")
+    R_aw: float = _p(2100.0, "K/W", 1e-2, 1e6, doc="thermal resistance pipe to air")
+    R_ag: float = _p(1.0, "K/W", 1e-3, 1e4, doc="thermal resistance sheet to air")
+    A: float = _p(3.2e-3, "m^2", 1e-6, 1.0, doc="heat-exchange area of the water tank (eq. 1)")
+    V: float = _p(3.2e-5, "m^3", 1e-9, 1e-2, doc="volume of the water tank (eq. 2)")
+    d: float = _p(3.0e-3, "m", 1e-4, 0.1, doc="characteristic pipe diameter")
+    L: float = _p(0.11, "m", 1e-3, 10.0, doc="length of the pipe and the tank")
+    R_w_flowing: float | None = _p(None, "K/W", 1e-3, 1e5, optional=True,
                                    doc="R_w while the pump runs; replaces the convection model")
-    R_w_stopped: float | None = _p(None, "K/W", 0, lo_open=True, optional=True,
+    R_w_stopped: float | None = _p(None, "K/W", 1e-3, 1e5, optional=True,
                                    doc="R_w while the pump is stopped; replaces the conduction model")
     water: str = _p("iapws", "", choices=("iapws", "table1"),
                     doc="water properties: IAPWS formulations at T_ref, or Table I's printed values")
@@ -112,7 +113,7 @@ class SamplingParams(_Validated):
     """Sampling of the loop."""
 
     section = "sampling"
-    t_s: float = _p(1.0e-3, "s", 0, 1.0, lo_open=True, doc="sampling time (Table I)")
+    t_s: float = _p(1.0e-3, "s", 1e-4, 1.0, doc="sampling time (Table I)")
 
 
 @dataclass(frozen=True)
@@ -122,9 +123,9 @@ class ObserverParams(_Validated):
     section = "observer"
     n_init: int = _p(1000, "samples", 1, 10_000,
                      doc="first samples averaged for the steady-state start")
-    tau_r: float = _p(0.05, "s", 0, 10.0, lo_open=True,
+    tau_r: float = _p(0.05, "s", 1e-4, 10.0,
                       doc="time constant of the contact residual's double low-pass")
-    max_gap_s: float = _p(2.0, "s", 0, 3600.0, lo_open=True,
+    max_gap_s: float = _p(2.0, "s", 1e-3, 3600.0,
                           doc="longest NaN gap held over; longer gaps restart the observer")
 
 
@@ -137,15 +138,15 @@ class EstimatorParams(_Validated):
     """
 
     section = "estimator"
-    S_q: float = _p(1.0, "W^2/s", 0.0, 1e6, lo_open=True,
+    S_q: float = _p(1.0, "W^2/s", 1e-9, 1e6,
                     doc="random-walk density of the touch heat q_i in a contact: how fast the "
                         "estimate follows it")
-    S_q_idle: float = _p(1e-4, "W^2/s", 0.0, 1e6, lo_open=True,
+    S_q_idle: float = _p(1e-4, "W^2/s", 1e-12, 1e6,
                          doc="the same while no contact is detected: slow drift only, so that a "
                              "touch is not absorbed before it is detected")
-    S_p: float = _p(0.01, "K^2/s^3", 0.0, 1e6, lo_open=True,
+    S_p: float = _p(0.01, "K^2/s^3", 1e-12, 1e6,
                     doc="acceleration density of the tank temperature T_p (constant-velocity model)")
-    S_a: float = _p(1e-3, "K^2/s", 0.0, 1e6, lo_open=True,
+    S_a: float = _p(1e-3, "K^2/s", 1e-12, 1e6,
                     doc="random-walk density of the ambient temperature T_a")
     S_w: float = _p(1e-8, "K^2/s", 0.0, 1e6, doc="model error on the pipe node")
     tank_gain: float | None = _p(None, "K/s", 0.0, 1e3, optional=True,
@@ -154,9 +155,9 @@ class EstimatorParams(_Validated):
     tank_jump: float = _p(4.0, "sd", 1.0, 100.0,
                           doc="a T_p reading this many standard deviations off is a manoeuvre of "
                               "the tank (a drive step): its slope is let go")
-    tank_jump_s: float = _p(0.3, "s", 0.0, 60.0, lo_open=True,
+    tank_jump_s: float = _p(0.3, "s", 1e-3, 60.0,
                             doc="time over which such a jump is taken as a change of slope")
-    max_gap_s: float = _p(2.0, "s", 0, 3600.0, lo_open=True,
+    max_gap_s: float = _p(2.0, "s", 1e-3, 3600.0,
                           doc="a pipe reading missing for longer restarts the estimate")
 
 
@@ -165,25 +166,25 @@ class DetectorParams(_Validated):
     """Two-sided contact detector on the estimator's standardised touch heat."""
 
     section = "detector"
-    dq_design: float = _p(0.3, "W", 0.0, 100.0, lo_open=True,
+    dq_design: float = _p(0.3, "W", 1e-4, 100.0,
                           doc="the changes of the touch heat two CUSUMs are tuned to: this one (a "
                               "light fingertip) ...")
-    dq_design_hi: float = _p(0.6, "W", 0.0, 100.0, lo_open=True,
+    dq_design_hi: float = _p(0.6, "W", 1e-4, 100.0,
                              doc="... and this one (two fingers and more)")
-    h_on: float = _p(6.5, "", 0.0, 1000.0, lo_open=True,
+    h_on: float = _p(6.0, "", 0.0, 1000.0, lo_open=True,
                      doc="onset threshold, log-likelihood ratio of a touch against none, for one "
                          "pipe reading a second ...")
-    h_rate: float = _p(1.3, "", 0.0, 100.0,
+    h_rate: float = _p(1.52, "", 0.0, 100.0,
                        doc="... plus this times ln(readings per second): more readings, more "
-                           "chances of a false alarm (10 Hz boards: 9.5, 1 kHz: 15.5)")
+                           "chances of a false alarm (10 Hz boards: 9.5, 100 Hz: 13.0, 1 kHz: 16.5)")
     k_off: float = _p(1.0, "sigma", 0.0, 100.0, doc="release threshold in noise standard deviations")
     f_off: float = _p(0.35, "", 0.0, 1.0,
                       doc="release threshold as a fraction of the contact's smoothed level")
-    tau_level: float = _p(0.1, "s", 0.0, 60.0, lo_open=True,
+    tau_level: float = _p(0.1, "s", 1e-4, 60.0,
                           doc="smoothing of the contact's level for the release threshold")
     k_rel: float = _p(1.0, "sigma", 0.0, 100.0,
                       doc="release CUSUM drift: evidence accrues while the estimate is this far below")
-    h_off: float = _p(0.05, "sigma s", 0.0, 100.0, lo_open=True,
+    h_off: float = _p(0.05, "sigma s", 1e-4, 100.0,
                       doc="release CUSUM threshold")
     t_warmup: float = _p(1.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
     t_refractory: float = _p(3.0, "s", 0.0, 60.0,
@@ -193,17 +194,17 @@ class DetectorParams(_Validated):
                           "three times the air sensor's lag")
     t_settle: float = _p(2.0, "s", 0.0, 600.0,
                          doc="after a release, time before the baseline learns again")
-    tau_baseline: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,
+    tau_baseline: float = _p(20.0, "s", 0.1, 3600.0,
                              doc="time constant of the no-touch baseline")
-    tau_sigma: float = _p(20.0, "s", 0.1, 3600.0, lo_open=True,
+    tau_sigma: float = _p(20.0, "s", 0.1, 3600.0,
                           doc="time constant of the innovations' scale estimate")
-    z_scale: float = _p(0.6, "", 0.0, 100.0, lo_open=True,
+    z_scale: float = _p(0.6, "", 1e-3, 100.0,
                         doc="standard deviation of the contact estimate over its filter's own sd "
                             "(for the release threshold)")
-    arm_band: float = _p(0.5, "K", 0.0, 50.0, lo_open=True,
+    arm_band: float = _p(0.5, "K", 1e-3, 50.0,
                          doc="in a loop with a command: detection starts once |T_w - T_w_cmd| ...")
     t_arm: float = _p(3.0, "s", 0.0, 600.0, doc="... has stayed within arm_band this long")
-    max_contact_s: float = _p(300.0, "s", 0.1, 1e6, lo_open=True,
+    max_contact_s: float = _p(300.0, "s", 0.1, 1e6,
                               doc="a contact longer than this is taken as a drift and ended")
 
 
@@ -252,7 +253,7 @@ class PumpParams(_Validated):
     """Water pump: runs at ``v_on`` and stops while ``T_w`` is above its command."""
 
     section = "pump"
-    v_on: float = _p(0.141, "m/s", 0, 10.0, lo_open=True, doc="water velocity when running")
+    v_on: float = _p(0.141, "m/s", 1e-3, 10.0, doc="water velocity when running")
     hysteresis: float = _p(0.0, "K", 0.0, 10.0,
                            doc="band around the command; 0 gives the paper's chattering")
     min_dwell: float = _p(0.05, "s", 0.0, 60.0,
@@ -269,14 +270,14 @@ class PeltierParams(_Validated):
 
     section = "peltier"
     n_modules: int = _p(2, "", 1, 16, doc="modules in parallel on the tank")
-    S_m: float = _p(0.053, "V/K", 0, 1.0, lo_open=True, doc="module Seebeck coefficient")
-    R_m: float = _p(2.0, "ohm", 0, 100.0, lo_open=True, doc="module electrical resistance")
-    K_m: float = _p(0.45, "W/K", 0, 100.0, lo_open=True, doc="module thermal conductance")
-    I_max: float = _p(6.0, "A", 0, 100.0, lo_open=True, doc="drive current at |drive| = 1")
-    C_tank: float = _p(150.0, "J/K", 0, lo_open=True, doc="tank water and plate")
-    R_tank_air: float = _p(8.0, "K/W", 0, lo_open=True, doc="tank to air")
-    C_sink: float = _p(80.0, "J/K", 0, lo_open=True, doc="heat sink")
-    R_sink: float = _p(0.25, "K/W", 0, lo_open=True, doc="heat sink to air, fan running")
+    S_m: float = _p(0.053, "V/K", 1e-4, 1.0, doc="module Seebeck coefficient")
+    R_m: float = _p(2.0, "ohm", 1e-3, 100.0, doc="module electrical resistance")
+    K_m: float = _p(0.45, "W/K", 1e-3, 100.0, doc="module thermal conductance")
+    I_max: float = _p(6.0, "A", 1e-2, 100.0, doc="drive current at |drive| = 1")
+    C_tank: float = _p(150.0, "J/K", 1.0, 1e5, doc="tank water and plate")
+    R_tank_air: float = _p(8.0, "K/W", 1e-2, 1e4, doc="tank to air")
+    C_sink: float = _p(80.0, "J/K", 1.0, 1e5, doc="heat sink")
+    R_sink: float = _p(0.25, "K/W", 1e-3, 1e3, doc="heat sink to air, fan running")
 
 
 @dataclass(frozen=True)
@@ -317,12 +318,110 @@ class SafetyParams(_Validated):
                           "steady no-touch sheet temperature")
     max_nan_s: float = _p(0.15, "s", 0.0, 10.0,
                           doc="a NaN reading lasting longer trips (shorter gaps are held over)")
-    link_timeout_s: float = _p(0.05, "s", 0.0, 10.0, lo_open=True,
+    link_timeout_s: float = _p(0.05, "s", 1e-3, 10.0,
                                doc="no sample from the device for longer trips")
-    stale_s: float = _p(0.5, "s", 0.0, 60.0, lo_open=True,
+    stale_s: float = _p(0.5, "s", 1e-3, 60.0,
                         doc="a thermocouple with no new reading for longer trips")
     stuck_readings: int = _p(10, "readings", 0, 10_000,
                              doc="this many equal new readings in a row trip (0: off)")
+
+
+@dataclass(frozen=True)
+class PeltierModelParams(_Validated):
+    """An identified model of the Peltier tank, as ``thermoskin identify`` writes it.
+
+    The ARX model ``A(q) T_p[k] = B(q) drive[k] + d T_a[k-1] + c`` at sample time ``t_s``
+    (``A = 1 + a_1 q^-1 + ...``, ``B = b_1 q^-nk + ...``; :mod:`thermoskin.identify`). With
+    ``use = "feedforward"`` the inner loop adds the drive that holds the commanded ``T_p`` in
+    the model's steady state, ``drive_ff = (T_p_cmd - T_a) A(1)/B(1)`` (without the ``T_a``
+    input; the tank at zero drive sits at the air) or ``(A(1) T_p_cmd - d T_a - c)/B(1)``
+    (with it), and its PI only corrects the rest (``control.inner``). ``use = "off"``
+    keeps the model for reference only. The fit figures are informational.
+    """
+
+    section = "peltier_model"
+    use: str = _p("off", "", choices=("off", "feedforward"),
+                  doc="what the controller does with the model: nothing, or a feedforward on the drive")
+    t_s: float = _p(0.1, "s", 1e-4, 60.0, doc="the model's sample time")
+    nk: int = _p(0, "samples", 0, 100, doc="input delay of B(q)")
+    a: tuple[float, ...] = ()
+    """``a_1 .. a_na`` (1 to 20 values)."""
+    b: tuple[float, ...] = ()
+    """``b_1 .. b_nb`` (1 to 20 values)."""
+    c: float = _p(0.0, "K", -1e6, 1e6, doc="constant of the ARX equation")
+    d: float = _p(0.0, "", -1e3, 1e3, doc="coefficient of T_a[k-1] (0 without that input)")
+    with_T_a: bool = False
+    nrmse: float | None = _p(None, "", -1e9, 1.0, optional=True,
+                             doc="simulation fit on the held-back data (1 = perfect)")
+    nrmse_est: float | None = _p(None, "", -1e9, 1.0, optional=True,
+                                 doc="simulation fit on the estimation data")
+    rmse: float | None = _p(None, "K", 0.0, 1e6, optional=True, doc="RMSE on the held-back data")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("a", "b"):
+            raw = getattr(self, name)
+            if not isinstance(raw, list | tuple) or len(raw) > 20:
+                raise ConfigError(f"peltier_model.{name} = {raw!r} must be a list of at most 20 numbers")
+            vals = []
+            for x in raw:
+                if isinstance(x, bool) or not isinstance(x, int | float) or not -1e6 <= x <= 1e6:
+                    raise ConfigError(f"peltier_model.{name} = {raw!r}: {x!r} is not a number within "
+                                      "[-1e6, 1e6]")
+                vals.append(float(x))
+            object.__setattr__(self, name, tuple(vals))
+        if not isinstance(self.with_T_a, bool):
+            raise ConfigError(f"peltier_model.with_T_a = {self.with_T_a!r} must be true or false")
+        if self.use == "off" and not self.a and not self.b:
+            return
+        if not self.a or not self.b:
+            raise ConfigError("peltier_model: a and b must each hold at least one coefficient "
+                              "(write the table with `thermoskin identify`)")
+        A1 = 1.0 + sum(self.a)
+        gain = sum(self.b) / A1 if A1 != 0.0 else math.inf
+        if not (math.isfinite(gain) and gain > 0.0):
+            raise ConfigError(f"peltier_model: the steady-state gain B(1)/A(1) = {gain:g} K per unit "
+                              "drive must be > 0 (heating warms the tank)")
+        import numpy as np
+
+        poles = np.roots((1.0, *self.a))
+        if not np.all(np.abs(poles) < 1.0):
+            raise ConfigError("peltier_model: the model is unstable (a pole of A(q) on or outside the "
+                              f"unit circle, |p| = {float(np.max(np.abs(poles))):.4g})")
+
+    def steady_state_gain(self) -> float:
+        """``B(1)/A(1)``, K per unit drive."""
+        return sum(self.b) / (1.0 + sum(self.a))
+
+
+@dataclass(frozen=True)
+class PlausibleParams(_Validated):
+    """Physical ranges of the measured columns (``thermoskin.plausible``).
+
+    A reading outside its column's range is no reading: it is treated as a NaN (held over,
+    flagged ``gap``) before it reaches any filter, live and offline. ``T_w_cmd`` is checked
+    against the ``T_w`` range (an implausible command holds the last one); ``drive`` outside
+    its range is an unknown drive.
+    """
+
+    section = "plausible"
+    T_w_min: float = _p(-50.0, "degC", -273.15, 1000.0, doc="lowest plausible pipe reading")
+    T_w_max: float = _p(150.0, "degC", -273.15, 1000.0, doc="highest plausible pipe reading")
+    T_p_min: float = _p(-50.0, "degC", -273.15, 1000.0, doc="lowest plausible tank reading")
+    T_p_max: float = _p(150.0, "degC", -273.15, 1000.0, doc="highest plausible tank reading")
+    T_a_min: float = _p(-50.0, "degC", -273.15, 1000.0, doc="lowest plausible air reading")
+    T_a_max: float = _p(150.0, "degC", -273.15, 1000.0, doc="highest plausible air reading")
+    v_min: float = _p(0.0, "m/s", 0.0, 100.0, doc="lowest plausible water velocity")
+    v_max: float = _p(10.0, "m/s", 0.0, 100.0, doc="highest plausible water velocity")
+    drive_min: float = _p(-1.0, "", -10.0, 10.0, doc="lowest plausible Peltier drive")
+    drive_max: float = _p(1.0, "", -10.0, 10.0, doc="highest plausible Peltier drive")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for col in ("T_w", "T_p", "T_a", "v", "drive"):
+            lo, hi = getattr(self, f"{col}_min"), getattr(self, f"{col}_max")
+            if not lo < hi:
+                raise ConfigError(f"plausible.{col}_min = {lo!r} must be below plausible.{col}_max = {hi!r}")
 
 
 @dataclass(frozen=True)
@@ -339,11 +438,16 @@ class Config:
     peltier: PeltierParams = field(default_factory=PeltierParams)
     control: ControlParams = field(default_factory=ControlParams)
     safety: SafetyParams = field(default_factory=SafetyParams)
+    plausible: PlausibleParams = field(default_factory=PlausibleParams)
+    peltier_model: PeltierModelParams = field(default_factory=PeltierModelParams)
 
     def __post_init__(self) -> None:
         if self.control.T_p_min >= self.control.T_p_max:
             raise ConfigError(f"control.T_p_min = {self.control.T_p_min} must be below "
                               f"control.T_p_max = {self.control.T_p_max}")
+        if self.control.W1 == 0.0 and self.control.W2 == 0.0:
+            raise ConfigError("control.W1 and control.W2 are both 0: the MPC's cost (eq. 9) "
+                              "would have no term; give at least one a weight > 0")
         if self.safety.T_p_min >= self.safety.T_p_max:
             raise ConfigError(f"safety.T_p_min = {self.safety.T_p_min} must be below "
                               f"safety.T_p_max = {self.safety.T_p_max}")
@@ -361,7 +465,8 @@ class Config:
 _SECTION_TYPES = {"skin": SkinParams, "sampling": SamplingParams, "observer": ObserverParams,
                   "estimator": EstimatorParams, "detector": DetectorParams, "sensor": SensorParams,
                   "pump": PumpParams, "peltier": PeltierParams, "control": ControlParams,
-                  "safety": SafetyParams}
+                  "safety": SafetyParams, "plausible": PlausibleParams,
+                  "peltier_model": PeltierModelParams}
 
 PRESETS: dict[str, Config] = {
     "paper": Config(),
@@ -400,11 +505,19 @@ def load_config(path: str | Path | None = None, preset: str = "paper") -> Config
     if path is None:
         return cfg
     p = Path(path)
-    if not p.is_file():
+    if p.is_dir():
+        raise ConfigError(f"config file {p} is a directory, not a TOML file")
+    if not p.exists():
         raise ConfigError(f"config file {p} does not exist")
     try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise ConfigError(f"cannot read config file {p}: {e.strerror or e}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{p} is not valid TOML: not UTF-8 text") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{p} is not valid TOML: {e}") from None
     return _merge(cfg, data, source=str(p))
 
@@ -419,7 +532,14 @@ def to_toml(cfg: Config) -> str:
             value = getattr(section, f.name)
             if value is None:
                 continue
-            text = f'"{value}"' if isinstance(value, str) else repr(value)
+            if isinstance(value, str):
+                text = f'"{value}"'
+            elif isinstance(value, bool):
+                text = "true" if value else "false"
+            elif isinstance(value, tuple | list):
+                text = "[" + ", ".join(repr(float(x)) for x in value) + "]"
+            else:
+                text = repr(value)
             unit = f.metadata.get("unit", "")
             lines.append(f"{f.name} = {text}" + (f"  # {unit}" if unit else ""))
         lines.append("")

@@ -5,6 +5,11 @@ on the log's own sampling interval, with the log's ``T_w_cmd`` (if it has one: t
 is then armed the way the loop armed it) and the log's ``fresh`` column (if it has one;
 otherwise each channel's update rate is read from the data, :mod:`thermoskin.estimation.freshness`).
 On a log written by ``thermoskin run`` it therefore reproduces the live estimates and events.
+
+Before the estimator, implausible values (outside the ``[plausible]`` ranges) are dropped
+as the loop drops them (:func:`thermoskin.plausible.clean_log`): held over and flagged
+``gap``. A sampling interval the estimator cannot work at (outside ``sampling.t_s``'s range)
+is refused with :class:`~thermoskin.logio.LogError`.
 """
 
 from __future__ import annotations
@@ -12,7 +17,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,7 +25,9 @@ from numpy.typing import NDArray
 from thermoskin.estimation.freshness import FreshInference, infer_fresh
 from thermoskin.estimator import Observation, TouchEstimator
 from thermoskin.events import ContactEvent
-from thermoskin.params import Config
+from thermoskin.logio import LogError
+from thermoskin.params import Config, SamplingParams
+from thermoskin.plausible import Cleaned, clean_log
 
 INPUT_COLUMNS = ("t", "T_w", "T_p", "v", "T_a")
 
@@ -40,7 +47,18 @@ def sample_interval(t: NDArray[np.float64]) -> float:
     return float(np.median(np.diff(t)))
 
 
-def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None = None) -> Observation:
+def check_interval(t_s: float, where: str = "the log") -> None:
+    """Refuse a sampling interval outside ``sampling.t_s``'s range (one-line :class:`LogError`)."""
+    import dataclasses
+
+    meta = {f.name: f.metadata for f in dataclasses.fields(SamplingParams)}["t_s"]
+    if not meta["lo"] <= t_s <= meta["hi"]:
+        raise LogError(f"{where} is sampled every {t_s:.3g} s; the estimator works at "
+                       f"{meta['lo']:g} to {meta['hi']:g} s per sample")
+
+
+def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None = None,
+            warnings: list[str] | None = None) -> Observation:
     """Estimate and detect over ``log`` (columns of the shared schema).
 
     ``t_s`` defaults to the log's own sampling interval, so a log at 100 Hz is estimated at
@@ -50,10 +68,18 @@ def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None 
     t = np.asarray(log["t"], dtype=float)
     if t_s is None:
         t_s = _loop_t_s(sample_interval(t), cfg)
+    check_interval(t_s)
     fresh, _ = infer_fresh(log)
+    clean = clean_log(log, cfg)
+    if warnings is not None:
+        warnings.extend(clean.warnings(cfg))
+    log = clean.columns
     est = TouchEstimator(cfg, t_s=t_s)
-    return est.run(t, log["T_w"], log["T_p"], log["v"], log["T_a"],
-                   T_w_cmd=log.get("T_w_cmd"), fresh=fresh, drive=log.get("drive"))
+    res = est.run(t, log["T_w"], log["T_p"], log["v"], log["T_a"],
+                  T_w_cmd=log.get("T_w_cmd"), fresh=fresh, drive=log.get("drive"))
+    if clean.rejected.any():
+        res.columns["gap"] = (res.columns["gap"] | clean.rejected).astype(np.int8)
+    return res
 
 
 def _loop_t_s(t_s: float, cfg: Config) -> float:
@@ -74,16 +100,20 @@ class StreamResult:
     live_q_max_abs_diff: float | None = None
     live_contact_mismatches: int | None = None
     duration_s: float = 0.0
+    warnings: list[str] = field(default_factory=list)
+    """One line per column with implausible values or with no valid sample at all."""
 
 
 def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg: Config,
                  progress: Callable[[int, int | None], None] | None = None) -> StreamResult:
     """:func:`observe` streamed from a log file to another (CSV or Parquet each), in chunks:
     memory does not grow with the log's length. The output holds every input column, the
-    input's own estimates renamed ``*_live``, then ``q_i_hat, dq_i_hat, contact, gap``."""
+    input's own estimates renamed ``*_live``, then ``q_i_hat, dq_i_hat, contact, gap``.
+    Implausible values are dropped per chunk as :func:`observe` drops them (a log still being
+    written, or cut by a kill, is read to its last whole line)."""
     from thermoskin.logio import LogReader, LogWriter
 
-    with LogReader(path, required=INPUT_COLUMNS) as reader:
+    with LogReader(path, required=INPUT_COLUMNS, live=True) as reader:
         names = list(reader.names)
         live = [k for k in OUTPUT_COLUMNS if k in names]
         out_names = [f"{k}_live" if k in live else k for k in names] + list(OUTPUT_COLUMNS)
@@ -93,14 +123,27 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
         q_diff = 0.0
         t_last = 0.0
         t_s = math.nan
+        counts: dict[str, int] = {}
+        first: dict[str, float] = {}
+        valid: dict[str, bool] = {}
         with LogWriter(out, out_names, atomic=True) as writer:  # whole, or not at all
             for chunk in reader:
                 if est is None:
                     t_s = _loop_t_s(sample_interval(chunk["t"]), cfg)
+                    check_interval(t_s)
                     est = TouchEstimator(cfg, t_s=t_s)
                 fresh = fresh_inf.feed(chunk)
-                cols, _ = est.feed(chunk["t"], chunk["T_w"], chunk["T_p"], chunk["v"], chunk["T_a"],
-                                   T_w_cmd=chunk.get("T_w_cmd"), fresh=fresh, drive=chunk.get("drive"))
+                clean = clean_log(chunk, cfg)
+                for k, n in clean.counts.items():
+                    first.setdefault(k, clean.first[k])
+                    counts[k] = counts.get(k, 0) + n
+                for k in ("T_w", "T_p", "T_a", "v"):
+                    valid[k] = valid.get(k, False) or k not in clean.no_valid
+                c = clean.columns
+                cols, _ = est.feed(c["t"], c["T_w"], c["T_p"], c["v"], c["T_a"],
+                                   T_w_cmd=c.get("T_w_cmd"), fresh=fresh, drive=c.get("drive"))
+                if clean.rejected.any():
+                    cols["gap"] = (cols["gap"] | clean.rejected).astype(np.int8)
                 if "q_i_hat" in live:
                     d = np.abs(cols["q_i_hat"] - chunk["q_i_hat"])
                     d = d[np.isfinite(d)]
@@ -121,4 +164,6 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
                         dict.fromkeys(("T_w", "T_p", "T_a"), 1.0), gaps=gaps,
                         live_q_max_abs_diff=q_diff if "q_i_hat" in live else None,
                         live_contact_mismatches=mism if "contact" in live else None,
-                        duration_s=rows * t_s)
+                        duration_s=rows * t_s,
+                        warnings=Cleaned(columns={}, rejected=np.zeros(0, bool), counts=counts, first=first,
+                                         no_valid=[k for k, ok in valid.items() if not ok]).warnings(cfg))

@@ -93,7 +93,8 @@ def plot_run(
     title: str = "",
     max_points: int = MAX_POINTS,
 ) -> Path:
-    """Write a PNG of a run: temperatures, heat flow, and (if present) truth and control.
+    """Write a plot of a run (PNG; PDF or SVG by ``path``'s extension): temperatures, heat
+    flow, and (if present) truth and control.
 
     Panels: ``T_w`` and, if present, ``T_p``, ``T_g`` (true), ``T_w_cmd``, ``T_a`` (°C);
     ``q_i_hat`` (W, raw and a 0.1 s mean) with, on a twin axis, its change from the
@@ -210,5 +211,26 @@ def plot_run(
 
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, format="png")
+    fig.savefig(out, format=out.suffix[1:].lower() if out.suffix.lower() in FORMATS else "png")
     return out
+
+
+#: File formats :func:`plot_run` writes, by extension (anything else is written as PNG).
+FORMATS = (".png", ".pdf", ".svg")
+
+
+def contact_spans(t: ArrayLike, contact: ArrayLike) -> list[dict[str, float]]:
+    """``{"onset", "release"}`` (s) of each run of ``contact > 0.5`` (a log's ``contact``
+    column: from the detection to the release); a run still open at the end has no release."""
+    tt = np.asarray(t, dtype=np.float64)
+    out = []
+    for i0, i1 in _runs(contact):
+        out.append({"onset": float(tt[i0]), "release": float(tt[i1]) if i1 < tt.size else math.nan})
+    return out
+
+
+def plot_log(columns: Mapping[str, ArrayLike], path: str | os.PathLike[str], title: str = "") -> Path:
+    """:func:`plot_run` of a log's own columns, contacts from its ``contact`` column (as
+    ``thermoskin run`` draws its plot at the end, and ``thermoskin plot LOG`` afterwards)."""
+    spans = contact_spans(columns["t"], columns["contact"]) if "contact" in columns else []
+    return plot_run(columns, spans, path, title=title)

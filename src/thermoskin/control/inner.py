@@ -23,7 +23,8 @@ against its loss to air grows with its excess over ambient). The integrator then
 only the correction on top of it.
 
 A NaN ``T_p`` or ``T_p_cmd`` (lost reading) holds the previous drive and does not
-integrate. Plain Python floats throughout; no arrays are allocated per step.
+integrate; a NaN ``T_a`` holds the previous feed-forward. Plain Python floats throughout;
+no arrays are allocated per step.
 """
 
 from __future__ import annotations
@@ -31,9 +32,31 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from thermoskin.params import ControlParams
+from thermoskin.params import ControlParams, PeltierModelParams
 
 FeedForward = Callable[[float, float], float]
+
+
+def model_feedforward(model: PeltierModelParams) -> FeedForward | float | None:
+    """The feed-forward of an identified Peltier model (``[peltier_model]``, ``use = "feedforward"``).
+
+    The drive that holds ``T_p_cmd`` in the ARX model's steady state (``A(1) T_p = B(1) u +
+    d T_a + c``): without the ``T_a`` input the gain ``k_ff = A(1)/B(1)`` on ``T_p_cmd - T_a``
+    (the tank at zero drive sits at the air; the model's ``c/A(1)`` is the air of the
+    identification run), with it ``(A(1) T_p_cmd - d T_a - c)/B(1)``. ``None`` when unused.
+    """
+    if model.use != "feedforward":
+        return None
+    A1 = 1.0 + sum(model.a)
+    B1 = sum(model.b)
+    if not model.with_T_a:
+        return A1 / B1
+    d, c = model.d, model.c
+
+    def ff(T_p_cmd: float, T_a: float) -> float:
+        return (A1 * T_p_cmd - d * T_a - c) / B1
+
+    return ff
 
 
 class InnerLoop:
@@ -89,6 +112,8 @@ class InnerLoop:
             ff = float(self._ff_fn(T_p_cmd, T_a))
         else:
             ff = self._ff_gain * (T_p_cmd - T_a) if self._ff_gain != 0.0 else 0.0
+        if ff != ff:  # a NaN air reading: hold the last feed-forward
+            ff = self.ff
         i_c = self.integral + self._ki_ts * e
         if i_c > self._span:
             i_c = self._span

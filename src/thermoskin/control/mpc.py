@@ -1,7 +1,7 @@
 """Model predictive control of the pipe temperature ``T_w`` (Sec. V, eqs. 9-11).
 
 Prediction model (eq. 10, with the sampling time ``t_s`` restored on the loss term, see
-MODEL.md)::
+docs/model.md)::
 
     T_w(k+1) = (1 - t_s/(R_w C_w)) T_w(k) + t_s/(R_w C_w) T_p(k) - t_s q_loss(k)/C_w     (10)
 
@@ -95,7 +95,7 @@ import math
 import daqp
 import numpy as np
 
-from thermoskin.params import ControlParams, SkinParams
+from thermoskin.params import ConfigError, ControlParams, SkinParams
 from thermoskin.physics.convection import R_w as R_w_of_v
 
 LOSSES = ("network", "paper")
@@ -117,6 +117,23 @@ def model_coefficients(skin: SkinParams, R_w: float, t_s: float, loss: str = "ne
     b = t_s / (R_w * skin.C_w)
     c = t_s * G / skin.C_w
     return 1.0 - b - c, b, c
+
+
+def check_step(skin: SkinParams, R_w: float, t_s: float, loss: str = "network") -> None:
+    """Raise :class:`~thermoskin.params.ConfigError` unless eq. 10's Euler step is stable.
+
+    The model's pole ``a = 1 - t_s (1/R_w + G)/C_w`` must lie inside the unit circle, i.e.
+    ``t_s < 2 tau`` with ``tau = C_w/(1/R_w + G)`` the pipe node's time constant with the
+    pump running; beyond it the predictions grow without bound (overflow, a singular QP).
+    """
+    a, _, _ = model_coefficients(skin, R_w, t_s, loss)
+    if not abs(a) < 1.0:
+        tau = t_s / (1.0 - a) if a != 1.0 else math.inf
+        raise ConfigError(f"sampling.t_s = {t_s:g} s is too long for the MPC's model (eq. 10, an "
+                          f"Euler step): the pipe's time constant with the pump running, "
+                          f"C_w/(1/R_w + G) with R_w = {R_w:.3g} K/W, is {tau:.3g} s and t_s must "
+                          f"be below twice it, {2 * tau:.3g} s (check sampling.t_s, skin.C_w, "
+                          "skin.R_w_flowing, skin.A)")
 
 
 def prediction_matrices(a: float, b: float, c: float, H: int
@@ -171,6 +188,7 @@ class Mpc:
             raise ValueError(f"Mpc: R_w = {self.R_w} K/W must be > 0")
         H = int(control.H)
         self.H = H
+        check_step(skin, self.R_w, self.t_s, loss)
         self.a, self.b, self.c = model_coefficients(skin, self.R_w, self.t_s, loss)
         self.T_p_min = float(control.T_p_min)
         self.T_p_max = float(control.T_p_max)

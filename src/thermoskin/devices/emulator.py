@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import math
 import os
 import select
@@ -327,14 +328,24 @@ class PtyEmulator:
     ``run()`` blocks until :meth:`stop` (or SIGINT/SIGTERM through :func:`main`). Timing
     statistics (lateness of each sample against its absolute deadline) are kept in
     :attr:`lateness` (the last 100 000 samples, s).
+
+    **After a stall** (the emulator's process not scheduled for a while) it catches up the
+    way a board's sample buffer would: the samples it owes are measured and sent at once,
+    each with its own device time, so the host receives every sample, late; the device
+    clock never slips against the wall clock. Samples owed for longer than ``buffer_s``
+    (the buffer's depth) are lost (not sent; the physics still advances; counted in
+    ``lost_samples``), and a sample sent more than :data:`MAX_LAG` late carries the
+    ``ST_OVERRUN`` status bit. ``rt_priority`` > 0 asks for ``SCHED_FIFO`` in :meth:`serve`
+    (:attr:`priority` says what was granted).
     """
 
     MAX_OUT = 64 * 1024
     MAX_LAG = 0.05
-    """Behind its deadlines by more than this (s), the emulator re-anchors its pacing."""
+    """A sample sent later than this (s) is flagged ``ST_OVERRUN``."""
 
     def __init__(self, link: str | os.PathLike[str], core: DeviceCore,
-                 truth: TruthWriter | None = None) -> None:
+                 truth: TruthWriter | None = None, *, rt_priority: int = 0,
+                 buffer_s: float = 1.0) -> None:
         self.link = Path(link)
         self.core = core
         self.truth = truth
@@ -347,6 +358,10 @@ class PtyEmulator:
         """Set at the first HELLO."""
         self.overruns = 0
         self.dropped_frames = 0
+        self.lost_samples = 0
+        self.rt_priority = int(rt_priority)
+        self.priority = "normal"
+        self.buffer_s = float(buffer_s)
         self.lateness = np.zeros(100_000)
         self.n_late = 0
         self._out = bytearray()
@@ -443,12 +458,18 @@ class PtyEmulator:
         t_s = core.t_s
         master = self._master
         stop = self._stop
+        gc.collect()
+        gc.freeze()  # the start-up heap is never traversed again: collections stay short
         while not stop.is_set() and not self.connected.is_set():
             r, _, _ = select.select([master], [], [], 0.05)
             if r:
                 self._read()
         if stop.is_set():
             return
+        if self.rt_priority > 0:
+            from thermoskin.runtime.sched import set_fifo
+
+            self.priority = set_fifo(self.rt_priority)
         t0 = self._t0
         k = 0
         truth = self.truth
@@ -465,12 +486,16 @@ class PtyEmulator:
                 if r:
                     self._read()
             late = now - deadline
+            lat[self.n_late % n_lat] = late
+            self.n_late += 1
+            if late > self.buffer_s:  # beyond the buffer's depth: measured, never sent
+                core.step()
+                self.lost_samples += 1
+                k += 1
+                continue
             if late > self.MAX_LAG:
                 self.overruns += 1
                 core.mark_overrun()
-                t0 += late
-            lat[self.n_late % n_lat] = late
-            self.n_late += 1
             msgs = core.step()
             if "serial-drop" not in core.active:
                 for m in msgs:
@@ -483,7 +508,8 @@ class PtyEmulator:
             self._read()
 
     def timing(self) -> dict[str, float]:
-        """Lateness of the samples against their deadlines: mean, p50, p99, max (µs), and counts."""
+        """Lateness of the samples against their deadlines (the last 100 000): mean, p50, p99,
+        max (µs; the max is the longest stall); counts of late (overrun), lost and dropped."""
         n = min(self.n_late, self.lateness.size)
         if n == 0:
             return {"samples": 0}
@@ -491,13 +517,18 @@ class PtyEmulator:
         return {"samples": float(self.n_late), "mean_us": float(x.mean()),
                 "p50_us": float(np.percentile(x, 50)), "p99_us": float(np.percentile(x, 99)),
                 "max_us": float(x.max()), "overruns": float(self.overruns),
+                "lost_samples": float(self.lost_samples),
                 "dropped_frames": float(self.dropped_frames)}
 
 
 def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = (),
          tc_period: float | None = None, cfg: Config | None = None, verbose: bool = True,
-         jitter: float | None = None, truth: str | os.PathLike[str] | None = None) -> int:
+         jitter: float | None = None, truth: str | os.PathLike[str] | None = None,
+         rt_priority: int = 40) -> int:
     """Run the emulator until SIGINT/SIGTERM; 0 on a clean stop, 2 on bad arguments or link.
+
+    ``rt_priority``: the ``SCHED_FIFO`` priority asked for once the host connects (0: none;
+    the loop process asks for 50, so the host's loop comes first on a busy core).
 
     ``tc_period`` (s) sets the three boards' conversion periods; ``None``: the config's
     ``[sensor]`` periods if any is set, else 0.1 s. ``jitter`` (s): their jitter (``None``:
@@ -541,8 +572,14 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
         except OSError as e:
             print(f"device-emulator: cannot create the link {link}: {e}", file=sys.stderr)
             return 2
+        from thermoskin.runtime.sched import set_fifo
+
+        emu.priority = set_fifo(rt_priority)
         if verbose:
             j = core.cfg.sensor.jitter
+            if rt_priority > 0 and not emu.priority.startswith("SCHED_FIFO"):
+                print(f"device-emulator: running at {emu.priority}: a busy machine may stall the "
+                      "emulator (its samples then come late, in a burst)", file=sys.stderr, flush=True)
             print(f"device-emulator: {link} -> {emu.slave_name} (scenario {sc.name}, "
                   f"thermocouples every {core.tc_period * 1e3:g} ms"
                   + (f" +- {j * 1e3:g} ms" if j else "")
@@ -559,8 +596,9 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
             tm = emu.timing()
             if tm.get("samples"):
                 print("device-emulator: stopped after {samples:.0f} samples; lateness mean {mean_us:.0f} µs, "
-                      "p99 {p99_us:.0f} µs, max {max_us:.0f} µs; {overruns:.0f} overruns, "
-                      "{dropped_frames:.0f} frames dropped".format(**tm), file=sys.stderr)
+                      "p99 {p99_us:.0f} µs, max (longest stall) {max_us:.0f} µs; {overruns:.0f} samples "
+                      "sent late (> 50 ms), {lost_samples:.0f} lost, {dropped_frames:.0f} frames "
+                      "dropped; priority {priority}".format(**tm, priority=emu.priority), file=sys.stderr)
                 if core.t_safe == core.t_safe:
                     print(f"device-emulator: SAFE from the host took effect at t = {core.t_safe:.3f} s",
                           file=sys.stderr)

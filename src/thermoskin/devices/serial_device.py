@@ -6,7 +6,9 @@ sends HELLO every ``retry`` s until a HELLO_ACK of the same protocol version com
 back or ``handshake_timeout`` runs out. Reading is non-blocking: bytes are taken as
 they come and decoded with :class:`~thermoskin.devices.protocol.Decoder` (damaged
 frames counted and skipped); waiting uses ``select`` on the port's file descriptor.
-The link counts as lost when no sample arrived for ``link_timeout`` s.
+The link counts as lost when no sample arrived for ``link_timeout`` s; any error on the
+open port (a read or write that fails: the device unplugged, its emulator killed, EIO)
+raises :class:`LinkError`, which the loop takes as a link fault at once.
 """
 
 from __future__ import annotations
@@ -21,6 +23,19 @@ import serial
 
 from thermoskin.devices import protocol as proto
 from thermoskin.devices.base import ChannelTracker, DeviceError, Sample
+
+
+class LinkError(DeviceError):
+    """The link failed while in use (closed port, unplugged device, I/O error, a failed write).
+
+    The loop takes it as a ``link`` fault, like a silent line (see ``runtime.supervisor``)."""
+
+
+def _reason(e: BaseException) -> str:
+    """An OS error's own words (``[Errno 5] Input/output error``), else the exception's text."""
+    if isinstance(e, OSError) and e.errno is not None:
+        return f"[Errno {e.errno}] {e.strerror}"
+    return str(e) or type(e).__name__
 
 
 class SerialDevice:
@@ -88,9 +103,10 @@ class SerialDevice:
     def close(self) -> None:
         """Safe state (if the port is open), then close."""
         if self._ser is not None:
-            with contextlib.suppress(serial.SerialException, OSError):
+            with contextlib.suppress(serial.SerialException, OSError, DeviceError):
                 self.safe()
-            self._close_port()
+            with contextlib.suppress(serial.SerialException, OSError):
+                self._close_port()
 
     def _close_port(self) -> None:
         if self._ser is not None:
@@ -130,7 +146,7 @@ class SerialDevice:
     def read_sample(self, timeout: float = 0.0) -> Sample | None:
         """The oldest unread sample, waiting up to ``timeout`` s for one; ``None`` otherwise."""
         if self._ser is None:
-            raise DeviceError(f"{self.port} is not open")
+            raise LinkError(f"{self.port} is not open")
         if self._queue:
             return self._queue.popleft()
         self._pump_bytes()
@@ -165,26 +181,35 @@ class SerialDevice:
 
     # -- internals -------------------------------------------------------------------------
     def _send(self, msg: proto.Message, leading_zero: bool = False) -> None:
-        assert self._ser is not None
+        ser = self._ser
+        if ser is None:
+            raise LinkError(f"{self.port} is not open")
         frame = proto.encode(msg)
-        self._ser.write(b"\x00" + frame if leading_zero else frame)
+        try:
+            ser.write(b"\x00" + frame if leading_zero else frame)
+        except (serial.SerialException, OSError) as e:
+            raise LinkError(f"{self.port}: write failed: {_reason(e)}") from None
 
     def _wait(self, timeout: float) -> None:
         if timeout <= 0.0:
             return
         if self._fd is not None:
-            select.select([self._fd], [], [], timeout)
+            try:
+                select.select([self._fd], [], [], timeout)
+            except (OSError, ValueError) as e:
+                raise LinkError(f"{self.port}: {_reason(e)}") from None
         else:
             time.sleep(min(timeout, 0.0005))
 
     def _pump_bytes(self) -> None:
         """Read what is waiting and turn it into samples, faults and acks."""
         ser = self._ser
-        assert ser is not None
+        if ser is None:
+            raise LinkError(f"{self.port} is not open")
         try:
             data = ser.read(max(ser.in_waiting, 1) if self._fd is None else 65536)
-        except (serial.SerialException, OSError):
-            return
+        except (serial.SerialException, OSError) as e:  # the device went away
+            raise LinkError(f"{self.port}: read failed: {_reason(e)}") from None
         if not data:
             return
         now = time.monotonic()

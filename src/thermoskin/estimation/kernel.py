@@ -38,6 +38,18 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from thermoskin.events import (  # the event record's layout
+    EV_DETECTED,
+    EV_DURATION,
+    EV_ENERGY,
+    EV_MEAN,
+    EV_ONSET,
+    EV_PEAK,
+    EV_RELEASE,
+    EV_SIGN,
+    NEV,
+)
+
 # ---------------------------------------------------------------- state layout (one patch)
 X = 0          # x: T_w, T_g, q_i, T_p, dT_p (5)
 P = 5          # P: 5 x 5, row-major (25)
@@ -159,9 +171,6 @@ PR_VSW = 50      # pump-switch timing uncertainty (0: switches at the samples, a
 PR_ICW = 51      # 1/C_w, K/J
 NPARAM = 52
 
-# event fields
-EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
-NEV = 8
 
 # step result bits
 C_CONTACT, C_STARTED, C_ENDED = 1, 2, 4

@@ -57,6 +57,7 @@ __all__ = [
     "check_time",
     "log_format",
     "nan_allowed",
+    "partial_last_line",
     "read_log",
     "sample_time",
     "write_log",
@@ -89,6 +90,23 @@ def read_log(
     if len(chunks) == 1:
         return chunks[0]
     return {n: np.concatenate([c[n] for c in chunks]) for n in names}
+
+
+def partial_last_line(path: str | os.PathLike[str]) -> bool:
+    """Whether a CSV log ends in a line without its line end (not blank): the line a writer
+    was killed inside, which ``read_log(..., live=True)`` leaves out. Always False for Parquet
+    (and for a path that is not a readable file: its reader says why)."""
+    p = Path(path)
+    if not p.is_file() or log_format(p) != "csv":
+        return False
+    with open(p, "rb") as fh:
+        size = fh.seek(0, os.SEEK_END)
+        fh.seek(max(0, size - 65536))
+        tail = fh.read()
+    nl = tail.rfind(b"\n")
+    if nl < 0:  # no line end in the last 64 KiB: cut if anything came before it
+        return size > len(tail) and bool(tail.strip(b" \t\r"))
+    return bool(tail[nl + 1 :].strip(b" \t\r"))
 
 
 def write_log(

@@ -9,7 +9,7 @@ at the surface within a second and then barely take any more.
 **The contact.** The toucher's surface node (temperature ``T_s``) exchanges with the
 sheet (``T_g``) through the interface conductance ``G`` (W/K, 0 = no contact)::
 
-    q_i = G (T_s - T_g)                    heat into the sheet, W (MODEL.md's q_i)
+    q_i = G (T_s - T_g)                    heat into the sheet, W (docs/model.md's q_i)
     G   = h_c(p) A                         contact coefficient times contact area
 
 with ``h_c`` growing with the contact pressure ``p`` (:func:`h_contact`).
@@ -222,7 +222,7 @@ T_ENV = 22.0
 # ---------------------------------------------------------------------------------------
 
 H_C_REF = 500.0
-"""Contact coefficient at :data:`P_REF`, W/(m² K). Anchored to MODEL.md's fingertip
+"""Contact coefficient at :data:`P_REF`, W/(m² K). Anchored to docs/model.md's fingertip
 (about 0.05 W/K over about 1 cm² at a light press): 1 N over a 1.5 cm² finger pad
 (6.7 kPa) gives 0.051 W/K. Skin-object contact resistances of this order, falling with
 pressure over 0.7-11 kPa, were measured by Ho & Jones (2008, J. Biomech. Eng.

@@ -1,6 +1,6 @@
 """Finger contact: a fingertip as a contact conductance to a body at its skin temperature.
 
-A touch adds to the sheet node of the network (MODEL.md, ``physics.network``)::
+A touch adds to the sheet node of the network (docs/model.md, ``physics.network``)::
 
     q_i = G_c (T_f - T_g),   G_c = n_fingers G_finger
 
@@ -28,7 +28,7 @@ Where the numbers of :data:`PERSONS` come from (the paper, Sec. VI, names three 
   in the thermophysiology literature (fingertips run cooler than the core and vary
   between persons; women's hands are on average slightly cooler). The values are
   assumptions inside that range, not measurements.
-- ``G_finger``: MODEL.md's order of magnitude, about 0.05 W/K for one fingertip (a
+- ``G_finger``: docs/model.md's order of magnitude, about 0.05 W/K for one fingertip (a
   contact area of roughly 1 cm² and a contact coefficient of a few hundred W/(m² K)).
   The per-person spread of about ±10 % stands for the "variations depending on
   persons" of Fig. 18. Again assumptions, not measurements.

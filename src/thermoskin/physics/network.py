@@ -77,7 +77,7 @@ def tf_pump_path(skin: SkinParams) -> TF:
 
 
 def tf_touch_path(skin: SkinParams) -> TF:
-    """The network's ``q_i`` path: ``T_w / (q_i - q_ag) = 1 / D(s)`` (MODEL.md)."""
+    """The network's ``q_i`` path: ``T_w / (q_i - q_ag) = 1 / D(s)`` (docs/model.md)."""
     return np.array([1.0]), D_poly(skin)
 
 

@@ -23,7 +23,7 @@ The ``n_modules`` modules work in parallel (same current each). The two thermal 
     C_tank dT_t/dt = n Q_t - (T_t - T_a)/R_tank_air - q_out
     C_sink dT_s/dt = n Q_s - (T_s - T_a)/R_sink
 
-with ``q_out`` the heat the skin's water circuit takes from the tank (``q_p`` of MODEL.md).
+with ``q_out`` the heat the skin's water circuit takes from the tank (``q_p`` of docs/model.md).
 For a held drive the right-hand side is *linear* in ``(T_t, T_s)`` (the nonlinearity is
 in the drive: ``I θ`` and ``I²``), so the steady state is a 2x2 linear solve.
 

@@ -210,7 +210,8 @@ def contact_cells(position: float, n_cells: int, footprint: float = 0.0) -> dict
 
 def spatial_state_space(skin: SkinParams, sp: SpatialParams, v: float, R_w: float,
                         contact: dict[int, float] | None = None,
-                        q_weights: dict[int, float] | None = None) -> tuple[Array, Array]:
+                        q_weights: dict[int, float] | None = None,
+                        still_ends: tuple[bool, bool] = (True, True)) -> tuple[Array, Array]:
     """``(A, B)`` of the spatial network (module docstring), ``dx/dt = A x + B u``.
 
     ``x = [T_w_0..T_w_{N-1}, T_g_0..T_g_{N-1}(, T_f_0..T_f_{N-1})]``,
@@ -218,6 +219,11 @@ def spatial_state_space(skin: SkinParams, sp: SpatialParams, v: float, R_w: floa
     water; ``R_w`` (K/W) is eq. 1's resistance at that ``v``. ``contact`` maps a cell to its
     contact conductance ``G_c,i`` (W/K); ``q_weights`` maps a cell to its share of ``q_x``
     (default: the contact's shares, or all on cell 0 without contact).
+
+    ``still_ends = (inlet, outlet)``: which ends of the pipe reach the tank through still
+    water (each ``W/2``) when the pump is stopped; both for the paper's single patch. A patch
+    in the middle of a loop of several (``skin.py``) has neither: its ends meet the still
+    water of the connecting pipes, whose conduction (``k A / L``, about 1e-5 W/K) is left out.
     """
     N = sp.n_cells
     contact = dict(contact or {})
@@ -277,8 +283,14 @@ def spatial_state_space(skin: SkinParams, sp: SpatialParams, v: float, R_w: floa
                 G[w[i], w[up]] += W
             up = i
     else:
-        for i in {0, N - 1}:
-            share = W / 2.0 if N > 1 else W
+        inlet_cell, outlet_cell = (N - 1, 0) if sp.inlet == "far" else (0, N - 1)
+        ends = [c for c, on in ((inlet_cell, still_ends[0]), (outlet_cell, still_ends[1])) if on]
+        if N == 1 and len(ends) == 2:
+            ends = [0]  # one cell is both ends: the whole W (as W/2 + W/2)
+            share = W
+        else:
+            share = W / 2.0
+        for i in ends:
             G[w[i], w[i]] -= share
             Bq[w[i], 0] += share
     cap = capacitances(skin, sp)

@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from thermoskin.control.probe import SetpointProbe
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
+from thermoskin.plausible import admit, limits
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.controller import SkinController
 from thermoskin.sim.plant import SimulatedPlant
@@ -64,12 +65,16 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
                     on_event: Callable[[ContactEvent], None] | None = None,
                     progress: Callable[[float], None] | None = None,
                     on_block: Callable[[dict[str, Any]], None] | None = None,
-                    block: int = 1000, probe: SetpointProbe | None = None) -> LoopResult:
+                    block: int = 1000, stop: Any = None,
+                    probe: SetpointProbe | None = None) -> LoopResult:
     """Run ``scenario`` (its touches at their times) in closed loop from ambient.
 
     ``skin_model``: ``"network"`` (two-node, as the observer assumes) or ``"spatial"``.
     ``on_block(columns)`` (a recorder) gets every ``block`` rows as column slices, with a
     ``fault`` column (the supervisor's code, non-zero on the row that tripped).
+    ``stop`` (anything with ``is_set()``, e.g. a
+    :class:`~thermoskin.runtime.stopping.StopRequest`) is polled every sample: once set, the
+    loop commands the safe state and ends with the rows so far (``summary["interrupted"]``).
     ``probe``: active sensing during contacts (:class:`~thermoskin.control.probe.SetpointProbe`).
     """
     plant = SimulatedPlant(cfg, scenario, skin_model=skin_model)
@@ -83,6 +88,7 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     est = ctrl.estimator
     sup = sv.Supervisor(cfg)
     check = sup.check
+    lim = limits(cfg.plausible)
     truth = plant.truth
     k_sent = 0
 
@@ -105,18 +111,26 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     setpoint_changes = sorted({0.0, *(t0 for t0, _ in scenario.setpoints)})
     cmd = cmd_at(0.0)
     every = max(1, n // 200)
+    stopped = stop.is_set if stop is not None else None
     wall0 = time.perf_counter()
     for k in range(n):
         t = k * t_s
+        if stopped is not None and stopped():
+            sup.stop(t)
+            ctrl.safe()
+            plant.apply(0.0, 0.0)  # the safe state: Peltier drive 0, pump off
+            n_run = k
+            break
         if setpoint_changes and t >= setpoint_changes[0]:
             cmd = cmd_at(t)
             setpoint_changes.pop(0)
         T_w, T_p, T_a = plant.measure()
         fresh = plant.fresh
-        if check(t, T_w, T_p, T_a):
+        w, p, a = admit(lim, T_w, T_p, T_a)  # implausible readings are no readings
+        if check(t, w, p, a):
             ctrl.safe()  # safe outputs first; the plant gets them below
         else:
-            ctrl.step(t, T_w, T_p, T_a, cmd, fresh)
+            ctrl.step(t, w, p, a, cmd, fresh)
         q_i, T_g, T_w_true, T_p_true = truth()
         c_t[k] = t
         c_Tw[k] = T_w
@@ -147,7 +161,8 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
             progress(k / n)
         if on_block is not None and k + 1 - k_sent >= block:
             send(k + 1)
-    send(n_run, sup.code)
+    fault_code = sup.code if sup.code != sv.STOPPED else 0
+    send(n_run, fault_code)
     n_events = len(est.events)
     est.finish((n_run - 1) * t_s)
     if on_event is not None and len(est.events) > n_events:
@@ -162,5 +177,6 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     if n_run < n:
         rec = {k: x[:n_run] for k, x in rec.items()}
     summary = {"fault": sup.code, "fault_name": sv.FAULTS[sup.code], "detail": sup.detail,
-               "t_fault": sup.t_fault, "fault_value": sup.value, "t_safe": sup.t_fault}
+               "t_fault": sup.t_fault, "fault_value": sup.value, "t_safe": sup.t_fault,
+               "interrupted": sup.code == sv.STOPPED}
     return LoopResult(columns=rec, events=est.events, scenario=scenario, wall_s=wall, summary=summary)

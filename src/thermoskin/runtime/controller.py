@@ -4,11 +4,14 @@ The same object runs against the simulated skin, a serial device, or a benchmark
 
     v       = pump.step(T_w, T_w_cmd)                 Sec. V: stop while T_w is above its command
     T_p_cmd = mpc.step(T_w, T_a, T_w_cmd)             eqs. 9-11
-    drive   = inner.step(T_p, T_p_cmd, T_a)           PI on the Peltier drive (Table I)
+    drive   = inner.step(T_p, T_p_cmd, T_a)           PI on the Peltier drive (Table I), plus the
+                                                      identified model's feed-forward if configured
     contact = estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)   eq. 8, Kalman filter,
                                                       detector (it feeds no control decision)
 
-Plain floats in, plain floats out; the results stay as attributes for a recorder.
+Plain floats in, plain floats out; the results stay as attributes for a recorder. The
+readings it is given have passed :func:`thermoskin.plausible.admit` (done by the loops,
+before the supervisor): an implausible reading arrives as NaN and is held over.
 
 Active sensing (``probe``, :class:`~thermoskin.control.probe.SetpointProbe`): while a
 contact is on, the pump logic and the MPC get ``T_w_cmd`` plus the probe's offset
@@ -17,7 +20,7 @@ contact is on, the pump logic and the MPC get ``T_w_cmd`` plus the probe's offse
 
 from __future__ import annotations
 
-from thermoskin.control.inner import InnerLoop
+from thermoskin.control.inner import InnerLoop, model_feedforward
 from thermoskin.control.mpc import Mpc
 from thermoskin.control.probe import SetpointProbe
 from thermoskin.control.pump import PumpLogic
@@ -31,18 +34,24 @@ class SkinController:
     __slots__ = ("T_p_cmd", "T_w_cmd_eff", "_t_det", "contact", "drive", "estimator", "inner", "mpc",
                  "probe", "pump", "v")
 
-    def __init__(self, cfg: Config, probe: SetpointProbe | None = None) -> None:
+    def __init__(self, cfg: Config, probe: SetpointProbe | None = None, *,
+                 estimate: bool = True) -> None:
+        """``probe``: active sensing during a contact (module doc). ``estimate=False``:
+        temperature control only (pump, MPC, inner loop), no estimator (``estimator`` is None,
+        ``contact`` stays 0, so no probe either): a water loop of many patches, whose patches
+        are estimated elsewhere (``estimation.patches``)."""
         t_s = cfg.sampling.t_s
         self.probe = probe
-        self.estimator = TouchEstimator(cfg)
+        self.estimator = TouchEstimator(cfg) if estimate else None
         self.pump = PumpLogic(cfg.pump, t_s)
         self.mpc = Mpc(cfg.skin, cfg.control, t_s, v_on=cfg.pump.v_on)
-        self.inner = InnerLoop(cfg.control, t_s)
+        self.inner = InnerLoop(cfg.control, t_s, feedforward=model_feedforward(cfg.peltier_model))
         self.reset()
 
     def reset(self, T_p: float | None = None) -> None:
         """Start every block afresh; ``T_p`` seeds the MPC's previous command."""
-        self.estimator.reset()
+        if self.estimator is not None:
+            self.estimator.reset()
         self.pump.reset(on=True)
         self.mpc.reset(T_p)
         self.inner.reset(0.0)
@@ -67,10 +76,11 @@ class SkinController:
         drive = self.inner.step(T_p, T_p_cmd, T_a)
         self.drive = drive
         # last: the estimator models the interval to come with the pump and the drive applied
-        contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)
-        if contact and not self.contact:
-            self._t_det = t
-        self.contact = contact
+        if self.estimator is not None:
+            contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)
+            if contact and not self.contact:
+                self._t_det = t
+            self.contact = contact
 
     def safe(self) -> None:
         """The safe outputs: Peltier drive 0, pump off."""

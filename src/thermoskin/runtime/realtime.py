@@ -38,6 +38,7 @@ summary carries the fault, its device time and the time the safe state was comma
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import gc
 import math
 import os
@@ -53,7 +54,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thermoskin.devices.base import DeviceError
 from thermoskin.params import Config
+from thermoskin.plausible import admit, limits
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.closed_loop import COLUMNS, LoopResult
 from thermoskin.sim.scenarios import Scenario
@@ -86,6 +89,9 @@ class LoopSpec:
     rt_priority: int = 50
     """``SCHED_FIFO`` priority asked for (0: do not ask)."""
     first_sample_timeout: float = 1.0
+    parent_pid: int = 0
+    """The process the loop serves (set by :func:`run_realtime`); the loop stops, in the safe
+    state, as soon as that process is gone (0: the parent at start-up)."""
 
 
 class RealtimeResult(LoopResult):
@@ -118,13 +124,9 @@ class RealtimeResult(LoopResult):
 # ----------------------------------------------------------------------------- loop process
 
 def _set_priority(prio: int) -> str:
-    if prio <= 0 or not hasattr(os, "sched_setscheduler"):
-        return "normal"
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(prio))
-        return f"SCHED_FIFO {prio}"
-    except (PermissionError, OSError):
-        return "normal (no permission for SCHED_FIFO)"
+    from thermoskin.runtime.sched import set_fifo
+
+    return set_fifo(prio)
 
 
 def _make_device(spec: LoopSpec) -> Any:
@@ -166,6 +168,7 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
     is_sim = spec.device == "sim"
     ctrl = SkinController(cfg)
     sup = sv.Supervisor(cfg)
+    lim = limits(cfg.plausible)
     _warm_up(cfg, sc.T_a)
     summary["priority"] = _set_priority(spec.rt_priority)
     cmd_at = sc.T_w_cmd_at
@@ -183,7 +186,7 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
     pending = getattr(dev, "pending", None)
     faults_seen = 0
     dev_faults = getattr(dev, "faults", None)
-    ppid = os.getppid()
+    ppid = spec.parent_pid or os.getppid()
 
     gc.collect()
     if hasattr(gc, "freeze"):
@@ -207,83 +210,90 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
         code = sv.OK
         t_safe_host = nan
         next_deadline = t0
-        while True:
-            # ---- the sample of this step (s) is in hand; its deadline:
-            t_dev = s.t - t_first
-            deadline = t0 + t_dev
-            start = mono()
-            late = start - deadline
-            if changes and t_dev >= changes[0]:
-                cmd = cmd_at(t_dev)
-                changes.pop(0)
-            code = sup.check(s.t, s.T_w, s.T_p, s.T_a, s.stale, s.stuck, s.status)
-            if dev_faults is not None and len(dev_faults) > faults_seen:
-                f = dev_faults[faults_seen][1]
-                faults_seen = len(dev_faults)
-                code = sup.device_fault(s.t, f.name, f.value)
-            if code:
-                dev.safe()  # safe state before anything else
-                t_safe_host = mono()
-                drive = v = 0.0
-                est = ctrl.estimator
-                q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, 0, 1
-                T_p_cmd = ctrl.T_p_cmd
-            else:
-                ctrl.step(s.t, s.T_w, s.T_p, s.T_a, cmd, s.fresh)
-                drive, v = sup.gate(ctrl.drive, ctrl.v)
-                est = ctrl.estimator
-                q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, ctrl.contact, est.gap
-                T_p_cmd = ctrl.T_p_cmd
-            if truth is not None:
-                q_i, T_g, T_wt, T_pt = truth()
-                kk = plant.k
-                c_true = 1.0 if plant.G_c[kk] > 0 else 0.0
-                n_f = float(plant.n_fingers[kk])
-            else:
-                q_i = T_g = T_wt = T_pt = c_true = n_f = nan
-            if not code:
-                dev.write_command(drive, v)
-            end = mono()
-            t_avail = s.t_recv if s.t_recv > deadline else deadline
-            if end > t_avail + t_s:
-                overruns += 1
-            pack(buf, _HDR_BYTES + (k % cap) * row_bytes, s.t, s.T_w, s.T_p, v, s.T_a, cmd, T_p_cmd,
-                 drive, q_i_hat, dq, contact, gap, s.fresh, q_i, T_g, T_wt, T_pt, c_true, n_f, s.stale,
-                 s.stuck, s.status, s.seq, s.v, s.drive, late, start - t_avail, end - start, code)
-            k += 1
-            count_pack(buf, 0, k)
-            if code or k >= n_max:
-                break
-            # ---- wait for the next deadline, then take the next sample
-            if hdr_unpack(buf, 0)[1] or (k & 127 == 0 and os.getppid() != ppid):
-                code = sup.stop(s.t)
-                dev.safe()
-                t_safe_host = mono()
-                break
-            next_deadline = t0 + t_dev + t_s
-            if pending is None or not pending():
-                rest = next_deadline - mono() - spin
-                if rest > 0.0:
-                    sleep(rest)
-                while mono() < next_deadline:
-                    pass
-            if is_sim:
-                s = dev.read_sample(0.0)
-                if s is None:
-                    break
-                continue
-            s = dev.read_sample(0.0)
-            while s is None:
-                age = mono() - t_last_arrival
-                code = sup.link_lost(next_deadline - t0 + t_first, age)
+        try:  # any error on the link (a pulled cable, EIO, a failed write) is a link fault
+            while True:
+                # ---- the sample of this step (s) is in hand; its deadline:
+                t_dev = s.t - t_first
+                deadline = t0 + t_dev
+                start = mono()
+                late = start - deadline
+                if changes and t_dev >= changes[0]:
+                    cmd = cmd_at(t_dev)
+                    changes.pop(0)
+                T_w, T_p, T_a = admit(lim, s.T_w, s.T_p, s.T_a)  # implausible readings are no readings
+                code = sup.check(s.t, T_w, T_p, T_a, s.stale, s.stuck, s.status)
+                if dev_faults is not None and len(dev_faults) > faults_seen:
+                    f = dev_faults[faults_seen][1]
+                    faults_seen = len(dev_faults)
+                    code = sup.device_fault(s.t, f.name, f.value)
                 if code:
+                    dev.safe()  # safe state before anything else
+                    t_safe_host = mono()
+                    drive = v = 0.0
+                    est = ctrl.estimator
+                    q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, 0, 1
+                    T_p_cmd = ctrl.T_p_cmd
+                else:
+                    ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh)
+                    drive, v = sup.gate(ctrl.drive, ctrl.v)
+                    est = ctrl.estimator
+                    q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, ctrl.contact, est.gap
+                    T_p_cmd = ctrl.T_p_cmd
+                if truth is not None:
+                    q_i, T_g, T_wt, T_pt = truth()
+                    kk = plant.k
+                    c_true = 1.0 if plant.G_c[kk] > 0 else 0.0
+                    n_f = float(plant.n_fingers[kk])
+                else:
+                    q_i = T_g = T_wt = T_pt = c_true = n_f = nan
+                if not code:
+                    dev.write_command(drive, v)
+                end = mono()
+                t_avail = s.t_recv if s.t_recv > deadline else deadline
+                if end > t_avail + t_s:
+                    overruns += 1
+                pack(buf, _HDR_BYTES + (k % cap) * row_bytes, s.t, s.T_w, s.T_p, v, s.T_a, cmd, T_p_cmd,
+                     drive, q_i_hat, dq, contact, gap, s.fresh, q_i, T_g, T_wt, T_pt, c_true, n_f, s.stale,
+                     s.stuck, s.status, s.seq, s.v, s.drive, late, start - t_avail, end - start, code)
+                k += 1
+                count_pack(buf, 0, k)
+                if code or k >= n_max:
                     break
-                s = dev.read_sample(min(0.002, sup.link_timeout - age + 1e-4))
-            if code:
-                dev.safe()
-                t_safe_host = mono()
-                break
-            t_last_arrival = s.t_recv
+                # ---- wait for the next deadline, then take the next sample
+                if hdr_unpack(buf, 0)[1] or (k & 127 == 0 and os.getppid() != ppid):
+                    code = sup.stop(s.t)
+                    dev.safe()
+                    t_safe_host = mono()
+                    break
+                next_deadline = t0 + t_dev + t_s
+                if pending is None or not pending():
+                    rest = next_deadline - mono() - spin
+                    if rest > 0.0:
+                        sleep(rest)
+                    while mono() < next_deadline:
+                        pass
+                if is_sim:
+                    s = dev.read_sample(0.0)
+                    if s is None:
+                        break
+                    continue
+                s = dev.read_sample(0.0)
+                while s is None:
+                    age = mono() - t_last_arrival
+                    code = sup.link_lost(next_deadline - t0 + t_first, age)
+                    if code:
+                        break
+                    s = dev.read_sample(min(0.002, sup.link_timeout - age + 1e-4))
+                if code:
+                    dev.safe()
+                    t_safe_host = mono()
+                    break
+                t_last_arrival = s.t_recv
+        except (OSError, DeviceError) as e:
+            why = str(e) if isinstance(e, DeviceError) else f"{type(e).__name__}: {e}"
+            code = sup.link_error(mono() - t0 + t_first, why)
+            summary["safe_sent"] = _try_safe(dev)  # as far as the link allows
+            t_safe_host = mono()
         summary.update(overruns=overruns, rows=k, fault=sup.code, fault_name=sv.FAULTS[sup.code],
                        detail=sup.detail, t_fault=sup.t_fault, fault_value=sup.value,
                        t_safe=(t_safe_host - t0 + t_first) if t_safe_host == t_safe_host else nan,
@@ -303,22 +313,73 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
             dev.close()  # safe state, then disconnect
 
 
+def _try_safe(dev: Any) -> bool:
+    """Command the safe state as far as the link allows; whether the command went out."""
+    try:
+        dev.safe()
+    except Exception:
+        return False
+    return True
+
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(sig: int = signal.SIGTERM) -> None:
+    """Ask the kernel to send ``sig`` to this process when its parent dies (Linux prctl)."""
+    import ctypes
+    import ctypes.util
+
+    with contextlib.suppress(Exception):
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0)
+
+
 def _loop_process(spec: LoopSpec, shm_name: str, cap: int, conn: Any) -> None:
-    """Entry point of the loop process: run, then send the summary down ``conn``."""
-    with contextlib.suppress(ValueError, OSError):
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent asks for the stop
+    """Entry point of the loop process: run, then send the summary down ``conn``.
+
+    The loop must not outlive the run it serves: the kernel sends it SIGTERM when its
+    parent dies (``PR_SET_PDEATHSIG``), SIGTERM and SIGHUP set the stop word (the loop
+    then commands the safe state and ends), and the parent's pid, passed in, is checked
+    once at start (a parent that died before the ``prctl``) and every 128 samples. SIGINT
+    is ignored: a Ctrl-C reaches the whole process group and the parent asks for the stop.
+    If the parent is gone at the end, the loop releases the shared memory itself.
+    """
+    _die_with_parent()
     shm = shared_memory.SharedMemory(name=shm_name)
+    views = [shm.buf]  # emptied before the memory is closed
+
+    def stop(signum: int, frame: Any) -> None:
+        if views:
+            _COUNT.pack_into(views[0], 8, 1)  # the stop word, as the parent sets it
+
+    with contextlib.suppress(ValueError, OSError):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, stop)
+        signal.signal(signal.SIGHUP, stop)
+    if spec.parent_pid and os.getppid() != spec.parent_pid:
+        stop(0, None)
     try:
         try:
-            summary = run_loop(spec, shm.buf, cap)
+            summary = run_loop(spec, views[0], cap)
         except Exception as e:  # reported by the parent as one line
             summary = {"error": f"{type(e).__name__}: {e}",
-                       "device_error": type(e).__name__ == "DeviceError"}
+                       "device_error": isinstance(e, DeviceError)}
         with contextlib.suppress(OSError):  # the parent may be gone (killed)
             conn.send(summary)
             conn.close()
     finally:
+        views.clear()
         shm.close()
+        if spec.parent_pid and os.getppid() != spec.parent_pid:
+            _release(shm)
+
+
+def _release(shm: shared_memory.SharedMemory) -> None:
+    """Unlink the shared memory of a parent that died (``unlink`` also takes it off the
+    resource tracker, which would otherwise warn of a leak)."""
+    with contextlib.suppress(Exception):
+        shm.unlink()
 
 
 # ----------------------------------------------------------------------------- parent side
@@ -346,12 +407,14 @@ class _Columns:
 
 def run_realtime(spec: LoopSpec, *, on_rows: Callable[[dict[str, NDArray[np.float64]]], None] | None = None,
                  ring_rows: int = 1 << 16, poll_s: float = 0.02,
-                 stop: threading.Event | None = None) -> RealtimeResult:
+                 stop: Any = None) -> RealtimeResult:
     """Run the fixed-rate loop in a new process; drain its rows; return the log and summary.
 
     ``on_rows(block)`` gets each drained block as columns (for the console and the
-    recorder). Ctrl-C (or ``stop``) asks the loop to stop: the device goes to its safe
-    state and the run ends with the rows so far (``summary["fault"] == STOPPED``).
+    recorder). Ctrl-C (or ``stop``: anything with ``is_set()``, polled every drain, e.g. a
+    :class:`~thermoskin.runtime.stopping.StopRequest` set by SIGINT, SIGTERM or SIGHUP) asks
+    the loop to stop: the device goes to its safe state and the run ends with the rows so
+    far (``summary["fault"] == STOPPED``, ``summary["interrupted"]``).
     """
     import multiprocessing as mp
 
@@ -367,6 +430,7 @@ def run_realtime(spec: LoopSpec, *, on_rows: Callable[[dict[str, NDArray[np.floa
     hdr = views["hdr"]
     hdr[:] = 0
     recv, send = ctx.Pipe(duplex=False)
+    spec = dataclasses.replace(spec, parent_pid=os.getpid())
     proc = ctx.Process(target=_loop_process, args=(spec, shm.name, ring_rows, send),
                        name="thermoskin-loop", daemon=True)
     cols = _Columns(n_hint)
@@ -424,7 +488,7 @@ def run_realtime(spec: LoopSpec, *, on_rows: Callable[[dict[str, NDArray[np.floa
         shm.close()
         shm.unlink()
     summary["lost_rows"] = lost
-    summary["interrupted"] = interrupted
+    summary["interrupted"] = interrupted or summary.get("fault") == sv.STOPPED
     wall = time.perf_counter() - wall0
     return RealtimeResult(columns=cols.columns(), events=summary.get("events", []),
                           scenario=spec.scenario, wall_s=wall, summary=summary)

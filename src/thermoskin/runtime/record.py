@@ -1,6 +1,6 @@
 """Recording to MCAP (JSON-schema channels, viewable in Foxglove), reading back, export, replay.
 
-Topics (messages are JSON objects; signal names and units of ``MODEL.md``)::
+Topics (messages are JSON objects; signal names and units of ``docs/model.md``)::
 
     /skin/sample    {t, T_w, T_p, T_a, v, drive, fresh, stale, stuck, status, seq}
     /skin/estimate  {t, q_i_hat, dq_i_hat, contact, gap}
@@ -800,6 +800,7 @@ def replay(path: str | os.PathLike[str], config: Any = None,
     :func:`iter_messages`) says what was lost.
     """
     from thermoskin.estimator import TouchEstimator
+    from thermoskin.plausible import admit_arrays, limits
 
     if config is None:
         params = read_mcap(path, ["/params"]).get("/params", [])
@@ -816,36 +817,39 @@ def replay(path: str | os.PathLike[str], config: Any = None,
     for k in need:
         if k not in cols:
             raise RecordingError(f"{path}: the recording has no {k!r} (recorded by an older version?)")
+    import numpy as np
+
+    idx = np.asarray(stepped)
+
+    def col(name: str, fill: float = math.nan) -> Any:
+        return np.asarray(cols.get(name, [fill] * n_all), dtype=float)[idx]
+
+    t = col("t")
+    inputs = {k: col(k) for k in ("T_w", "T_p", "T_a")}
+    v = col("v_cmd")
+    fresh = np.nan_to_num(col("fresh", 7.0), nan=7.0).astype(np.int64)
+    # the readings as the loop admitted them
+    admitted = dict(zip(("T_w", "T_p", "T_a"), admit_arrays(limits(config.plausible), inputs["T_w"],
+                                                            inputs["T_p"], inputs["T_a"]), strict=True))
     est = TouchEstimator(config)
-    out: dict[str, list[float]] = {k: [] for k in ("t", "T_w", "T_p", "v", "T_a", "q_i_hat", "dq_i_hat",
-                                                   "contact", "gap", "q_i_hat_live", "dq_i_hat_live",
-                                                   "contact_live")}
-    T_w, T_p, T_a, v, t = cols["T_w"], cols["T_p"], cols["T_a"], cols["v_cmd"], cols["t"]
-    cmd = cols.get("T_w_cmd", [math.nan] * n_all)
-    fresh = [7 if f != f else int(f) for f in cols.get("fresh", [7.0] * n_all)]
-    drive = cols.get("control.drive", [math.nan] * n_all)  # the commanded drive, as the loop gave it
-    q_live, dq_live, c_live = cols["q_i_hat"], cols["dq_i_hat"], cols["contact"]
-    max_q = max_dq = 0.0
-    mism = 0
+    # the commanded drive (control.drive), as the loop gave it to the estimator
+    res, _ = est.feed(t, admitted["T_w"], admitted["T_p"], v, admitted["T_a"], T_w_cmd=col("T_w_cmd"),
+                      fresh=fresh, drive=col("control.drive"))
+    est.finish(float(t[-1]))
+    q_live, dq_live, c_live = col("q_i_hat"), col("dq_i_hat"), col("contact")
 
-    def diff(a: float, b: float, worst: float) -> float:
-        if a == b or (a != a and b != b):
-            return worst
-        return max(worst, abs(a - b)) if a == a and b == b else math.inf
+    def worst(a: Any, b: Any) -> float:
+        same = (a == b) | (np.isnan(a) & np.isnan(b))
+        if same.all():
+            return 0.0
+        both = ~same & np.isfinite(a) & np.isfinite(b)
+        return math.inf if (~same & ~both).any() else float(np.max(np.abs(a - b)[both]))
 
-    for i in stepped:
-        c = est.step(t[i], T_w[i], T_p[i], v[i], T_a[i], cmd[i], fresh[i], drive[i])
-        q, dq = est.q_i_hat, est.dq_i_hat
-        for k, x in (("t", t[i]), ("T_w", T_w[i]), ("T_p", T_p[i]), ("v", v[i]), ("T_a", T_a[i]),
-                     ("q_i_hat", q), ("dq_i_hat", dq), ("contact", c), ("gap", int(est.gap)),
-                     ("q_i_hat_live", q_live[i]), ("dq_i_hat_live", dq_live[i]),
-                     ("contact_live", c_live[i])):
-            out[k].append(x)
-        max_q = diff(q, q_live[i], max_q)
-        max_dq = diff(dq, dq_live[i], max_dq)
-        if c != c_live[i]:
-            mism += 1
-    est.finish(t[stepped[-1]])
+    max_q, max_dq = worst(res["q_i_hat"], q_live), worst(res["dq_i_hat"], dq_live)
+    mism = int(np.sum(res["contact"] != c_live))
+    out = {"t": t, "T_w": inputs["T_w"], "T_p": inputs["T_p"], "v": v, "T_a": inputs["T_a"],
+           "q_i_hat": res["q_i_hat"], "dq_i_hat": res["dq_i_hat"], "contact": res["contact"],
+           "gap": res["gap"], "q_i_hat_live": q_live, "dq_i_hat_live": dq_live, "contact_live": c_live}
     comparison = {"samples": len(stepped), "q_i_hat_max_abs_diff": max_q,
                   "dq_i_hat_max_abs_diff": max_dq, "contact_mismatches": mism,
                   "exact": max_q == 0.0 and max_dq == 0.0 and mism == 0, "events": list(est.events)}

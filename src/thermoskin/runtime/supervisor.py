@@ -24,7 +24,8 @@ clears it. What trips (``[safety]`` in the config; codes in :data:`FAULTS`):
   logic, the MPC and the inner loop hold their last output.
 - ``stuck``: ``stuck_readings`` equal new readings in a row (``ChannelTracker``).
 - ``stale``: no new reading on a channel for ``stale_s``.
-- ``link``: no sample for ``link_timeout_s`` (host clock).
+- ``link``: no sample for ``link_timeout_s`` (host clock), or any error on the link (a
+  closed port, an unplugged device, an I/O error, a failed write: :meth:`link_error`).
 - ``device``: the device reports its own safe state or watchdog while the host is running.
 
 Plain floats and ints, no allocation: it runs in the 1 kHz process.
@@ -143,6 +144,11 @@ class Supervisor:
         if age > self.link_timeout:
             return self._trip(LINK, t, age, f"no sample from the device for {age * 1e3:.0f} ms")
         return OK
+
+    def link_error(self, t: float, detail: str) -> int:
+        """The link failed outright (closed port, unplugged device, I/O error, failed write):
+        a ``link`` fault at once, as a silent line is after ``link_timeout``."""
+        return self._trip(LINK, t, float("nan"), f"link lost: {detail}")
 
     def stop(self, t: float) -> int:
         """A requested stop (not a fault): latches the safe outputs too."""

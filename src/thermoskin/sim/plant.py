@@ -15,7 +15,8 @@ Per sample ``k`` (``t_k = k t_s``)::
   what the observer assumes), or ``"spatial"``, cells along the pipe
   (``sim.spatial_skin.SpatialSkin``), each touch at its ``position``;
 - **tank**: ``"peltier"``, the Peltier tank (``physics.peltier.PeltierTank``) driven by
-  ``drive`` and losing ``q_p = (T_p - T_w)/R_w(v)`` to the skin's water; or
+  ``drive`` and losing ``q_p = (T_p - T_w)/R_w(v)`` to the skin's water (the spatial skin:
+  exactly the heat its water brought over the sample, ``SpatialSkin.q_water``); or
   ``"prescribed"``, ``T_p = scenario.T_p(t)`` (``drive`` ignored);
 - **touches** ``G_c, T_f`` (``physics.finger.contact_profile``) and the **true ambient**
   ``scenario.T_a_at(t)`` drive the skin (and the tank's loss to the air); with
@@ -107,6 +108,7 @@ class SimulatedPlant:
                 pos[(t >= tc.t_on) & (t < tc.t_off)] = tc.position
             self.position: list[float] = pos.tolist()
             self.skin: SimulatedSkin = SpatialSkin(cfg, spatial)  # type: ignore[assignment]
+            self.skin.track_exchange = tank == "peltier"  # type: ignore[attr-defined]
         else:
             self.position = [0.0] * self.n
             self.skin = SimulatedSkin(cfg)
@@ -276,7 +278,8 @@ class SimulatedPlant:
         else:
             tank = self.tank
             T_p = tank.T_p
-            tank.step(drive, T_a, (T_p - skin.T_w) / self.R_w(v))
+            if not self.spatial:
+                tank.step(drive, T_a, (T_p - skin.T_w) / self.R_w(v))
         if self.touchers:
             self._step_touchers(i, T_p, v, T_a)
         elif self.spatial:
@@ -284,6 +287,8 @@ class SimulatedPlant:
                       position=self.position[i])  # type: ignore[call-arg]
         else:
             skin.step(T_p, v, T_a, self.G_c[i], self.T_f[i])
+        if self.spatial and not self.prescribed:  # the heat the water brought to the skin over the sample
+            self.tank.step(drive, T_a, skin.q_water)  # type: ignore[attr-defined]
         self.k = k + 1
         if self.repeat and self.touchers and self.k % self.n == 0:
             self._rest_touchers()

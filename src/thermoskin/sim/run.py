@@ -6,7 +6,7 @@ rate-limited after a command change); the pump logic runs on the measured ``T_w`
 against the scenario's command schedule.
 
 Row ``k`` of the result holds the state at ``t_k = k t_s`` and the inputs applied over
-``[t_k, t_k+1)`` (zero-order hold). Columns (MODEL.md names and units):
+``[t_k, t_k+1)`` (zero-order hold). Columns (docs/model.md names and units):
 
 - measured: ``t`` (s, from 0), ``T_w``, ``T_p``, ``T_a`` (°C, the thermocouple boards'
   readings: lag, noise, quantum, held between conversions; ``sim.sensors``), ``v`` (m/s,

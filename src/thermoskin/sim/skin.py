@@ -1,6 +1,6 @@
 """The simulated skin (digital twin): the two-node network integrated exactly, and its sensors.
 
-The network of MODEL.md (Fig. 3, eqs. 3-7; ``physics.network.state_space``)::
+The network of docs/model.md (Fig. 3, eqs. 3-7; ``physics.network.state_space``)::
 
     C_w dT_w/dt = (T_p - T_w)/R_w(v) - (T_w - T_a)/R_aw - (T_w - T_g)/R_g
     C_g dT_g/dt = (T_w - T_g)/R_g + q_x + G_c (T_f - T_g) - (T_g - T_a)/R_ag

@@ -9,6 +9,12 @@ is advanced over one sample ``t_s`` with the inputs held (zero-order hold)::
 exact for piecewise-constant inputs. ``[Phi | Gamma]`` is cached per
 ``(v, G_c, position)``; a step is one matrix-vector product on preallocated arrays.
 
+With ``track_exchange`` set, a step also gives ``q_water``: the heat the water (or, the pump
+stopped, the still water at the two ends) brought into the skin, averaged over the sample,
+exactly (the integral of ``c_x x + c_u u`` over the sample from the same augmented matrix
+exponential, ``c_x, c_u`` the water's terms of the model). A tank that loses ``q_water`` loses
+exactly what the skin gains: the loop conserves energy.
+
 Outputs, as :class:`SimulatedSkin`'s: ``T_w`` is the pipe at the thermocouple (cell 0,
 what the real prototype measures); ``T_g`` is the sheet *under the touch* (the
 contact-weighted mean of the touched cells at the last ``position``), which is the
@@ -63,6 +69,10 @@ class SpatialSkin:
         self._M: Array = np.zeros((self.n, self.n + 4))
         self._z = np.full(self.n + 4, math.nan)  # [x; u]
         self._x_new = np.empty(self.n)
+        self._xcache: dict[tuple[float, float, float], Array] = {}
+        self._row: Array = np.zeros(self.n + 4)
+        self.track_exchange = False
+        self.q_water = 0.0
         self.G_c = 0.0
         self.T_f = T_F_IDLE
         self.position = 0.0
@@ -92,6 +102,26 @@ class SpatialSkin:
             if len(self._cache) < CACHE_SIZE:
                 self._cache[key] = M
         return M
+
+    def exchange_row(self, v: float, G_c: float, position: float = 0.0) -> Array:
+        """Row ``r`` (length n + 4): ``r . [x_k; u_k]`` is the mean heat, W, the water brings to the
+        skin over the sample (cached)."""
+        key = (v, G_c, position)
+        r = self._xcache.get(key)
+        if r is None:
+            A, B = self.matrices(v, G_c, position)
+            cx, cu = water_exchange(A, B, self.C, self.N, self.sp.inlet, v)
+            n = self.n
+            aug = np.zeros((n + 5, n + 5))
+            aug[:n, :n] = A
+            aug[:n, n + 1:] = B
+            aug[n, :n] = cx
+            aug[n, n + 1:] = cu
+            E = scipy.linalg.expm(aug * self.t_s)
+            r = np.concatenate([E[n, :n], E[n, n + 1:]]) / self.t_s
+            if len(self._xcache) < CACHE_SIZE:
+                self._xcache[key] = r
+        return r
 
     # -- state ---------------------------------------------------------------------------
     @property
@@ -190,6 +220,8 @@ class SpatialSkin:
         key = (v, G_c, position)
         if key != self._key:
             self._M = self.transition(v, G_c, position)
+            if self.track_exchange:
+                self._row = self.exchange_row(v, G_c, position)
             self._key = key
         z = self._z
         n = self.n
@@ -197,6 +229,8 @@ class SpatialSkin:
         z[n + 1] = T_a
         z[n + 2] = q_x
         z[n + 3] = T_f
+        if self.track_exchange:
+            self.q_water = float(np.dot(self._row, z))
         np.dot(self._M, z, out=self._x_new)
         z[:n] = self._x_new
         self.G_c = G_c
@@ -209,3 +243,24 @@ class SpatialSkin:
     def energy(self, T_ref: float = 0.0) -> float:
         """Stored heat relative to ``T_ref``, J: ``sum_i C_i (x_i - T_ref)``."""
         return float(self.C @ (self._z[:self.n] - T_ref))
+
+
+def water_exchange(A: Array, B: Array, C: Array, N: int, inlet: str, v: float) -> tuple[Array, Array]:
+    """``(c_x, c_u)``: the heat the water brings into the skin, ``c_x . x + c_u . u`` (W).
+
+    Read off the model itself: the terms of ``C_i dx_i/dt`` (``C`` the capacitances) that
+    involve ``u[0]`` (the inlet water, or the tank through still water), plus, flowing, the
+    water leaving the outlet cell (``-W T_w,out``, so that the sum is ``W (T_in - T_w,out)``),
+    or, still, the ends' own ``-W/2 T_w,end`` terms.
+    """
+    n = A.shape[0]
+    cu = np.zeros(4)
+    cx = np.zeros(n)
+    g_in = B[:N, 0] * C[:N]  # conductance of each pipe cell to u[0], W/K
+    cu[0] = float(g_in.sum())
+    if v > 0.0:
+        out = 0 if inlet == "far" else N - 1
+        cx[out] -= cu[0]
+    else:
+        cx[:N] -= g_in
+    return cx, cu

@@ -1,0 +1,115 @@
+"""Checks of the files a command will write or read, made before any work starts.
+
+A command that would fail only at its end (a directory given as ``-o``, a path under a
+file, a folder it may not write to) wastes the run and may leave half its outputs. The
+CLI therefore checks every output path first (:func:`check_output`): nothing is created
+or left behind by the check itself (writability is probed with a temporary file in the
+nearest existing folder, removed at once). Inputs (:func:`check_input`) are told apart
+as missing, a directory, or unreadable.
+
+Every problem raises :class:`PathError` (a ``ValueError``) with one line naming the
+option, the path and the reason.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+
+#: Extensions of a log (``logio``).
+LOG_SUFFIXES = (".csv", ".parquet")
+#: Extensions matplotlib's Agg canvas writes.
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".webp", ".tif", ".tiff", ".eps", ".ps")
+
+
+class PathError(ValueError):
+    """A path cannot be used; the message (one line) names the option, the path and why."""
+
+
+def _nearest_existing(p: Path) -> Path:
+    """``p``'s nearest existing ancestor (``p.parent`` first; the working folder for a bare name)."""
+    q = p.parent if str(p.parent) else Path(".")
+    while not q.exists() and not q.is_symlink():
+        if q.parent == q:
+            break
+        q = q.parent
+    return q
+
+
+def _probe(folder: Path) -> str | None:
+    """Why a new file cannot be created in ``folder`` (``None`` if it can): tried, then removed."""
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".thermoskin-probe-", dir=folder)
+    except OSError as e:
+        return e.strerror or str(e)
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(tmp)
+    return None
+
+
+def check_output(path: Path, option: str, suffixes: Iterable[str] | None = None,
+                 what: str = "file") -> Path:
+    """Check that ``path`` can be written as a file; return it.
+
+    Refused: a directory; a path whose folder is a file (``x.csv/out.csv``); a folder in
+    which no file can be created; an existing file that cannot be written; with
+    ``suffixes``, any other extension. Missing folders are fine (the writers create them).
+    """
+    p = Path(path)
+    if suffixes is not None:
+        allowed = tuple(suffixes)
+        if p.suffix.lower() not in allowed:
+            raise PathError(f"{option} {p}: the {what} name must end in {' or '.join(allowed)}")
+    if p.is_dir():
+        raise PathError(f"{option} {p} is a directory, not a file; give the {what} a file name")
+    base = _nearest_existing(p)
+    if not base.is_dir():
+        raise PathError(f"{option} {p}: cannot write there: {base} is a file, not a folder")
+    if p.exists() and not os.access(p, os.W_OK):
+        raise PathError(f"{option} {p}: cannot write: permission denied")
+    why = _probe(base)
+    if why is not None:
+        raise PathError(f"{option} {p}: cannot write in the folder {base}: {why}")
+    return p
+
+
+def check_output_dir(path: Path, option: str) -> Path:
+    """Check that ``path`` is, or can be made, a folder in which files can be written."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise PathError(f"{option} {p} is a file, not a folder")
+    base = p if p.is_dir() else _nearest_existing(p / "x")
+    if not base.is_dir():
+        raise PathError(f"{option} {p}: cannot make the folder: {base} is a file, not a folder")
+    why = _probe(base)
+    if why is not None:
+        raise PathError(f"{option} {p}: cannot write in the folder {base}: {why}")
+    return p
+
+
+def check_input(path: Path, what: str) -> Path:
+    """Check that ``path`` is an existing, readable file (not a directory); return it."""
+    p = Path(path)
+    if p.is_dir():
+        raise PathError(f"{what} {p} is a directory, not a file")
+    if not p.exists():
+        raise PathError(f"{what} {p} does not exist")
+    if not os.access(p, os.R_OK):
+        raise PathError(f"{what} {p}: cannot read: permission denied")
+    return p
+
+
+def distinct(*paths: tuple[str, Path | None]) -> None:
+    """Refuse two outputs of one command at the same path (one would overwrite the other)."""
+    seen: dict[Path, str] = {}
+    for option, p in paths:
+        if p is None:
+            continue
+        key = Path(os.path.abspath(p))
+        if key in seen:
+            raise PathError(f"{option} {p} is also given as {seen[key]}: give each output its own file")
+        seen[key] = option

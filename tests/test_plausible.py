@@ -1,0 +1,137 @@
+"""Implausible samples are bad samples: one absurd value in a log or from the device is
+dropped (held over, flagged `gap`), never fed to the filters; the contacts are those of the
+clean log and every output outside the flagged rows is finite."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from thermoskin.cli import SETTLE_S, main
+from thermoskin.logio import write_log
+from thermoskin.params import Config, load_config
+from thermoskin.pipeline import observe
+from thermoskin.plausible import admit, clean_log, limits
+from thermoskin.runtime.closed_loop import COLUMNS, run_closed_loop
+from thermoskin.sim.plant import SimulatedPlant
+from thermoskin.sim.scenarios import SCENARIOS
+
+CFG = load_config()
+SC = SCENARIOS["mixed"].shifted(SETTLE_S).with_duration(36.0)  # 4 touches after the settling
+K_BAD = 25_000  # a sample 25 s in, 2 s before a touch
+
+
+@pytest.fixture(scope="module")
+def run_log() -> dict[str, np.ndarray]:
+    """The log `thermoskin run` writes (closed loop: drive and T_w_cmd included)."""
+    res = run_closed_loop(SC, CFG)
+    return {k: np.asarray(res.columns[k], dtype=float) for k in COLUMNS}
+
+
+@pytest.fixture(scope="module")
+def clean(run_log: dict[str, np.ndarray]):  # type: ignore[no-untyped-def]
+    res = observe(run_log, CFG)
+    assert len(res.events) == 4
+    return res
+
+
+def spans(events: list) -> np.ndarray:  # type: ignore[type-arg]
+    return np.array([(e.onset, e.release) for e in events])
+
+
+def test_admit_keeps_the_range_and_drops_the_rest() -> None:
+    lim = limits(Config().plausible)  # -50 to 150 degC for the three readings
+    assert admit(lim, 24.0, -50.0, 150.0) == (24.0, -50.0, 150.0)  # the bounds are plausible
+    for bad in (150.0001, -50.0001, 1e30, -1e300, math.inf, -math.inf, math.nan):
+        w, p, a = admit(lim, bad, bad, bad)
+        assert math.isnan(w) and math.isnan(p) and math.isnan(a), bad
+
+
+def test_clean_log_counts_and_holds_the_command() -> None:
+    t = np.arange(6) * 1e-3
+    log = {"t": t, "T_w": np.array([24, 1e30, 24, np.nan, 24, 24.0]),
+           "T_p": np.full(6, 25.0), "T_a": np.full(6, 20.0), "v": np.array([0.1, 0, -1, 0.1, 11, 0.1]),
+           "T_w_cmd": np.array([24, 24, 999, 999, 26, 26.0])}
+    c = clean_log(log, Config())
+    assert c.counts == {"T_w": 1, "v": 2, "T_w_cmd": 2}
+    assert c.first == {"T_w": 1e-3, "v": 2e-3, "T_w_cmd": 2e-3}
+    np.testing.assert_array_equal(c.columns["T_w"], [24, np.nan, 24, np.nan, 24, 24])
+    np.testing.assert_array_equal(c.columns["v"], [0.1, 0, np.nan, 0.1, np.nan, 0.1])
+    np.testing.assert_array_equal(c.columns["T_w_cmd"], [24, 24, 24, 24, 26, 26])  # held
+    np.testing.assert_array_equal(c.rejected, [0, 1, 1, 1, 1, 0])  # a NaN reading is not "rejected"
+    assert len(c.warnings(Config())) == 3 and c.no_valid == []
+    narrow = Config().replace(plausible={"v_max": 0.05})  # configurable per column
+    assert clean_log(log, narrow).counts["v"] == 5
+
+
+@pytest.mark.parametrize(("col", "value"), [("T_w", 1e30), ("v", 1e100), ("v", 1e308), ("T_w", 1e200),
+                                            ("T_a", -1e300), ("T_p", math.inf), ("drive", 1e300),
+                                            ("T_w_cmd", 1e300)])
+def test_one_absurd_sample_in_a_log(run_log, clean, col: str, value: float) -> None:  # type: ignore[no-untyped-def]
+    bad = {k: v.copy() for k, v in run_log.items()}
+    bad[col][K_BAD] = value
+    warn: list[str] = []
+    res = observe(bad, CFG, warnings=warn)
+    assert len(res.events) == len(clean.events)
+    np.testing.assert_allclose(spans(res.events), spans(clean.events), atol=0.02)
+    gap = res.columns["gap"].astype(bool)
+    assert gap[K_BAD] and gap.sum() == clean.columns["gap"].sum() + 1
+    for k in ("q_i_hat", "dq_i_hat", "sd"):
+        assert np.isfinite(res.columns[k][~gap]).all(), k
+    assert len(warn) == 1 and col in warn[0] and "t = 25.000 s" in warn[0]
+
+
+def test_absurd_readings_from_the_device_are_held(monkeypatch: pytest.MonkeyPatch, clean) -> None:  # type: ignore[no-untyped-def]
+    """The loop drops them before the supervisor and the blocks: no fault (a single bad
+    sample is a short gap), the same contacts, finite commands and estimates."""
+    measure = SimulatedPlant.measure
+    bad_at = {K_BAD: (1e30, None, None), K_BAD + 5000: (None, -1e300, None),
+              K_BAD + 9000: (None, None, 1e200)}
+
+    def absurd(self: SimulatedPlant) -> tuple[float, float, float]:
+        r = list(measure(self))
+        for i, x in enumerate(bad_at.get(self.k, (None, None, None))):
+            if x is not None:
+                r[i] = x
+        return r[0], r[1], r[2]
+
+    monkeypatch.setattr(SimulatedPlant, "measure", absurd)
+    res = run_closed_loop(SC, CFG)
+    c = res.columns
+    assert res.fault is None and len(c["t"]) == len(clean.columns["gap"])
+    assert c["T_w"][K_BAD] == 1e30  # the log keeps what the device sent
+    gap = c["gap"].astype(bool)
+    assert gap[list(bad_at)].all() and gap.sum() == 3
+    for k in ("q_i_hat", "dq_i_hat", "T_p_cmd", "drive", "v"):
+        assert np.isfinite(c[k]).all(), k
+    np.testing.assert_allclose(spans(res.events), spans(clean.events), atol=0.02)
+    # offline on that log: the same values dropped, the live estimates again to the bit
+    off = observe({k: np.asarray(c[k], dtype=float) for k in COLUMNS}, CFG)
+    np.testing.assert_array_equal(off.columns["q_i_hat"], c["q_i_hat"])
+    np.testing.assert_array_equal(off.columns["contact"], c["contact"])
+
+
+def invoke(*args: str) -> tuple[int, str, str]:
+    r = CliRunner().invoke(main, list(args))
+    return r.exit_code, r.stdout, r.stderr
+
+
+def test_observe_warns_where_the_user_gets_nothing(run_log, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """An all-NaN T_w column and a log shorter than the detector needs: one warning line
+    each saying what the user gets; one absurd value: one line saying what was dropped."""
+    nan_tw = {k: v.copy() for k, v in run_log.items()}
+    nan_tw["T_w"][:] = np.nan
+    short = {k: v[:500] for k, v in run_log.items()}
+    absurd = {k: v.copy() for k, v in run_log.items()}
+    absurd["T_w"][1000] = 1e200
+    for name, log, needle in (("nan", nan_tw, "column T_w has no valid sample"),
+                              ("short", short, "less than the detector needs"),
+                              ("absurd", absurd, "1 value(s) of T_w outside the plausible range")):
+        write_log(tmp_path / f"{name}.csv", log)
+        code, _, err = invoke("observe", str(tmp_path / f"{name}.csv"), "-o", str(tmp_path / f"o{name}.csv"))
+        lines = [ln for ln in err.splitlines() if ln.startswith("thermoskin: warning")]
+        assert code == 0 and len(lines) == 1 and needle in lines[0], (name, err)
