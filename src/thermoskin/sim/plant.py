@@ -39,7 +39,9 @@ adds ``G_j(t_k) (T_s,j(t_k) - T_g(t_k))`` with its surface temperature now.
 :meth:`contact_truth` names the current contact (the latest begun): ``toucher_true``
 (``human``/``object``, ``""`` for a fixed touch without fingers), ``material_true`` (its
 class, :data:`thermoskin.physics.contact.CLASSES`), ``T_f_true`` (its surface temperature
-at the onset, °C) and ``G_true`` (its conductance once pressed, W/K).
+at the onset, °C) and ``G_true`` (its conductance once pressed, W/K); in a log
+(:meth:`truth_columns`) as numbers: ``toucher_true`` 1/0/-1 (human, object, no contact),
+``material_true`` the class's index (-1 no contact).
 
 Starts (:meth:`reset`): ``"ambient"`` (tank, heat sink, pipe and sheet at the air, the
 closed loop's start), ``"command"`` (the pipe at ``T_w0``, the sheet in its equilibrium
@@ -70,6 +72,10 @@ if TYPE_CHECKING:
 SKIN_MODELS = ("network", "spatial")
 TANKS = ("peltier", "prescribed")
 STARTS = ("ambient", "command", "equilibrium")
+
+
+#: ``toucher_true`` in a log: the toucher as a number.
+TOUCHER_CODES = {"human": 1, "object": 0}
 
 
 class SimulatedPlant:
@@ -209,12 +215,17 @@ class SimulatedPlant:
         return self.touch_truth[j] if j >= 0 else ("", "", math.nan, math.nan)
 
     def truth_columns(self) -> dict[str, NDArray[np.generic]]:
-        """:meth:`contact_truth` over the profile's samples: ``toucher_true``, ``material_true``
-        (strings, ``""`` outside contacts), ``T_f_true`` (°C), ``G_true`` (W/K) (NaN outside)."""
+        """:meth:`contact_truth` over the profile's samples as numbers a log holds (the log
+        schema is numeric): ``toucher_true`` (:data:`TOUCHER_CODES`: 1 human, 0 object, -1 no
+        contact), ``material_true`` (the index of the class in
+        :data:`thermoskin.physics.contact.CLASSES`, -1 no contact), ``T_f_true`` (°C, NaN
+        outside contacts), ``G_true`` (W/K, 0 outside contacts)."""
+        from thermoskin.physics.contact import CLASSES
+
         cur = self.current
-        rows = [*self.touch_truth, ("", "", math.nan, math.nan)]  # index -1: no contact
-        who = np.array([r[0] for r in rows], dtype=object)
-        mat = np.array([r[1] for r in rows], dtype=object)
+        rows = [*self.touch_truth, ("", "", math.nan, 0.0)]  # index -1: no contact
+        who = np.array([TOUCHER_CODES.get(r[0], -1) for r in rows], dtype=np.int8)
+        mat = np.array([CLASSES.index(r[1]) if r[1] in CLASSES else -1 for r in rows], dtype=np.int8)
         T_f = np.array([r[2] for r in rows])
         G = np.array([r[3] for r in rows])
         return {"toucher_true": who[cur], "material_true": mat[cur], "T_f_true": T_f[cur], "G_true": G[cur]}

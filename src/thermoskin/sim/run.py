@@ -16,9 +16,9 @@ Row ``k`` of the result holds the state at ``t_k = k t_s`` and the inputs applie
   contact applied from ``t_k``), ``contact_true`` (1 while ``G_c > 0``), ``n_fingers``,
   ``T_a_true`` (°C, the ambient that drives the physics); with touchers (touches naming
   one, :mod:`thermoskin.physics.contact`) also the current contact's
-  ``toucher_true, material_true, T_f_true, G_true`` (``human``/``object``, its material
-  class, its surface temperature at the onset °C, its conductance W/K; empty and NaN
-  outside contacts: ``SimulatedPlant.contact_truth``).
+  ``toucher_true, material_true, T_f_true, G_true`` (1 human, 0 object; the index of its
+  material class in ``physics.contact.CLASSES``; its surface temperature at the onset °C;
+  its conductance W/K; -1, -1, NaN, 0 outside contacts: ``SimulatedPlant.truth_columns``).
 
 The state starts in equilibrium, so there is no start-up transient: with the pump logic
 at ``T_w = T_w_cmd`` and the sheet's equilibrium for it; with the pump always on or off
