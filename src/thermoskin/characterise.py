@@ -55,9 +55,9 @@ seen); ``toucher`` where ``p_human`` is at least ``P_DECIDE`` or at most ``1 - P
 ``material`` where the class's probability is at least ``P_MATERIAL``. ``p_human`` is
 always given (the prior's 0.5 when the contact has not shown itself yet).
 
-**Kind**: ``tap`` (shorter than ``TAP_S``) or ``hold`` on one patch; ``stroke`` (a contact
-moving along or across patches) and ``grasp`` (several patches at once) need several
-patches (:func:`touch_kind` takes them when there are).
+**Kind**: ``tap`` or ``hold`` from the contact on its patch
+(:func:`thermoskin.touchkind.one_patch_kind`); ``stroke`` and ``grasp`` need the contacts
+of several patches together (:func:`thermoskin.touchkind.touches`).
 """
 
 from __future__ import annotations
@@ -73,6 +73,7 @@ from numpy.typing import NDArray
 
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
+from thermoskin.touchkind import one_patch_kind
 
 Array = NDArray[np.float64]
 
@@ -82,8 +83,6 @@ PRE_S = 0.5
 """``T_x(t_0)``: the mean over this long before the onset, s."""
 MAX_S = 10.0
 """The contact's first seconds characterise it (later bins are left out), s."""
-TAP_S = 1.0
-"""A contact shorter than this is a tap, s (the world's taps last 0.2-0.6 s, holds 1.5-6 s)."""
 
 MODEL_ERR = 0.03
 """Model error of the flow (relative): layered bodies, perfusion, the filter's lag."""
@@ -123,7 +122,7 @@ T0_SMOOTH = 0.5
 """Edges of the ``T_0`` priors softened by a Gaussian of this s.d., K."""
 
 KINDS = ("tap", "hold", "stroke", "grasp")
-"""Kinds of touch; ``stroke`` and ``grasp`` need several patches."""
+"""Kinds of touch; ``stroke`` and ``grasp`` need several patches (:mod:`thermoskin.touchkind`)."""
 
 
 # --------------------------------------------------------------------------------- model
@@ -420,20 +419,6 @@ class Character:
                 "T_f_hat": self.T_f_hat, "T_f_sd": self.T_f_sd, "effusivity_hat": self.effusivity_hat}
 
 
-def touch_kind(duration: float, patches: Sequence[ContactEvent] | None = None) -> str:
-    """``tap`` or ``hold`` from one patch's contact (``duration`` s; NaN: not yet known, ``""``).
-
-    The hook for several patches: ``patches``, the contacts of the neighbouring patches
-    overlapping this one in time, would make it a ``grasp`` (several at once) or a
-    ``stroke`` (onsets moving from patch to patch); not done yet (one patch only).
-    """
-    if patches:
-        raise NotImplementedError("stroke and grasp need several patches (issue 9's skin)")
-    if not math.isfinite(duration):
-        return ""
-    return "tap" if duration < TAP_S else "hold"
-
-
 # --------------------------------------------------------------------------------- binning
 class Bins:
     """Per-sample signals averaged over :data:`BIN_S` bins as they come (exact sums, so any
@@ -686,7 +671,7 @@ def _decide(event: ContactEvent, p_class: Mapping[str, float], post: Mapping[str
     e_ok = post["ln_e_sd"] <= E_LSD_MAX
     duration = event.duration if at is None or event.release <= event.onset + at else nan
     return Character(
-        kind=touch_kind(duration), toucher=toucher, material=material, p_human=p_h,
+        kind=one_patch_kind(duration), toucher=toucher, material=material, p_human=p_h,
         G_hat=post["G"] if G_ok else nan, G_sd=post["G_sd"] if G_ok else nan,
         T_f_hat=post["T_0"] if T_ok else nan, T_f_sd=post["T_0_sd"] if T_ok else nan,
         effusivity_hat=math.exp(post["ln_e"]) if e_ok else nan,
