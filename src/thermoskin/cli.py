@@ -132,11 +132,11 @@ def events_table(events: list[ContactEvent], title: str = "Detected contacts") -
     table = Table(title=title)
     what = any(e.kind for e in events)  # characterised (thermoskin.characterise)
     for name in ("#", "onset s", "detected s", "release s", "duration s", "sign", "peak dq W",
-                 "mean dq W", "energy J", *(("kind", "toucher", "material", "T_f degC") if what else ())):
+                 "mean dq W", "energy J", *(("what",) if what else ())):
         table.add_column(name, justify="right")
     for i, e in shown:
-        extra = ((e.kind, e.toucher or "?", e.material or "?",
-                  f"{e.T_f_hat:.1f}" if math.isfinite(e.T_f_hat) else "n/i") if what else ())
+        extra = ((f"{e.kind} {e.toucher or '?'} {e.material or '?'}"
+                  + (f" {e.T_f_hat:.1f}C" if math.isfinite(e.T_f_hat) else ""),) if what else ())
         table.add_row(str(i), f"{e.onset:.3f}", f"{e.detected_at:.3f}", f"{e.release:.3f}",
                       f"{e.duration:.2f}", "+" if e.sign > 0 else "-", f"{e.peak_dq:.3f}",
                       f"{e.mean_dq:.3f}", f"{e.energy:.3f}", *extra)
