@@ -23,6 +23,7 @@ and ``bonded`` (a sheet bonded to the pipe and insulated from the air: ``R_g`` =
 
     python benchmarks/characterise.py [--seeds 12] [--duration 300] [--json]
         [--figure docs/img/characterise.png]
+    python benchmarks/characterise.py --from-json OUT.json --figure docs/img/characterise.png
 
 The machine is shared: wall times are indicative.
 """
@@ -182,32 +183,56 @@ def summarise(runs: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def figure(summary: dict[str, Any], path: str) -> None:
+    """Accuracy against time since onset (person/object, material class) for every
+    configuration with the anchor of Bhattacharjee et al., and the confusion matrix of the
+    material class at 1.5 s for the first configuration."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), gridspec_kw={"width_ratios": [1, 1, 1.1]})
     styles = {"table1/none": ("C0", "-"), "table1/square": ("C0", "--"), "bonded/none": ("C1", "-"),
               "bonded/square": ("C1", "--")}
     for ax, what, title in ((axes[0], "person_object", "person or object"),
-                            (axes[1], "material", "material class (7)")):
+                            (axes[1], "material", f"material class ({len(CLASSES)})")):
         for key, s in summary["configs"].items():
             taus = [float(k) for k in s["accuracy_vs_time"]]
             acc = [100 * v[what] for v in s["accuracy_vs_time"].values()]
             c, ls = styles.get(key, ("k", ":"))
             ax.plot(taus, acc, color=c, ls=ls, marker="o", ms=3, label=key)
-        ax.plot(list(ANCHORS), [100 * v for v in ANCHORS.values()], "k*", ms=10,
-                label="Bhattacharjee et al. 2015 (11 materials)")
+        if what == "material":
+            ax.plot(list(ANCHORS), [100 * v for v in ANCHORS.values()], "k*", ms=10,
+                    label="Bhattacharjee et al. 2015\n(11 materials, heated sensor)")
+        else:
+            ax.axhline(95, color="k", lw=0.8, ls=":", label="target 95 % at 1.5 s")
         ax.set_title(title)
         ax.set_xlabel("time since onset (s)")
         ax.grid(alpha=0.3)
         ax.set_ylim(0, 102)
+        ax.legend(loc="lower right", fontsize=7)
     axes[0].set_ylabel("correct (% of detected contacts)")
-    axes[1].legend(loc="lower right", fontsize=8)
-    fig.suptitle("What touched the skin: held-out seeds, closed loop (skin/probe)")
+    key0 = next(iter(summary["configs"]))
+    conf = summary["configs"][key0]["confusion_1.5"]
+    rows = [c for c in CLASSES if c in conf]
+    m = np.array([[conf[r].get(c, 0) for c in CLASSES] for r in rows], dtype=float)
+    share = m / np.maximum(m.sum(axis=1, keepdims=True), 1)
+    ax = axes[2]
+    ax.imshow(share, cmap="Blues", vmin=0, vmax=1, aspect="auto")
+    for i in range(len(rows)):
+        for j in range(len(CLASSES)):
+            if m[i, j]:
+                ax.text(j, i, f"{int(m[i, j])}", ha="center", va="center",
+                        color="white" if share[i, j] > 0.6 else "black", fontsize=8)
+    ax.set_xticks(range(len(CLASSES)), CLASSES, rotation=35, ha="right", fontsize=8)
+    ax.set_yticks(range(len(rows)), rows, fontsize=8)
+    ax.set_xlabel("called at 1.5 s")
+    ax.set_ylabel("true class")
+    ax.set_title(f"confusion at 1.5 s ({key0})")
+    fig.suptitle(f"What touched the skin: held-out seeds {summary['seeds'][0]}-{summary['seeds'][1]}, "
+                 "closed loop (skin/probe)")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
@@ -220,8 +245,14 @@ def main() -> None:
     ap.add_argument("--probes", default=",".join(PROBES))
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", action="store_true")
-    ap.add_argument("--figure", default=None)
+    ap.add_argument("--figure", default=None, help="Write the figure (PNG) here.")
+    ap.add_argument("--from-json", default=None,
+                    help="Draw --figure from this benchmark's saved JSON output instead of running.")
     a = ap.parse_args()
+    if a.from_json:
+        with open(a.from_json) as fh:
+            figure(json.load(fh), a.figure or "docs/img/characterise.png")
+        return
     wall0 = time.perf_counter()
     jobs = [(a.seed0 + i, skin, probe, a.duration) for skin in a.skins.split(",")
             for probe in a.probes.split(",") for i in range(a.seeds)]
