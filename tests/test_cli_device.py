@@ -236,7 +236,8 @@ def test_serial_run_detects_with_10hz_boards_scored_against_truth(tmp_path: Path
     with open(tmp_path / "ev.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert list(rows[0]) == ["onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq",
-                             "energy"]
+                             "energy", "kind", "toucher", "material", "p_human", "G_hat", "G_sd",
+                             "T_f_hat", "T_f_sd", "effusivity_hat"]
     events = [ContactEvent(float(x["onset"]), float(x["detected"]), float(x["release"]),
                            float(x["duration"]), int(x["sign"]), float(x["peak_dq"]),
                            float(x["mean_dq"]), float(x["energy"])) for x in rows]

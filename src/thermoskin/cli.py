@@ -130,19 +130,25 @@ def events_table(events: list[ContactEvent], title: str = "Detected contacts") -
     else:
         shown = list(enumerate(events, 1))
     table = Table(title=title)
+    what = any(e.kind for e in events)  # characterised (thermoskin.characterise)
     for name in ("#", "onset s", "detected s", "release s", "duration s", "sign", "peak dq W",
-                 "mean dq W", "energy J"):
+                 "mean dq W", "energy J", *(("what",) if what else ())):
         table.add_column(name, justify="right")
     for i, e in shown:
+        extra = ((f"{e.kind} {e.toucher or '?'} {e.material or '?'}"
+                  + (f" {e.T_f_hat:.1f}C" if math.isfinite(e.T_f_hat) else ""),) if what else ())
         table.add_row(str(i), f"{e.onset:.3f}", f"{e.detected_at:.3f}", f"{e.release:.3f}",
                       f"{e.duration:.2f}", "+" if e.sign > 0 else "-", f"{e.peak_dq:.3f}",
-                      f"{e.mean_dq:.3f}", f"{e.energy:.3f}")
+                      f"{e.mean_dq:.3f}", f"{e.energy:.3f}", *extra)
     return table
 
 
 EVENTS_OPT = click.option("--events", "events_path", type=click.Path(path_type=Path), default=None,
                           help="Also write the contacts, one row each: onset,detected,release,"
-                               "duration,sign,peak_dq,mean_dq,energy (s, s, s, s, +1/-1, W, W, J).")
+                               "duration,sign,peak_dq,mean_dq,energy (s, s, s, s, +1/-1, W, W, J) "
+                               "and what touched: kind,toucher,material,p_human,G_hat,G_sd,T_f_hat,"
+                               "T_f_sd,effusivity_hat (empty where not identifiable; "
+                               "docs/characterise.md).")
 
 
 def _write_events(path: Path | None, events: list[ContactEvent]) -> None:
@@ -666,6 +672,10 @@ SETTLE_S = 10.0
               help="Pace the simulated skin at wall-clock speed in the fixed-rate loop process.")
 @click.option("--record", "record_path", type=click.Path(path_type=Path), default=None,
               help="Record every signal, command, event and the parameters to this MCAP file.")
+@click.option("--probe", "probe_amp", type=float, default=None, metavar="K",
+              help="Active sensing (simulated skin): during a contact the set-point steps by +-K "
+                   "(a square wave of 2 s from 0.3 s after the detection, for 6 s at most), so "
+                   "that the toucher's conductance and temperature separate (docs/characterise.md).")
 @_live_options
 @click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
               help="Run a whole skin of many patches (TOML) in closed loop on the simulated device "
@@ -676,8 +686,8 @@ SETTLE_S = 10.0
 @_user_errors
 def run(scenario: str, duration: float | None, setpoint: float | None,
         config_path: Path | None, log_path: Path, plot_path: Path | None, events_path: Path | None,
-        device: str, realtime: bool, record_path: Path | None, live_addr: str | None,
-        live_rate: float, live_wait: float, skin_path: Path | None = None,
+        device: str, realtime: bool, record_path: Path | None, probe_amp: float | None,
+        live_addr: str | None, live_rate: float, live_wait: float, skin_path: Path | None = None,
         groups_path: Path | None = None) -> None:
     """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
 
@@ -705,10 +715,10 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
 
     if skin_path is not None:
         single_only = (device != "sim", realtime, record_path is not None, live_addr is not None,
-                       setpoint is not None)
+                       setpoint is not None, probe_amp is not None)
         if any(single_only):
             raise UserError("--skin runs the simulated skin in this process: --device, --realtime, --record, "
-                            "--live and --setpoint are for the single patch")
+                            "--live, --setpoint and --probe are for the single patch")
         _run_skin(skin_path, None if scenario == "fingers" else scenario, duration, config_path, log_path,
                   plot_path, events_path, groups_path)
         return
@@ -726,6 +736,17 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
              ("--record", record_path, (".mcap",), "recording"))
     distinct(("--log", log_path), ("--plot", plot_path), ("--events", events_path),
              ("--record", record_path))
+    probe = None
+    if probe_amp is not None:
+        from thermoskin.control.probe import SetpointProbe
+
+        if serial or realtime:
+            raise UserError("--probe: only with the simulated skin in this process (--device sim, "
+                            "no --realtime)")
+        try:
+            probe = SetpointProbe(A=probe_amp)
+        except ValueError as e:
+            raise UserError(f"--probe {probe_amp}: {str(e).split(': ', 1)[1]}") from None
     cfg = _config(config_path)
     _check_loop(cfg)
     sc = _scenario(scenario, None)
@@ -793,7 +814,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
 
                     res = run_closed_loop(sc, cfg, on_start=started, on_event=ended,
                                           progress=lambda f: bar.update(task, completed=f),
-                                          on_block=on_block, stop=stop)
+                                          on_block=on_block, stop=stop, probe=probe)
             if recorder is not None:
                 _record_end(recorder, res)
         finally:
@@ -811,9 +832,14 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         if n:
             out = read_log(log_path, required=("t",))
             plot_log(out, plot_path, title=f"thermoskin run: {sc.name}, closed loop")
-        _write_events(events_path, res.events)
-        if res.events:
-            console.print(events_table(res.events))
+        events = res.events
+        if events and all(k in out for k in ("dq_i_hat", "T_w", "T_a")):
+            from thermoskin.characterise import characterise_events
+
+            events = characterise_events(events, out, cfg)  # what touched
+        _write_events(events_path, events)
+        if events:
+            console.print(events_table(events))
         stopped = bool(summary.get("interrupted"))
         if n > 1 and not res.fault:
             if serial:
@@ -946,7 +972,9 @@ def _record_end(recorder: Any, res: Any) -> None:
     import dataclasses
 
     for e in res.events:
-        recorder.event(e.onset, "contact", **dataclasses.asdict(e))
+        detail = dataclasses.asdict(e)
+        detail["touch_kind"] = detail.pop("kind")  # ``kind`` names the record's kind
+        recorder.event(e.onset, "contact", **detail)
     s = res.summary
     t_end = float(res.columns["t"][-1]) if len(res.columns["t"]) else 0.0
     if res.fault:

@@ -4,21 +4,38 @@ One row per contact with the columns of :data:`EVENT_COLUMNS` (s, s, s, s, +1/-1
 ``onset`` (when the touch began, back-dated by the detector), ``detected`` (when the detector
 decided), ``release``, ``duration``, ``sign`` (+1: heat into the skin, a warm body; -1: heat
 out of it, a cold object), ``peak_dq`` and ``mean_dq`` (the estimated touch heat, signed)
-and ``energy``.
+and ``energy``; then what touched (:mod:`thermoskin.characterise`, empty where not
+identifiable): ``kind`` (``tap``/``hold``), ``toucher`` (``human``/``object``), ``material``
+(the most likely material class), ``p_human``, the contact conductance ``G_hat`` and its
+standard deviation ``G_sd`` (W/K), the toucher's surface temperature at the onset
+``T_f_hat`` and ``T_f_sd`` (°C, K) and its effusivity ``effusivity_hat`` (W s^0.5/(m² K)).
+
+The table is written as CSV (numbers in their shortest round-trip form, an empty field for
+a value not identified) or Parquet (text columns as strings, null for not identified).
 """
 
 from __future__ import annotations
 
+import csv
+import math
 import os
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-#: Columns of the events table (``--events``): s, s, s, s, +1/-1, W, W, J.
-EVENT_COLUMNS = ("onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq", "energy")
+#: Columns of the detector's events: s, s, s, s, +1/-1, W, W, J.
+DETECTION_COLUMNS = ("onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq", "energy")
+#: Columns saying what touched: text, text, text, 1, W/K, W/K, °C, K, W s^0.5/(m² K).
+CHARACTER_COLUMNS = ("kind", "toucher", "material", "p_human", "G_hat", "G_sd", "T_f_hat", "T_f_sd",
+                     "effusivity_hat")
+#: Columns of the events table (``--events``).
+EVENT_COLUMNS = DETECTION_COLUMNS + CHARACTER_COLUMNS
+#: The text columns among them (the others are numbers).
+TEXT_COLUMNS = ("kind", "toucher", "material")
 #: The compiled kernel's event record: these fields, in this order (``estimation.kernel``).
 EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
 NEV = 8
@@ -37,15 +54,26 @@ class ContactEvent:
     peak_dq: float
     mean_dq: float
     energy: float
+    # what touched (:mod:`thermoskin.characterise`): empty text and NaN where not identified
+    kind: str = ""
+    toucher: str = ""
+    material: str = ""
+    p_human: float = math.nan
+    G_hat: float = math.nan
+    G_sd: float = math.nan
+    T_f_hat: float = math.nan
+    T_f_sd: float = math.nan
+    effusivity_hat: float = math.nan
 
-    def as_dict(self) -> dict[str, float]:
+    def as_dict(self) -> dict[str, float | str]:
         return asdict(self)
 
-    def row(self) -> dict[str, float]:
+    def row(self) -> dict[str, float | str]:
         """The event as a row of :data:`EVENT_COLUMNS`."""
         return {"onset": self.onset, "detected": self.detected_at, "release": self.release,
                 "duration": self.duration, "sign": self.sign, "peak_dq": self.peak_dq,
-                "mean_dq": self.mean_dq, "energy": self.energy}
+                "mean_dq": self.mean_dq, "energy": self.energy,
+                **{k: getattr(self, k) for k in CHARACTER_COLUMNS}}
 
     @classmethod
     def from_kernel(cls, ev: NDArray[np.float64]) -> ContactEvent:
@@ -56,14 +84,51 @@ class ContactEvent:
                    mean_dq=float(ev[EV_MEAN]), energy=float(ev[EV_ENERGY]))
 
 
-def events_columns(events: Sequence[ContactEvent]) -> dict[str, NDArray[np.float64]]:
-    """The events as columns of :data:`EVENT_COLUMNS` (empty columns for no event)."""
+def events_columns(events: Sequence[ContactEvent]) -> dict[str, NDArray[Any]]:
+    """The events as columns of :data:`EVENT_COLUMNS` (float arrays; the text columns as
+    arrays of ``str``); empty columns for no event."""
     rows = [e.row() for e in events]
-    return {k: np.array([r[k] for r in rows], dtype=float) for k in EVENT_COLUMNS}
+    return {k: np.array([r[k] for r in rows], dtype=str if k in TEXT_COLUMNS else float)
+            for k in EVENT_COLUMNS}
+
+
+def _csv_field(name: str, v: Any) -> str:
+    if name in TEXT_COLUMNS:
+        return str(v)
+    x = float(v)
+    if not math.isfinite(x):
+        return ""
+    return str(int(x)) if name == "sign" else repr(x)
 
 
 def write_events(path: str | os.PathLike[str], events: Sequence[ContactEvent]) -> Path:
-    """Write the events table (CSV or Parquet by the extension), one row per contact."""
-    from thermoskin.logio import write_log
+    """Write the events table (CSV or Parquet by the extension), one row per contact,
+    atomically (a temporary file in the same folder, renamed)."""
+    from thermoskin.logio.common import log_format
 
-    return write_log(path, events_columns(events))
+    p = Path(path)
+    fmt = log_format(p)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tmp = p.with_name(f".{p.name}.tmp{os.getpid()}")
+    try:
+        if fmt == "csv":
+            with open(tmp, "w", newline="", encoding="utf-8") as fh:
+                w = csv.writer(fh, lineterminator="\n")
+                w.writerow(EVENT_COLUMNS)
+                for e in events:
+                    r = e.row()
+                    w.writerow([_csv_field(k, r[k]) for k in EVENT_COLUMNS])
+        else:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+
+            cols = events_columns(events)
+            arrays = [pa.array([x or None for x in cols[k].tolist()], type=pa.string()) if k in TEXT_COLUMNS
+                      else pa.array(cols[k], type=pa.float64(), mask=~np.isfinite(cols[k]))
+                      for k in EVENT_COLUMNS]
+            pq.write_table(pa.Table.from_arrays(arrays, names=list(EVENT_COLUMNS)), tmp)
+        os.replace(tmp, p)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return p

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from thermoskin.characterise import Characteriser
 from thermoskin.estimation.freshness import FreshInference, infer_fresh
 from thermoskin.estimator import Observation, TouchEstimator
 from thermoskin.events import ContactEvent
@@ -126,6 +127,8 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
         counts: dict[str, int] = {}
         first: dict[str, float] = {}
         valid: dict[str, bool] = {}
+        ch = Characteriser(cfg)
+        events: list[ContactEvent] = []
         with LogWriter(out, out_names, atomic=True) as writer:  # whole, or not at all
             for chunk in reader:
                 if est is None:
@@ -140,8 +143,10 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
                 for k in ("T_w", "T_p", "T_a", "v"):
                     valid[k] = valid.get(k, False) or k not in clean.no_valid
                 c = clean.columns
-                cols, _ = est.feed(c["t"], c["T_w"], c["T_p"], c["v"], c["T_a"],
-                                   T_w_cmd=c.get("T_w_cmd"), fresh=fresh, drive=c.get("drive"))
+                cols, new = est.feed(c["t"], c["T_w"], c["T_p"], c["v"], c["T_a"],
+                                     T_w_cmd=c.get("T_w_cmd"), fresh=fresh, drive=c.get("drive"))
+                ch.feed(c["t"], cols["dq_i_hat"], c["T_w"], c["T_a"])
+                events.extend(ch.annotate(e) for e in new)  # a closed contact's data are all in
                 if clean.rejected.any():
                     cols["gap"] = (cols["gap"] | clean.rejected).astype(np.int8)
                 if "q_i_hat" in live:
@@ -159,8 +164,12 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
                 if progress is not None:
                     progress(rows, reader.n_rows)
         assert est is not None  # a log has two rows at least (LogReader checks)
+        n_closed = len(est.events)
         est.finish(t_last)
-    return StreamResult(events=list(est.events), rows=rows, t_s=t_s, periods=fresh_inf.periods or
+        ch.finish()
+        events.extend(ch.annotate(e) for e in est.events[len(events):])
+        assert len(events) == len(est.events) >= n_closed
+    return StreamResult(events=events, rows=rows, t_s=t_s, periods=fresh_inf.periods or
                         dict.fromkeys(("T_w", "T_p", "T_a"), 1.0), gaps=gaps,
                         live_q_max_abs_diff=q_diff if "q_i_hat" in live else None,
                         live_contact_mismatches=mism if "contact" in live else None,

@@ -18,7 +18,8 @@ Array = NDArray[np.float64]
 DEFAULT_REQUIRED: tuple[str, ...] = ("t", "T_w", "T_p", "v", "T_a")
 #: Columns written as integers (in CSV) when their values are integers.
 FLAG_COLUMNS: frozenset[str] = frozenset(
-    {"contact", "gap", "contact_true", "n_fingers", "fresh", "sign", "patch"}
+    {"contact", "gap", "contact_true", "n_fingers", "fresh", "sign", "patch", "toucher_true",
+     "material_true"}
 )
 #: Strings read as NaN in the columns that allow NaN (CSV).
 NAN_STRINGS: frozenset[str] = frozenset({"nan", "NaN", "NA", ""})

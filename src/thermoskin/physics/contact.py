@@ -101,7 +101,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq
 
 # ---------------------------------------------------------------------------------------
 # Materials
@@ -274,6 +273,8 @@ def geometric_grid(depth: float, n_nodes: int, dx0: float) -> list[float]:
 
     def span(r: float) -> float:
         return (r ** n - 1.0) / (r - 1.0) - ratio
+
+    from scipy.optimize import brentq  # here: scipy.optimize takes 0.5 s to import
 
     r = brentq(span, 1.0 + 1e-12, 2.0 * ratio ** (1.0 / max(n - 1, 1)) + 2.0, xtol=1e-14)
     xs = [0.0]
@@ -639,6 +640,8 @@ class HumanTissue(Toucher):
             raise ValueError(f"HumanTissue({self.kind}): a resting surface at {T_surface} °C is out of "
                              f"reach ({g_lo + T_surface:.2f}..{g_hi + T_surface:.2f} °C with room at "
                              f"{self.T_env} °C, arterial blood at {self.T_art} °C)")
+        from scipy.optimize import brentq
+
         return float(brentq(gap, lo, hi, xtol=1e-12, rtol=1e-12))
 
     def reset(self, T_start: float) -> None:

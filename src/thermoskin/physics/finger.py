@@ -35,6 +35,14 @@ Where the numbers of :data:`PERSONS` come from (the paper, Sec. VI, names three 
 
 ``Touch.position`` places a touch on the spatial skin (Fig. 19); the lumped two-node
 network ignores it.
+
+``Touch.toucher`` names a toucher with a body of its own (:mod:`thermoskin.physics.contact`:
+``"finger"``, ``"palm"``, ``"hand"``, ``"can_cold"``, ``"mug_hot"``, ``"wood_block"``, any
+material name, ...): the plant then steps it against the sheet every sample instead of
+holding ``T_f``. ``T_body`` is its starting surface temperature (default: the preset's),
+``G`` its contact conductance once pressed (default ``h_c(pressure) area`` with the preset's
+or the touch's ``area`` m² and ``pressure`` Pa). Here its ``T_f`` is that starting
+temperature (the truth's ``T_f_true``) and its conductance ``G`` (``G_true``).
 """
 
 from __future__ import annotations
@@ -83,7 +91,9 @@ class Touch:
     ``T_body`` (°C) overrides the person's fingertip temperature for this touch; ``G``
     (W/K) overrides the total contact conductance ``n_fingers G_finger`` (then
     ``n_fingers`` may be 0: not a fingertip); ``position`` places the touch on the spatial
-    skin (0 = at the thermocouple, 1 = the far end).
+    skin (0 = at the thermocouple, 1 = the far end); ``toucher`` names a physical toucher
+    (:func:`thermoskin.physics.contact.kinds`) with its contact ``area`` (m²) and ``pressure``
+    (Pa) (default: the preset's), stepped by the plant (see the module doc).
     """
 
     t_on: float
@@ -93,12 +103,21 @@ class Touch:
     position: float = 0.0
     T_body: float | None = None
     G: float | None = None
+    toucher: str | None = None
+    area: float | None = None
+    pressure: float | None = None
 
     def __post_init__(self) -> None:
-        allowed = (0, 1, 2, 3) if self.G is not None else (1, 2, 3)
+        free = self.G is not None or self.toucher is not None
+        allowed = (0, 1, 2, 3) if free else (1, 2, 3)
         if isinstance(self.n_fingers, bool) or self.n_fingers not in allowed:
             raise ValueError(f"Touch at t_on = {self.t_on}: n_fingers = {self.n_fingers!r} must be 1, 2 or 3"
-                             + (" (or 0 with G)" if self.G is not None else ""))
+                             + (" (or 0 with G)" if self.G is not None else
+                                " (or 0 with a toucher)" if free else ""))
+        if self.toucher is not None:
+            _preset(self)  # a known kind, its area and pressure in range
+        elif self.area is not None or self.pressure is not None:
+            raise ValueError(f"Touch at t_on = {self.t_on}: area and pressure need a toucher")
         if self.G is not None and not (math.isfinite(self.G) and 0.0 < self.G < 100.0):
             raise ValueError(f"Touch at t_on = {self.t_on}: G = {self.G} W/K must be in (0, 100)")
         if self.T_body is not None and not (math.isfinite(self.T_body) and -20.0 <= self.T_body <= 100.0):
@@ -122,14 +141,52 @@ def _person(touch: Touch, persons: Mapping[str, Person]) -> Person:
                        f"(known: {', '.join(persons)})") from None
 
 
+def _preset(touch: Touch) -> tuple[float, float, float]:
+    """``(area m², pressure Pa, T_start °C)`` of a toucher touch: the touch's, else its preset's."""
+    from thermoskin.physics import contact as ct
+
+    kind = touch.toucher
+    if kind in ct.HUMANS:
+        part = ct.HUMANS[kind]
+        A, p, T0 = part.area, part.pressure, ct.T_SKIN_DEFAULT
+    elif kind in ct.OBJECTS:
+        pre = ct.OBJECTS[kind]
+        A, p, T0 = pre.area, pre.pressure, pre.T_start
+    elif kind in ct.MATERIALS:
+        pre = ct.ObjectPreset(kind, ((kind, ct.SLAB_THICKNESS),), ct.T_ENV)
+        A, p, T0 = pre.area, pre.pressure, pre.T_start
+    else:
+        raise ValueError(f"Touch at t_on = {touch.t_on}: unknown toucher {kind!r} "
+                         f"(known: {', '.join(ct.kinds())})")
+    A = A if touch.area is None else float(touch.area)
+    p = p if touch.pressure is None else float(touch.pressure)
+    try:
+        ct.G_contact(A, p)
+    except ValueError as e:
+        raise ValueError(f"Touch at t_on = {touch.t_on}: {e}") from None
+    return A, p, T0
+
+
 def full_conductance(touch: Touch, persons: Mapping[str, Person] = PERSONS) -> float:
-    """The touch's conductance once pressed, W/K: ``G`` or ``n_fingers G_finger``."""
-    return touch.G if touch.G is not None else touch.n_fingers * _person(touch, persons).G_finger
+    """The touch's conductance once pressed, W/K: ``G``, a toucher's ``h_c(p) A``, or
+    ``n_fingers G_finger``."""
+    if touch.G is not None:
+        return touch.G
+    if touch.toucher is not None:
+        from thermoskin.physics.contact import G_contact
+
+        A, p, _ = _preset(touch)
+        return G_contact(A, p)
+    return touch.n_fingers * _person(touch, persons).G_finger
 
 
 def body_temperature(touch: Touch, persons: Mapping[str, Person] = PERSONS) -> float:
-    """The touching body's temperature, °C: ``T_body`` or the person's."""
-    return touch.T_body if touch.T_body is not None else _person(touch, persons).T_body
+    """The touching body's temperature, °C: ``T_body``, a toucher's preset start, or the person's."""
+    if touch.T_body is not None:
+        return touch.T_body
+    if touch.toucher is not None:
+        return _preset(touch)[2]
+    return _person(touch, persons).T_body
 
 
 def touch_conductance(touch: Touch, t: float, persons: Mapping[str, Person] = PERSONS) -> float:

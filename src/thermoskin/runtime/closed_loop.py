@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thermoskin.control.probe import SetpointProbe
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.plausible import admit, limits
@@ -64,7 +65,8 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
                     on_event: Callable[[ContactEvent], None] | None = None,
                     progress: Callable[[float], None] | None = None,
                     on_block: Callable[[dict[str, Any]], None] | None = None,
-                    block: int = 1000, stop: Any = None) -> LoopResult:
+                    block: int = 1000, stop: Any = None,
+                    probe: SetpointProbe | None = None) -> LoopResult:
     """Run ``scenario`` (its touches at their times) in closed loop from ambient.
 
     ``skin_model``: ``"network"`` (two-node, as the observer assumes) or ``"spatial"``.
@@ -73,9 +75,10 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     ``stop`` (anything with ``is_set()``, e.g. a
     :class:`~thermoskin.runtime.stopping.StopRequest`) is polled every sample: once set, the
     loop commands the safe state and ends with the rows so far (``summary["interrupted"]``).
+    ``probe``: active sensing during contacts (:class:`~thermoskin.control.probe.SetpointProbe`).
     """
     plant = SimulatedPlant(cfg, scenario, skin_model=skin_model)
-    ctrl = SkinController(cfg)
+    ctrl = SkinController(cfg, probe)
     ctrl.reset(scenario.T_a)
     n, t_s = plant.n, cfg.sampling.t_s
     rec = {k: np.zeros(n) for k in COLUMNS}

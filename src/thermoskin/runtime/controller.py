@@ -12,12 +12,17 @@ The same object runs against the simulated skin, a serial device, or a benchmark
 Plain floats in, plain floats out; the results stay as attributes for a recorder. The
 readings it is given have passed :func:`thermoskin.plausible.admit` (done by the loops,
 before the supervisor): an implausible reading arrives as NaN and is held over.
+
+Active sensing (``probe``, :class:`~thermoskin.control.probe.SetpointProbe`): while a
+contact is on, the pump logic and the MPC get ``T_w_cmd`` plus the probe's offset
+(``T_w_cmd_eff``); the estimator keeps ``T_w_cmd``.
 """
 
 from __future__ import annotations
 
 from thermoskin.control.inner import InnerLoop, model_feedforward
 from thermoskin.control.mpc import Mpc
+from thermoskin.control.probe import SetpointProbe
 from thermoskin.control.pump import PumpLogic
 from thermoskin.estimator import TouchEstimator
 from thermoskin.params import Config
@@ -26,13 +31,17 @@ from thermoskin.params import Config
 class SkinController:
     """Observer, detector, MPC, inner loop and pump logic of one skin."""
 
-    __slots__ = ("T_p_cmd", "contact", "drive", "estimator", "inner", "mpc", "pump", "v")
+    __slots__ = ("T_p_cmd", "T_w_cmd_eff", "_t_det", "contact", "drive", "estimator", "inner", "mpc",
+                 "probe", "pump", "v")
 
-    def __init__(self, cfg: Config, *, estimate: bool = True) -> None:
-        """``estimate=False``: temperature control only (pump, MPC, inner loop), no estimator
-        (``estimator`` is None, ``contact`` stays 0): a water loop of many patches, whose
-        patches are estimated elsewhere (``estimation.patches``)."""
+    def __init__(self, cfg: Config, probe: SetpointProbe | None = None, *,
+                 estimate: bool = True) -> None:
+        """``probe``: active sensing during a contact (module doc). ``estimate=False``:
+        temperature control only (pump, MPC, inner loop), no estimator (``estimator`` is None,
+        ``contact`` stays 0, so no probe either): a water loop of many patches, whose patches
+        are estimated elsewhere (``estimation.patches``)."""
         t_s = cfg.sampling.t_s
+        self.probe = probe
         self.estimator = TouchEstimator(cfg) if estimate else None
         self.pump = PumpLogic(cfg.pump, t_s)
         self.mpc = Mpc(cfg.skin, cfg.control, t_s, v_on=cfg.pump.v_on)
@@ -48,21 +57,30 @@ class SkinController:
         self.inner.reset(0.0)
         self.v = self.pump.v
         self.T_p_cmd = self.drive = 0.0
+        self.T_w_cmd_eff = float("nan")
         self.contact = 0
+        self._t_det = 0.0
 
     def step(self, t: float, T_w: float, T_p: float, T_a: float, T_w_cmd: float,
              fresh: int = 7) -> None:
         """One sample of measurements (``fresh``: bitmask of the channels with a new reading,
         1 ``T_w``, 2 ``T_p``, 4 ``T_a``); sets ``v, drive, T_p_cmd, contact`` (and the blocks')."""
-        v = self.pump.step(T_w, T_w_cmd)
+        cmd = T_w_cmd
+        if self.probe is not None and self.contact:
+            cmd = T_w_cmd + self.probe.offset(t - self._t_det)
+        self.T_w_cmd_eff = cmd
+        v = self.pump.step(T_w, cmd)
         self.v = v
-        T_p_cmd = self.mpc.step(T_w, T_a, T_w_cmd, v > 0.0)
+        T_p_cmd = self.mpc.step(T_w, T_a, cmd, v > 0.0)
         self.T_p_cmd = T_p_cmd
         drive = self.inner.step(T_p, T_p_cmd, T_a)
         self.drive = drive
         # last: the estimator models the interval to come with the pump and the drive applied
         if self.estimator is not None:
-            self.contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)
+            contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)
+            if contact and not self.contact:
+                self._t_det = t
+            self.contact = contact
 
     def safe(self) -> None:
         """The safe outputs: Peltier drive 0, pump off."""

@@ -22,10 +22,26 @@ Per sample ``k`` (``t_k = k t_s``)::
   ``scenario.T_a_at(t)`` drive the skin (and the tank's loss to the air); with
   ``repeat=True`` both repeat every ``scenario.duration`` and the plant runs for ever;
 - **sensors** (``sim.sensors.Sensors``, ``[sensor]``) read ``T_w``, ``T_p`` and the true
-  ambient once per sample.
+  ambient once per sample;
+- **touchers** (a touch naming ``toucher``, :mod:`thermoskin.physics.contact`): a body of
+  its own behind the touch's ramped conductance ``G_j(t)``, stepped against the sheet every
+  sample. Over sample ``k`` toucher ``j`` is exactly a conductance ``G_eff,j`` to a source
+  at ``T_eff,j`` (``Toucher.begin``); with the fixed touches ``(G_x, T_x)`` the skin steps
+  with ``G_c = G_x + sum_j G_eff,j`` and ``T_f = (G_x T_x + sum_j G_eff,j T_eff,j)/G_c``, then
+  each toucher completes its step with the sheet's mean over the sample
+  ``(T_g[k] + T_g[k+1])/2`` (``Toucher.end``). Each toucher starts from its preset's rest
+  (the touch's ``T_body``) at its touch, so a repeating plant replays it; a scenario without
+  touchers takes the fixed-touch path unchanged.
 
 Truth at sample ``k`` (:meth:`truth`): ``q_i = G_c(t_k) (T_f(t_k) - T_g(t_k))`` with the
-contact applied from ``t_k`` on (as the open-loop log), ``T_g``, ``T_w``, ``T_p``.
+contact applied from ``t_k`` on (as the open-loop log), ``T_g``, ``T_w``, ``T_p``; a toucher
+adds ``G_j(t_k) (T_s,j(t_k) - T_g(t_k))`` with its surface temperature now.
+:meth:`contact_truth` names the current contact (the latest begun): ``toucher_true``
+(``human``/``object``, ``""`` for a fixed touch without fingers), ``material_true`` (its
+class, :data:`thermoskin.physics.contact.CLASSES`), ``T_f_true`` (its surface temperature
+at the onset, °C) and ``G_true`` (its conductance once pressed, W/K); in a log
+(:meth:`truth_columns`) as numbers: ``toucher_true`` 1/0/-1 (human, object, no contact),
+``material_true`` the class's index (-1 no contact).
 
 Starts (:meth:`reset`): ``"ambient"`` (tank, heat sink, pipe and sheet at the air, the
 closed loop's start), ``"command"`` (the pipe at ``T_w0``, the sheet in its equilibrium
@@ -36,22 +52,30 @@ a Peltier tank at ``T_p(0)``, its sink at the air).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.params import Config
 from thermoskin.physics.convection import FlowResistance
-from thermoskin.physics.finger import contact_profile
+from thermoskin.physics.finger import T_F_IDLE, Touch, body_temperature, contact_profile, full_conductance
 from thermoskin.physics.peltier import PeltierTank
 from thermoskin.physics.spatial import SpatialParams
 from thermoskin.sim.scenarios import Scenario
 from thermoskin.sim.sensors import Sensors
 from thermoskin.sim.skin import SimulatedSkin
 
+if TYPE_CHECKING:
+    from thermoskin.physics.contact import Toucher
+
 SKIN_MODELS = ("network", "spatial")
 TANKS = ("peltier", "prescribed")
 STARTS = ("ambient", "command", "equilibrium")
+
+
+#: ``toucher_true`` in a log: the toucher as a number.
+TOUCHER_CODES = {"human": 1, "object": 0}
 
 
 class SimulatedPlant:
@@ -80,6 +104,7 @@ class SimulatedPlant:
         self.G_c: list[float] = G_c.tolist()
         self.T_f: list[float] = T_f.tolist()
         self.n_fingers: NDArray[np.int64] = n_f
+        self._init_touchers(scenario, t)
         self.spatial = skin_model == "spatial"
         if self.spatial:
             from thermoskin.sim.spatial_skin import SpatialSkin
@@ -119,6 +144,7 @@ class SimulatedPlant:
         self._reading = (math.nan, math.nan, math.nan)
         self.fresh = 0
         self.sensors.reset()
+        self._rest_touchers()
         T_a, G0, T_f0 = self._T_a[0], self.G_c[0], self.T_f[0]
         skin, tank = self.skin, self.tank
         if start == "ambient":
@@ -132,6 +158,77 @@ class SimulatedPlant:
             skin.reset(w0, T_a=T_a, G_c=G0, T_f=T_f0)
         else:
             skin.reset_equilibrium(T_p0, v, T_a, G0, T_f0)
+
+    # -- touchers ------------------------------------------------------------------------
+    def _init_touchers(self, scenario: Scenario, t: NDArray[np.float64]) -> None:
+        """Touchers of the touches that name one, the fixed touches' profile, the contact truth."""
+        touches = scenario.touches
+        self.touchers: list[tuple[int, int, list[float], Toucher]] = []
+        """``(lo, hi, G_j over [lo, hi), Toucher)`` per touch naming a toucher."""
+        self._rest: list[list[float]] = []
+        fixed: list[Touch] = []
+        for tc in touches:
+            if tc.toucher is None:
+                fixed.append(tc)
+                continue
+            from thermoskin.physics.contact import toucher
+
+            lo, hi = (int(x) for x in np.searchsorted(t, [tc.t_on, tc.t_off], side="right"))
+            g, _, _ = contact_profile([tc], t[lo:hi])
+            tch = toucher(tc.toucher, body_temperature(tc), tc.area, tc.pressure, t_s=self.t_s,
+                          T_env=float(scenario.T_a_at(tc.t_on)))
+            self.touchers.append((lo, hi, g.tolist(), tch))
+            self._rest.append(list(tch.T))
+        if self.touchers:
+            G_x, T_x, _ = contact_profile(fixed, t)
+            self._G_x: list[float] = G_x.tolist()
+            self._T_x: list[float] = T_x.tolist()
+        # the contact truth per sample: the latest touch begun
+        cur = np.full(t.size, -1, dtype=np.int64)
+        for j, tc in enumerate(touches):
+            cur[(t > tc.t_on) & (t < tc.t_off)] = j
+        self.current: NDArray[np.int64] = cur
+        """Index in ``scenario.touches`` of the contact at each sample (-1: none)."""
+        rows = []
+        k = 0
+        for tc in touches:
+            if tc.toucher is not None:
+                tr = self.touchers[k][3].truth
+                k += 1
+                rows.append((tr["toucher_true"], tr["class_true"], tr["T_f_true"], tr["G_true"]))
+            else:
+                who = "human" if tc.n_fingers > 0 else ""
+                rows.append((who, "human" if who else "", body_temperature(tc), full_conductance(tc)))
+        self.touch_truth: list[tuple[str, str, float, float]] = rows
+        """``(toucher_true, material_true, T_f_true, G_true)`` per touch (``material_true``: the
+        class, one of ``contact.CLASSES``)."""
+
+    def _rest_touchers(self) -> None:
+        """Every toucher back to its rest before its touch."""
+        for (_, _, _, tch), T0 in zip(self.touchers, self._rest, strict=True):
+            tch.set_state(T0)
+
+    def contact_truth(self) -> tuple[str, str, float, float]:
+        """``(toucher_true, material_true, T_f_true, G_true)`` of the contact now (module doc);
+        ``("", "", nan, nan)`` outside contacts."""
+        j = int(self.current[self.index()])
+        return self.touch_truth[j] if j >= 0 else ("", "", math.nan, math.nan)
+
+    def truth_columns(self) -> dict[str, NDArray[np.generic]]:
+        """:meth:`contact_truth` over the profile's samples as numbers a log holds (the log
+        schema is numeric): ``toucher_true`` (:data:`TOUCHER_CODES`: 1 human, 0 object, -1 no
+        contact), ``material_true`` (the index of the class in
+        :data:`thermoskin.physics.contact.CLASSES`, -1 no contact), ``T_f_true`` (°C, NaN
+        outside contacts), ``G_true`` (W/K, 0 outside contacts)."""
+        from thermoskin.physics.contact import CLASSES
+
+        cur = self.current
+        rows = [*self.touch_truth, ("", "", math.nan, 0.0)]  # index -1: no contact
+        who = np.array([TOUCHER_CODES.get(r[0], -1) for r in rows], dtype=np.int8)
+        mat = np.array([CLASSES.index(r[1]) if r[1] in CLASSES else -1 for r in rows], dtype=np.int8)
+        T_f = np.array([r[2] for r in rows])
+        G = np.array([r[3] for r in rows])
+        return {"toucher_true": who[cur], "material_true": mat[cur], "T_f_true": T_f[cur], "G_true": G[cur]}
 
     def index(self) -> int:
         """Index of the current sample in the profiles (``k``, or ``k mod n`` when repeating)."""
@@ -162,8 +259,15 @@ class SimulatedPlant:
         """``(q_i, T_g, T_w, T_p)`` now (W, °C): ``q_i`` with the contact applied from now on."""
         i = self.index()
         skin = self.skin
-        G = self.G_c[i]
         T_g = skin.T_g
+        if self.touchers:
+            G = self._G_x[i]
+            q_i = G * (self._T_x[i] - T_g) if G > 0.0 else 0.0
+            for lo, hi, g, tch in self.touchers:
+                if lo <= i < hi and g[i - lo] > 0.0:
+                    q_i += g[i - lo] * (tch.T_s - T_g)
+            return q_i, T_g, skin.T_w, self.T_p_true
+        G = self.G_c[i]
         q_i = G * (self.T_f[i] - T_g) if G > 0.0 else 0.0
         return q_i, T_g, skin.T_w, self.T_p_true
 
@@ -187,11 +291,39 @@ class SimulatedPlant:
             T_p = tank.T_p
             if not self.spatial:
                 tank.step(drive, T_a, (T_p - skin.T_w) / self.R_w(v))
-        if self.spatial:
+        if self.touchers:
+            self._step_touchers(i, T_p, v, T_a)
+        elif self.spatial:
             skin.step(T_p, v, T_a, self.G_c[i], self.T_f[i],
                       position=self.position[i])  # type: ignore[call-arg]
-            if not self.prescribed:  # the heat the water brought to the skin over the sample
-                self.tank.step(drive, T_a, skin.q_water)  # type: ignore[attr-defined]
         else:
             skin.step(T_p, v, T_a, self.G_c[i], self.T_f[i])
+        if self.spatial and not self.prescribed:  # the heat the water brought to the skin over the sample
+            self.tank.step(drive, T_a, skin.q_water)  # type: ignore[attr-defined]
         self.k = k + 1
+        if self.repeat and self.touchers and self.k % self.n == 0:
+            self._rest_touchers()
+
+    def _step_touchers(self, i: int, T_p: float, v: float, T_a: float) -> None:
+        """The skin's step with the touchers of sample ``i`` (module doc), then theirs."""
+        skin = self.skin
+        G = self._G_x[i]
+        GT = G * self._T_x[i] if G > 0.0 else 0.0
+        active = []
+        for lo, hi, g, tch in self.touchers:
+            if lo <= i < hi:
+                tch.begin(g[i - lo])
+                ge = tch.G_eff
+                if ge > 0.0:
+                    G += ge
+                    GT += ge * tch.T_eff
+                active.append(tch)
+        T_f = GT / G if G > 0.0 else T_F_IDLE
+        T_g0 = skin.T_g
+        if self.spatial:
+            skin.step(T_p, v, T_a, G, T_f, position=self.position[i])  # type: ignore[call-arg]
+        else:
+            skin.step(T_p, v, T_a, G, T_f)
+        T_gm = 0.5 * (T_g0 + skin.T_g)
+        for tch in active:
+            tch.end(T_gm)

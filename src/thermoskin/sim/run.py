@@ -14,7 +14,11 @@ Row ``k`` of the result holds the state at ``t_k = k t_s`` and the inputs applie
   channels converted at ``t_k``: ``T_w`` 1, ``T_p`` 2, ``T_a`` 4);
 - truth: ``T_w_true``, ``T_g`` (°C), ``q_i`` (W, ``G_c (T_f - T_g)`` at ``t_k`` with the
   contact applied from ``t_k``), ``contact_true`` (1 while ``G_c > 0``), ``n_fingers``,
-  ``T_a_true`` (°C, the ambient that drives the physics).
+  ``T_a_true`` (°C, the ambient that drives the physics); with touchers (touches naming
+  one, :mod:`thermoskin.physics.contact`) also the current contact's
+  ``toucher_true, material_true, T_f_true, G_true`` (1 human, 0 object; the index of its
+  material class in ``physics.contact.CLASSES``; its surface temperature at the onset °C;
+  its conductance W/K; -1, -1, NaN, 0 outside contacts: ``SimulatedPlant.truth_columns``).
 
 The state starts in equilibrium, so there is no start-up transient: with the pump logic
 at ``T_w = T_w_cmd`` and the sheet's equilibrium for it; with the pump always on or off
@@ -61,6 +65,9 @@ def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = Non
     T_w_true, T_g, T_w_m, T_p_m, T_a_m, v_col = cols
     fresh = [0] * n
     skin = plant.skin
+    touchers = bool(plant.touchers)
+    q_col = [0.0] * n if touchers else []
+    truth = plant.truth
     measure, apply, pump_step = plant.measure, plant.apply, pump.step
     every = max(1, n // 100)
     next_report = every if progress is not None else n + 1
@@ -72,6 +79,8 @@ def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = Non
         fresh[k] = plant.fresh
         v = pump_step(m, cmd_l[k]) if logic else v_const
         v_col[k] = v
+        if touchers:
+            q_col[k] = truth()[0]
         apply(0.0, v)
         if k + 1 >= next_report:
             progress((k + 1) / n)  # type: ignore[misc]
@@ -81,7 +90,7 @@ def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = Non
 
     G_c, T_f = np.asarray(plant.G_c), np.asarray(plant.T_f)
     T_g_arr = np.asarray(T_g)
-    return {
+    out = {
         "t": t,
         "T_w": np.asarray(T_w_m),
         "T_p": np.asarray(T_p_m),
@@ -90,9 +99,12 @@ def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = Non
         "T_w_cmd": cmd,
         "T_w_true": np.asarray(T_w_true),
         "T_g": T_g_arr,
-        "q_i": G_c * (T_f - T_g_arr),
+        "q_i": np.asarray(q_col) if touchers else G_c * (T_f - T_g_arr),
         "contact_true": (G_c > 0.0).astype(np.int8),
         "n_fingers": plant.n_fingers.astype(np.int8),
         "fresh": np.asarray(fresh, dtype=np.int8),
         "T_a_true": plant.T_a_true,
     }
+    if touchers:
+        out.update(plant.truth_columns())
+    return out

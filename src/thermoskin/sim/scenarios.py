@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from thermoskin.physics import world as W  # noqa: N812
 from thermoskin.physics.finger import PERSONS, Touch
 
 PUMP_MODES = ("logic", "on", "off")
@@ -206,6 +207,59 @@ def step_schedule(duration: float, every: float = 5.0, lo: float = 22.0, hi: flo
     return tuple((float(t), float(np.round(rng.uniform(lo, hi) * 2.0) / 2.0)) for t in times)
 
 
+def toucher_scenario(seed: int, duration: float = 180.0, *, name: str | None = None,
+                     t_first: float = 5.0, T_w_cmd: float = 24.0, T_a: float = 20.0,
+                     p_human: float = W.P_HUMAN, p_tap: float = W.P_TAP) -> Scenario:
+    """Persons and objects touching the skin, seeded (touchers of :mod:`thermoskin.physics.contact`,
+    drawn from :mod:`thermoskin.physics.world`).
+
+    Each touch: a person with probability ``p_human`` (a part of ``world.HUMAN_PARTS``, its
+    area and pressure uniform in the part's ranges, skin at ``U(*world.T_SKIN_RANGE)`` °C),
+    else one of ``world.OBJECT_TEMPS`` at its temperature (``room``: relative to ``T_a``),
+    its preset area times ``U(*world.OBJECT_AREA_SCALE)``, pressed at
+    ``U(*world.OBJECT_PRESSURE)`` Pa. A tap (probability ``p_tap``) lasts
+    ``U(*world.TAP_S)`` s, a hold ``U(*world.HOLD_S)`` s; ``U(6, 10)`` s from one release to
+    the next onset; the first onset in ``t_first + U(0, 2)`` s; no touch ends later than
+    1 s before the end.
+    """
+    HUMAN_PARTS, OBJECT_TEMPS = W.HUMAN_PARTS, W.OBJECT_TEMPS
+    rng = np.random.default_rng(seed)
+    parts = list(HUMAN_PARTS)
+    shares = np.array([HUMAN_PARTS[p][0] for p in parts])
+    objects = list(OBJECT_TEMPS)
+    touches = []
+    t = t_first + rng.uniform(0.0, 2.0)
+    while True:
+        if rng.uniform() < p_human:
+            part = parts[int(rng.choice(len(parts), p=shares / shares.sum()))]
+            _, (a0, a1), (p0, p1) = HUMAN_PARTS[part]
+            tc = dict(toucher=part, n_fingers=1 if part == "finger" else 0,
+                      T_body=float(rng.uniform(*W.T_SKIN_RANGE)), area=float(rng.uniform(a0, a1)),
+                      pressure=float(rng.uniform(p0, p1)))
+        else:
+            from thermoskin.physics.contact import OBJECTS
+
+            kind = objects[int(rng.integers(len(objects)))]
+            opts = OBJECT_TEMPS[kind]
+            w = np.array([o[0] for o in opts])
+            _, how, lo, hi = opts[int(rng.choice(len(opts), p=w / w.sum()))]
+            T0 = float(rng.uniform(lo, hi)) + (T_a if how == "room" else 0.0)
+            tc = dict(toucher=kind, n_fingers=0, T_body=T0,
+                      area=float(OBJECTS[kind].area * rng.uniform(*W.OBJECT_AREA_SCALE)),
+                      pressure=float(rng.uniform(*W.OBJECT_PRESSURE)))
+        dur = float(rng.uniform(*W.TAP_S) if rng.uniform() < p_tap else rng.uniform(*W.HOLD_S))
+        gap = float(rng.uniform(6.0, 10.0))
+        if t + dur > duration - 1.0:
+            break
+        touches.append(Touch(t_on=t, duration=dur, **tc))  # type: ignore[arg-type]
+        t += dur + gap
+    return Scenario(
+        name=name or f"touchers-{seed}",
+        description=f"persons (30-36 °C skin) and objects (cold drinks, hot mugs, tools at room "
+                    f"temperature) touching, seed {seed}: taps 0.2-0.6 s, holds 1.5-6 s, 6-10 s apart",
+        duration=float(duration), T_w_cmd=T_w_cmd, T_a=T_a, touches=tuple(touches), pump="logic")
+
+
 _FINGERS_DUR = [2.0, 2.5, 1.8, 2.2, 2.8, 1.6, 2.4, 3.0, 2.0]
 _FINGERS_GAP = [7.0, 6.0, 8.0, 5.5, 7.5, 6.5, 8.5, 6.0]
 
@@ -238,6 +292,7 @@ SCENARIOS: dict[str, Scenario] = {
         "setpoints", "commands 24, 26, 28 degC, 120 s each, no touch (Fig. 8)", duration=360.0,
         setpoints=((0.0, 24.0), (120.0, 26.0), (240.0, 28.0))),
     "realistic": random_scenario(2024, 120.0, name="realistic"),
+    "touchers": toucher_scenario(13, 180.0, name="touchers"),
     "calibration": Scenario(
         "calibration", "no touch; commands stepping every 5 s within 22-26 degC: long pump-on and "
         "pump-off stretches, for `thermoskin calibrate`", duration=120.0,

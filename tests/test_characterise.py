@@ -1,0 +1,155 @@
+"""What touched: the characteriser against touchers stepped by the finite-volume bodies of
+physics.contact (an independent model: a grid, backward Euler, Pennes perfusion), the flow
+kernel against its closed-form limits, the identifiability rules, the events table."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.special import erfc
+
+from thermoskin.characterise import (
+    Characteriser,
+    flux_kernel,
+    no_touch_sheet,
+    regressors,
+    sheet_coupling,
+)
+from thermoskin.events import EVENT_COLUMNS, ContactEvent, write_events
+from thermoskin.params import Config
+from thermoskin.physics import contact as ct
+
+BONDED = Config().replace(skin={"R_g": 1.0, "R_ag": 10.0})
+"""A sheet bonded to the pipe, insulated from the air: the pipe moves it by 10/11."""
+TABLE1 = Config()
+"""The paper's skin: the sheet held by the air, the pipe moves it by 1/11."""
+
+
+def touch(cfg: Config, kind: str, T0: float, probe_K: float, hold: float = 4.0, seed: int = 1,
+          noise: float = 0.02) -> tuple[Characteriser, ContactEvent, dict[str, float]]:
+    """A toucher of physics.contact held ``hold`` s on the sheet, the pipe's water stepped by
+    ``±probe_K`` every second from 0.3 s on (the probe's square wave), the sheet in balance
+    (``T_g = T_x + R_par q``, solved with the toucher's exact one-step response), the flow
+    with white noise: the characteriser fed with it, the event, the truth."""
+    t_s, t_on = 1e-3, 2.0
+    t_off = t_on + hold
+    t = np.arange(int((t_off + 1.0) / t_s)) * t_s
+    T_a = np.full(len(t), 20.0)
+    s = t - t_on - 0.3
+    T_w = 24.0 + np.where((s >= 0) & (t < t_off), np.where((s % 2.0) < 1.0, probe_K, -probe_K), 0.0)
+    R_par = sheet_coupling(cfg)
+    T_x = no_touch_sheet(cfg, T_w, T_a)
+    body = ct.toucher(kind, T0)
+    G = body.truth["G_true"]
+    q = np.zeros(len(t))
+    for k in range(len(t)):
+        on = t_on <= t[k] < t_off
+        body.begin(G if on else 0.0)
+        q[k] = body.G_eff * (body.T_eff - T_x[k]) / (1.0 + body.G_eff * R_par) if on else 0.0
+        body.end(T_x[k] + R_par * q[k])
+    dq = q + noise * np.random.default_rng(seed).standard_normal(len(t))
+    ch = Characteriser(cfg)
+    ch.feed(t, dq, T_w, T_a)
+    ch.finish()
+    ev = ContactEvent(onset=t_on, detected_at=t_on + 0.04, release=t_off, duration=hold,
+                      sign=1 if q[int(3.0 / t_s)] > 0 else -1, peak_dq=float(np.abs(q).max()),
+                      mean_dq=float(q[q != 0].mean()), energy=float(q.sum() * t_s))
+    return ch, ev, body.truth
+
+
+def test_flux_kernel_limits() -> None:
+    """``F(x) = exp(x²) erfc(x)``: 1 at the start; the asymptote ``1/(x sqrt(pi)) (1 - 1/(2x²))``;
+    a direct evaluation where it does not overflow."""
+    assert flux_kernel(0.0, 5.0) == pytest.approx(1.0)
+    assert flux_kernel(1.0, -1.0) == pytest.approx(1.0)  # before the onset
+    x = 40.0
+    asym = 1 / (x * math.sqrt(math.pi)) * (1 - 1 / (2 * x * x))
+    assert flux_kernel(x, 1.0) == pytest.approx(asym, rel=1e-5)
+    for x in (0.1, 0.7, 2.0):
+        assert flux_kernel(x, 1.0) == pytest.approx(math.exp(x * x) * float(erfc(x)), rel=1e-12)
+
+
+def test_duhamel_regressors_for_a_step_of_the_sheet() -> None:
+    """``T_x`` stepping by ``d`` at ``τ_1``: superposition gives ``u_2 = T_x0 F(κ√τ) + d F(κ√(τ - τ_1))``."""
+    kap, T0x, d, t1 = 0.8, 21.0, 0.6, 1.0
+    tau = np.arange(0.025, 3.0, 0.05)
+    T_x = np.where(tau >= t1, T0x + d, T0x)
+    u1, u2 = regressors(kap, tau, T_x, T0x)
+    np.testing.assert_allclose(u1, math.exp(0) * np.array([flux_kernel(kap, x) for x in tau]), rtol=1e-12)
+    expect = T0x * u1 + d * np.where(tau >= t1, [flux_kernel(kap, x - t1) for x in tau], 0.0)
+    np.testing.assert_allclose(u2, expect, atol=0.02 * d)  # the step falls within a bin
+
+
+@pytest.mark.parametrize(("kind", "T0", "human"), [("finger", 31.0, True), ("wood_block", 22.0, False)])
+def test_probe_on_a_bonded_sheet_identifies_temperature_and_conductance(kind: str, T0: float,
+                                                                       human: bool) -> None:
+    ch, ev, truth = touch(BONDED, kind, T0, probe_K=0.5)
+    r = ch.characterise(ev)
+    assert r.toucher == ("human" if human else "object")
+    assert abs(r.T_f_hat - truth["T_f_true"]) <= 1.5
+    assert abs(r.T_f_hat - truth["T_f_true"]) <= 3.0 * r.T_f_sd + 0.3
+    assert r.G_hat == pytest.approx(truth["G_true"], rel=0.25)
+    assert r.kind == "hold"
+
+
+@pytest.mark.parametrize("cfg", [BONDED, TABLE1], ids=["bonded", "table1"])
+def test_without_the_probe_temperature_and_conductance_are_not_identifiable(cfg: Config) -> None:
+    """A still sheet shows only ``G' (T_0 - T_x)``: no ``T_f_hat``, no ``G_hat``; person or
+    object is still told (from the effusivity the decay shows and the flow's sign)."""
+    ch, ev, _ = touch(cfg, "finger", 31.0, probe_K=0.0)
+    r = ch.characterise(ev)
+    assert math.isnan(r.T_f_hat) and math.isnan(r.T_f_sd)
+    assert math.isnan(r.G_hat) and math.isnan(r.G_sd)
+    assert r.toucher == "human" and r.p_human >= 0.8
+
+
+def test_the_papers_skin_cannot_separate_them_even_with_the_probe() -> None:
+    """With the sheet held by the air the pipe's ±0.5 K moves it by ±0.045 K: too little."""
+    ch, ev, _ = touch(TABLE1, "palm", 33.0, probe_K=0.5)
+    r = ch.characterise(ev)
+    assert math.isnan(r.T_f_hat)
+    assert r.toucher == "human"
+
+
+def test_a_cold_can_is_an_object_from_a_tap() -> None:
+    """Heat out of the skin at 24 °C: no person's hand does that."""
+    ch, ev, _ = touch(BONDED, "can_cold", 5.0, probe_K=0.0, hold=0.5)
+    r = ch.characterise(ev)
+    assert r.kind == "tap" and r.toucher == "object" and r.p_human < 0.05
+
+
+def test_a_hot_mug_needs_the_probe() -> None:
+    """A 55 °C mug (glass-ceramic, ``e`` 1585) through a small contact brings the heat of a
+    33 °C hand (``e`` 1180) through a larger one: without the probe it passes for a person;
+    with it, its temperature shows and it is an object."""
+    ch, ev, _ = touch(BONDED, "mug_hot", 55.0, probe_K=0.0)
+    assert ch.characterise(ev).toucher != "object"
+    ch, ev, _ = touch(BONDED, "mug_hot", 55.0, probe_K=0.5)
+    r = ch.characterise(ev)
+    assert r.toucher == "object" and r.material == "glass-ceramic"
+
+
+def test_a_live_call_knows_less_than_the_release() -> None:
+    """At 0.25 s after the onset the kind is not known yet; at the release it is."""
+    ch, ev, _ = touch(BONDED, "finger", 31.0, probe_K=0.5)
+    early = ch.characterise(ev, at=0.25)
+    assert early.kind == "" and early.t_used == pytest.approx(0.25)
+    assert ch.characterise(ev).kind == "hold"
+
+
+def test_annotated_events_table(tmp_path: Path) -> None:
+    """Text columns as text, unidentified values as empty fields, numbers round-trip."""
+    ch, ev, _ = touch(BONDED, "finger", 31.0, probe_K=0.0)
+    e = ch.annotate(ev)
+    write_events(tmp_path / "ev.csv", [e, ev])
+    with open(tmp_path / "ev.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == list(EVENT_COLUMNS)
+    assert rows[0]["kind"] == "hold" and rows[0]["toucher"] == "human"
+    assert rows[0]["T_f_hat"] == "" and rows[0]["G_hat"] == ""  # not identifiable
+    assert float(rows[0]["p_human"]) == e.p_human
+    assert rows[1]["kind"] == "" and rows[1]["p_human"] == ""  # not characterised
