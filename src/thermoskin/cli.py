@@ -1045,9 +1045,6 @@ def reproduce(out_dir: Path, only: str | None) -> None:
     run_reproduce(out_dir, figs, console=console, progress=_progress_bar)
 
 
-if __name__ == "__main__":
-    main()
-
 
 @main.command()
 @click.argument("sweep_toml", type=click.Path(path_type=Path))
@@ -1097,3 +1094,7 @@ def sweep_plot(results: Path, output: Path, metrics: tuple[str, ...]) -> None:
     check_output(output, "-o", (".png", ".pdf", ".svg"), "plot")
     plot_results(results, output, list(metrics) or None)
     console.print(f"plot written to {output}")
+
+
+if __name__ == "__main__":
+    main()

@@ -167,7 +167,8 @@ def prepare(cfg: Config, spec: ScenarioSpec, seed: int) -> Row:
     ps[SK.S_NDWELL] = max(0, math.ceil(float(cfg.pump.min_dwell) / t_s - 1e-9))
     p, c = cfg.peltier, cfg.control
     tank = PeltierTank(p, t_s, (c.drive_min, c.drive_max))
-    ps[SK.S_NMOD], ps[SK.S_SM], ps[SK.S_RM], ps[SK.S_KM], ps[SK.S_IMAX] = p.n_modules, p.S_m, p.R_m, p.K_m, p.I_max
+    ps[SK.S_NMOD], ps[SK.S_SM], ps[SK.S_RM] = p.n_modules, p.S_m, p.R_m
+    ps[SK.S_KM], ps[SK.S_IMAX] = p.K_m, p.I_max
     ps[SK.S_CT], ps[SK.S_RTA], ps[SK.S_CS], ps[SK.S_RS] = p.C_tank, p.R_tank_air, p.C_sink, p.R_sink
     ps[SK.S_NSUB] = tank.n_sub
     ps[SK.S_DMIN], ps[SK.S_DMAX] = c.drive_min, c.drive_max
@@ -244,7 +245,14 @@ def run_chunk(points: Sequence[tuple[Config, int]], spec: ScenarioSpec,
               models: Models | None = None) -> list[dict[str, Any]]:
     """Run points ``(config, seed)`` of one structure (:func:`structure`) as one batch;
     one metrics dict per point, in order."""
-    models = models or Models()
+    from thermoskin.sim.skin_plant import _one_blas_thread
+
+    with _one_blas_thread():  # the same rounding on every machine and worker, whatever its BLAS threads
+        return _run_chunk(points, spec, models or Models())
+
+
+def _run_chunk(points: Sequence[tuple[Config, int]], spec: ScenarioSpec,
+               models: Models) -> list[dict[str, Any]]:
     rows = [prepare(cfg, spec, seed) for cfg, seed in points]
     shapes = {structure(cfg, spec) for cfg, _ in points}
     if len(shapes) != 1:

@@ -254,7 +254,6 @@ def _row(ps, G_c, T_f, T_a_true, cmd, T_p_presc, cls, NOISE, CONV, pr, Phi, Gam,
                 held = 0
         if held < n_dwell:
             held += 1
-        v = v_on if on else 0.0
         if closed:
             # MPC (control.mpc.Mpc.step, on_stop = "solve")
             if math.isfinite(rw) and math.isfinite(ra) and math.isfinite(cm):
@@ -371,7 +370,7 @@ def _row(ps, G_c, T_f, T_a_true, cmd, T_p_presc, cls, NOISE, CONV, pr, Phi, Gam,
         else:
             Tp_old = Tp_true
         vv = v_on if on else 0.0
-        if vv != v_prev or G != G_prev:
+        if vv != v_prev or G_prev != G:
             _zoh(ps, Rw_v, G, c)
             v_prev = vv
             G_prev = G

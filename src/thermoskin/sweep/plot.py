@@ -73,7 +73,8 @@ def plot_results(path: Path, out: Path, metrics: list[str] | None = None) -> Non
             x = num[keys[0]]
             ax.plot(x, y, ".", alpha=0.4)
             ux = np.unique(x)
-            ax.plot(ux, [np.nanmean(y[x == u]) if np.any(np.isfinite(y[x == u])) else np.nan for u in ux], "-")
+            means = [np.nanmean(y[x == u]) if np.any(np.isfinite(y[x == u])) else np.nan for u in ux]
+            ax.plot(ux, means, "-")
             ax.set_xlabel(keys[0])
             ax.set_ylabel(LABELS.get(m, m))
         else:
@@ -119,7 +120,8 @@ def _parallel(fig, ax, xs, keys, z, label) -> None:  # type: ignore[no-untyped-d
     names = [*keys, label]
     scaled = []
     for c in cols:
-        lo, hi = np.nanmin(c) if np.any(np.isfinite(c)) else 0.0, np.nanmax(c) if np.any(np.isfinite(c)) else 1.0
+        fin = np.any(np.isfinite(c))
+        lo, hi = (np.nanmin(c), np.nanmax(c)) if fin else (0.0, 1.0)
         scaled.append((c - lo) / (hi - lo) if hi > lo else np.full(len(c), 0.5))
     S = np.column_stack(scaled)
     ok = np.all(np.isfinite(S), axis=1)

@@ -135,10 +135,7 @@ def box_qp(P, Pinv, q, ustar, lb, ub, W, u, M, r, idx, g):
                 elif u[i] < lb - TOL:
                     W[i] = -1
                     changed = True
-            elif W[i] > 0 and g[i] > TOL:
-                W[i] = 0
-                changed = True
-            elif W[i] < 0 and g[i] < -TOL:
+            elif (W[i] > 0 and g[i] > TOL) or (W[i] < 0 and g[i] < -TOL):
                 W[i] = 0
                 changed = True
         if not changed:
