@@ -125,8 +125,9 @@ def _parallel(fig, ax, xs, keys, z, label) -> None:  # type: ignore[no-untyped-d
         scaled.append((c - lo) / (hi - lo) if hi > lo else np.full(len(c), 0.5))
     S = np.column_stack(scaled)
     ok = np.all(np.isfinite(S), axis=1)
-    segs = [np.column_stack([np.arange(S.shape[1]), s]) for s in S[ok]]
-    zz = z[ok]
+    order = np.argsort(z[ok], kind="stable")  # the highest values drawn last, on top
+    segs = [np.column_stack([np.arange(S.shape[1]), s]) for s in S[ok][order]]
+    zz = z[ok][order]
     lc = LineCollection(segs, array=zz, cmap="viridis", linewidths=0.6, alpha=0.5)
     ax.add_collection(lc)
     ax.set_xlim(-0.1, S.shape[1] - 0.9)

@@ -10,6 +10,7 @@ from its own seed), so a Dask run, a resumed run and a straight run give the sam
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,8 +68,11 @@ def _dask(todo: list[list[Point]], spec: ScenarioSpec, keys: list[str],
         from thermoskin.params import ConfigError
 
         raise ConfigError("--dask needs dask.distributed: pip install 'thermoskin[dask]'") from None
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                           dashboard_address=None) if address == "local" else None
+    # one worker process per core, each running its chunk's rows on one thread (numba's
+    # threads on top of two processes would only contend for the two cores)
+    cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                           dashboard_address=None, env={"NUMBA_NUM_THREADS": "1"}
+                           ) if address == "local" else None
     try:
         with Client(cluster if cluster is not None else address) as client:
             futures = [client.submit(run_task, c, spec, keys, pure=False) for c in todo]
