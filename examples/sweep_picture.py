@@ -24,8 +24,8 @@ def main() -> None:
     a = ap.parse_args()
     res = run_sweep(load_sweep(ROOT / "examples" / "sweep.toml"), a.results)
     print(f"{res.rows} points ({res.ran} run now in {res.wall_s:.1f} s)")
-    plot_results(a.results, a.out, ["latency_median_s", "false_alarms_per_h", "snr_one_finger",
-                                     "tracking_rms_K", "energy_J", "detection_rate"])
+    plot_results(a.results, a.out, ["latency_median_s", "snr_one_finger", "tracking_rms_K", "energy_J"],
+                 dpi=72)
     print(f"written {a.out}")
 
 

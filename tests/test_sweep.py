@@ -70,7 +70,7 @@ def _reference_metrics(cols: dict[str, np.ndarray], events: list, sc, spec: Scen
     return {"tracking_rms_K": float(np.sqrt(np.mean(e * e))), "hits": m.hits, "misses": m.misses,
             "false_alarms": m.false_alarms,
             "latency_median_s": float(np.median(m.latencies)) if m.hits else math.nan,
-            "snr_one_finger": float(snr), "armed_s": float(after.sum() * t_s)}
+            "snr_one_finger": float(snr), "observed_s": float(after.sum() * t_s)}
 
 
 def _close(a: float, b: float, rel: float) -> bool:
@@ -102,7 +102,7 @@ def test_batch_equals_closed_loop(monkeypatch: pytest.MonkeyPatch) -> None:
         assert row["touches"] == len(sc.touches) >= 1
         for k in ("hits", "misses", "false_alarms"):
             assert row[k] == ref[k], k
-        for k in ("tracking_rms_K", "latency_median_s", "snr_one_finger", "armed_s"):
+        for k in ("tracking_rms_K", "latency_median_s", "snr_one_finger", "observed_s"):
             assert _close(row[k], ref[k], 1e-7), (k, row[k], ref[k])
         assert _close(row["energy_J"], energy[0], 1e-7)
         assert row["detection_rate"] == ref["hits"] / (ref["hits"] + ref["misses"])
@@ -239,6 +239,20 @@ def test_kill_and_resume(tmp_path: Path) -> None:
     assert _same_rows(pq.read_table(straight).to_pylist(), t)
     r = CliRunner().invoke(main, ["sweep", str(f), "-o", str(straight)])
     assert "0 run now" in r.output and "12 already done" in r.output
+
+
+def test_results_of_another_sweep_are_not_touched(tmp_path: Path) -> None:
+    """An output holding other columns (another sweep, other metrics) is refused, kept as it was."""
+    f = tmp_path / "s.toml"
+    f.write_text(SMALL.read_text().replace("duration = 20.0", "duration = 10.0")
+                 .replace("settle = 8.0", "settle = 4.0"))
+    out = tmp_path / "r.parquet"
+    assert CliRunner().invoke(main, ["sweep", str(f), "-o", str(out)]).exit_code == 0
+    before = out.read_bytes()
+    f.write_text(f.read_text().replace("chunk = 4", 'chunk = 4\nmetrics = ["tracking_rms_K"]'))
+    r = CliRunner().invoke(main, ["sweep", str(f), "-o", str(out)])
+    assert r.exit_code == 2 and "holds other columns" in r.output
+    assert out.read_bytes() == before
 
 
 def test_dask_local_cluster_equals_local(tmp_path: Path) -> None:

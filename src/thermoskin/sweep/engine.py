@@ -12,10 +12,10 @@ Metrics of a point (a row of ``RESULTS.parquet``):
 
 - ``detection_rate``: touches detected / touches scored (``evaluation.match_events``, a
   touch is detected by the first contact detected within ``[t_on, t_off + late]``);
-- ``false_alarms_per_h``: the other contacts per hour of armed detector;
+- ``false_alarms_per_h``: the other contacts per hour from ``settle`` on;
 - ``latency_median_s``, ``latency_p90_s``: ``detected_at - t_on`` of the detected touches;
 - ``snr_one_finger``: ``(mean dq_i_hat over one-finger contact - mean over quiet) / sd over
-  quiet``, quiet = armed, no contact now nor in the last ``T_QUIET`` s;
+  quiet``, quiet = from ``settle`` on, no contact now nor in the last ``T_QUIET`` s;
 - ``tracking_rms_K``: ``sqrt(mean (T_w_true - T_w_cmd)^2)`` from ``settle`` s on;
 - ``energy_J``: the Peltier modules' electric energy ``sum P_elec t_s`` (closed loop).
 """
@@ -54,7 +54,7 @@ EVENT_CAP = 256
 METRICS = ("detection_rate", "false_alarms_per_h", "latency_median_s", "latency_p90_s",
            "snr_one_finger", "tracking_rms_K", "energy_J")
 """The metrics a sweep can keep (all by default)."""
-EXTRA = ("touches", "hits", "misses", "false_alarms", "armed_s", "qp_solves")
+EXTRA = ("touches", "hits", "misses", "false_alarms", "observed_s", "qp_solves")
 """Counts kept with every point."""
 
 
@@ -298,7 +298,7 @@ def score(sc: Scenario, events: Sequence[ContactEvent], res: Array, spec: Scenar
     """The metrics of one point (module doc) from its contacts and the kernel's sums."""
     m = match_events(sc.touches, events, late=spec.late, t_end=t_end)
     scored = m.hits + m.misses
-    armed_h = res[SK.R_NARMED] * t_s / 3600.0
+    observed_h = res[SK.R_NARMED] * t_s / 3600.0
     lat = m.latencies
     n1, nq = res[SK.R_N1], res[SK.R_NQ]
     if n1 > 0 and nq > 1:
@@ -309,12 +309,12 @@ def score(sc: Scenario, events: Sequence[ContactEvent], res: Array, spec: Scenar
         snr = math.nan
     return {
         "detection_rate": m.hits / scored if scored else math.nan,
-        "false_alarms_per_h": m.false_alarms / armed_h if armed_h > 0 else math.nan,
+        "false_alarms_per_h": m.false_alarms / observed_h if observed_h > 0 else math.nan,
         "latency_median_s": float(np.median(lat)) if len(lat) else math.nan,
         "latency_p90_s": float(np.percentile(lat, 90)) if len(lat) else math.nan,
         "snr_one_finger": float(snr),
         "tracking_rms_K": math.sqrt(res[SK.R_SSE] / res[SK.R_NTRACK]) if res[SK.R_NTRACK] else math.nan,
         "energy_J": float(res[SK.R_ENERGY]),
         "touches": len(sc.touches), "hits": m.hits, "misses": m.misses, "false_alarms": m.false_alarms,
-        "armed_s": float(res[SK.R_NARMED] * t_s), "qp_solves": int(res[SK.R_QPS]),
+        "observed_s": float(res[SK.R_NARMED] * t_s), "qp_solves": int(res[SK.R_QPS]),
     }

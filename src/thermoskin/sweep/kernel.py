@@ -28,7 +28,7 @@ when its safety limits would stop it.
 Accumulated per row (nothing is stored per sample): the contacts (kernel event records),
 ``sum (T_w_true - T_w_cmd)^2`` from ``t_track`` on, the Peltier's electric energy
 ``sum P_elec t_s``, and ``dq_i_hat``'s sums over one-finger contact samples and over quiet
-samples (armed, no contact and none in the last ``T_QUIET`` s), for the SNR.
+samples (from ``t_track`` on, no contact and none in the last ``T_QUIET`` s), for the SNR.
 """
 
 from __future__ import annotations

@@ -38,7 +38,7 @@ def read_results(path: Path) -> dict[str, np.ndarray]:
     return {c: np.asarray(t.column(c).to_pylist(), dtype=object) for c in t.column_names}
 
 
-def plot_results(path: Path, out: Path, metrics: list[str] | None = None) -> None:
+def plot_results(path: Path, out: Path, metrics: list[str] | None = None, dpi: int = 110) -> None:
     """Draw ``path``'s metrics against its keys into ``out`` (module doc)."""
     import matplotlib
 
@@ -83,7 +83,7 @@ def plot_results(path: Path, out: Path, metrics: list[str] | None = None) -> Non
         axes[j // ncol][j % ncol].axis("off")
     fig.suptitle(f"{Path(path).name}: {len(cols['point'])} points")
     fig.tight_layout()
-    fig.savefig(out, dpi=110)
+    fig.savefig(out, dpi=dpi)
     plt.close(fig)
 
 

@@ -9,7 +9,6 @@ from its own seed), so a Dask run, a resumed run and a straight run give the sam
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -74,7 +73,14 @@ def _dask(todo: list[list[Point]], spec: ScenarioSpec, keys: list[str],
                            dashboard_address=None, env={"NUMBA_NUM_THREADS": "1"}
                            ) if address == "local" else None
     try:
-        with Client(cluster if cluster is not None else address) as client:
+        try:
+            client = Client(cluster if cluster is not None else address, timeout="20s")
+        except (OSError, TimeoutError, ValueError, TypeError) as e:
+            from thermoskin.params import ConfigError
+
+            raise ConfigError(f"--dask {address}: cannot reach the scheduler: "
+                              f"{' '.join(str(e).split()) or type(e).__name__}") from None
+        with client:
             futures = [client.submit(run_task, c, spec, keys, pure=False) for c in todo]
             for fut in as_completed(futures):
                 yield fut.result()
@@ -91,6 +97,7 @@ def run_sweep(sw: Sweep, out: Path, *, dask: str | None = None,
 
     t0 = time.perf_counter()
     cols = sw.columns()
+    store.check_columns(out, cols)
     done = store.done_hashes(out)
     todo_pts = [p for p in sw.points if p.hash not in done]
     total = len(sw.points)
@@ -109,4 +116,4 @@ def run_sweep(sw: Sweep, out: Path, *, dask: str | None = None,
             progress(n_done, total)
     rows = store.merge(out, cols, {p.hash for p in sw.points})
     return SweepRun(total=total, skipped=skipped, ran=len(todo_pts), rows=rows,
-                    wall_s=time.perf_counter() - t0 if math.isfinite(t0) else 0.0)
+                    wall_s=time.perf_counter() - t0)

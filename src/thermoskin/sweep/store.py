@@ -25,6 +25,24 @@ def parts_dir(out: Path) -> Path:
     return out.with_name(out.name + ".parts")
 
 
+def check_columns(out: Path, columns: Sequence[str]) -> None:
+    """Refuse (one-line ``SweepError``) an ``out`` or parts holding other columns than this
+    sweep's (another sweep, other metrics): resuming into them would mix or lose rows."""
+    from thermoskin.sweep.spec import SweepError
+
+    d = parts_dir(out)
+    files = ([out] if out.is_file() else []) + (sorted(d.glob("part-*.parquet")) if d.is_dir() else [])
+    for f in files:
+        try:
+            names = pq.read_schema(f).names
+        except (pa.ArrowInvalid, OSError):
+            raise SweepError(f"-o {out}: {f} exists and is not a Parquet file; choose another "
+                             "output or remove it") from None
+        if list(names) != list(columns):
+            raise SweepError(f"-o {out}: {f} holds other columns than this sweep's (another sweep "
+                             "or other metrics); choose another output or remove it")
+
+
 def done_hashes(out: Path) -> set[str]:
     """The points already written (in ``out`` or its parts)."""
     done: set[str] = set()
