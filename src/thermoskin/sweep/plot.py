@@ -60,7 +60,7 @@ def plot_results(path: Path, out: Path, metrics: list[str] | None = None, dpi: i
     num = {k: _numeric(cols[k]) for k in keys}
     Y = {m: np.asarray(cols[m], dtype=float) for m in have}
     n = len(have)
-    ncol = min(n, 3)
+    ncol = 2 if n == 4 else min(n, 3)
     nrow = -(-n // ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol, 3.6 * nrow), squeeze=False)
     grid2 = len(keys) == 2 and all(len(np.unique(num[k])) <= 12 for k in keys)
