@@ -84,7 +84,7 @@ def test_toml_roundtrip(tmp_path, peltier_log):
 
 def test_identify_from_csv(tmp_path):
     d = synthetic(n=600)
-    write_log(tmp_path / "x.csv", d, float_format="%.10g")
+    write_log(tmp_path / "x.csv", d)
     m = identify(tmp_path / "x.csv", t_model=1.0)
     assert m.na >= 1
     with pytest.raises(IdentifyError, match="missing required column"):

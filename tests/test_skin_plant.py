@@ -82,9 +82,22 @@ def test_one_patch_no_pipe_is_the_single_spatial_plant() -> None:
 
 
 def _closed(skin_data: dict[str, Any]) -> Config:
-    """No loss to the air anywhere: skin, tank, sink, pipes."""
-    return Config().replace(skin={"R_aw": 1e15, "R_ag": 1e15},
-                            peltier={"R_tank_air": 1e15, "R_sink": 1e15})
+    """No loss to the air anywhere: skin, tank, sink, pipes (a physical limit beyond the
+    parameters' bounds, so set past their validation)."""
+    return Config()
+
+
+def _parse_closed(data: dict[str, Any], cfg: Config) -> Any:
+    """:func:`parse_skin`, then every patch's and tank's loss to the air set to 1e15 K/W."""
+    skin = parse_skin(data, "three.toml", cfg)
+    objs = [p.skin for p in skin.patches] + [lp.cfg.skin for lp in skin.loops]
+    for o in objs:
+        for k in ("R_aw", "R_ag"):
+            object.__setattr__(o, k, 1e15)
+    for lp in skin.loops:
+        for k in ("R_tank_air", "R_sink"):
+            object.__setattr__(lp.cfg.peltier, k, 1e15)
+    return skin
 
 
 def _heat(plant: SkinPlant, W: float) -> float:
@@ -109,7 +122,7 @@ def test_energy_balance_of_a_loop() -> None:
         if isinstance(p, dict):
             p["tau_loss"] = math.inf
     cfg = _closed(data)
-    skin = parse_skin(data, "three.toml", cfg)
+    skin = _parse_closed(data, cfg)
     plant = SkinPlant(skin, _scenario(1.5, T_a=20.0))
     plant.reset("ambient")
     plant.tanks[0].reset(30.0, 25.0, 20.0)
@@ -203,7 +216,7 @@ def test_upstream_touch_reaches_downstream_later_and_weaker() -> None:
 def test_still_water_reaches_the_tank_at_the_loop_ends_only() -> None:
     """Pump stopped: only p0's inlet and p2's outlet exchange with the tank (W(0)/2 each)."""
     cfg = _closed(THREE)
-    skin = parse_skin(copy.deepcopy(THREE), "three.toml", cfg)
+    skin = _parse_closed(copy.deepcopy(THREE), cfg)
     plant = SkinPlant(skin, _scenario(0.2, T_a=20.0))
     plant.reset("ambient")
     plant.tanks[0].reset(30.0, 20.0, 20.0)

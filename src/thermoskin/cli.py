@@ -173,9 +173,17 @@ CONFIG_OPT = click.option("--config", "config_path", type=click.Path(path_type=P
                    "contact (0/1) and gap; a log that already had them keeps them as *_live.")
 @EVENTS_OPT
 @CONFIG_OPT
+@click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
+              help="A skin of many patches (TOML): INPUT is its long-format log (t,patch,T_w,T_p,v,T_a,"
+                   "...); every patch is estimated with its inlet water (the cross-talk of shared water "
+                   "removed); events gain patch,position,position_sd; the layout with the contacts is "
+                   "drawn beside the output (OUTPUT.png).")
+@click.option("--groups", "groups_path", type=click.Path(path_type=Path), default=None,
+              help="With --skin: also write the body contacts (events on neighbouring patches "
+                   "overlapping in time), one row each.")
 @_user_errors
 def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
-            config_path: Path | None) -> None:
+            config_path: Path | None, skin_path: Path | None = None, groups_path: Path | None = None) -> None:
     """Estimate the touch heat flow and detect contacts in a recorded log.
 
     INPUT_CSV (CSV or Parquet) has at least the columns t,T_w,T_p,v,T_a (s, °C, °C, m/s, °C),
@@ -189,8 +197,14 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.pipeline import observe_file
 
-    _outputs(("-o", output_csv, LOG_SUFFIXES, "log"), ("--events", events_path, (".csv",), "events file"))
+    _outputs(("-o", output_csv, LOG_SUFFIXES, "log"), ("--events", events_path, (".csv",), "events file"),
+             ("--groups", groups_path, (".csv",), "groups file"))
     cfg = _config(config_path)
+    if skin_path is not None:
+        _observe_skin(input_csv, output_csv, events_path, groups_path, skin_path, cfg)
+        return
+    if groups_path is not None:
+        raise UserError("--groups needs --skin (a skin of many patches)")
     if partial_last_line(input_csv):
         click.echo(f"thermoskin: warning: {input_csv}: the last line is cut (its writer was stopped "
                    "while writing it): left out", err=True)
@@ -218,6 +232,73 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     if not res.events and res.duration_s < cfg.detector.t_warmup + cfg.detector.t_arm:
         err_console.print(f"thermoskin: warning: the log lasts {res.duration_s:.3g} s, less than "
                           "the detector needs to arm and learn its baseline: no contact can be reported")
+
+
+def _observe_skin(input_path: Path, output: Path, events_path: Path | None, groups_path: Path | None,
+                  skin_path: Path, cfg: Config) -> None:
+    """``observe --skin``: every patch of a skin over its long-format log (``skin_observe``)."""
+    from thermoskin.logio import write_log
+    from thermoskin.skin import load_skin
+    from thermoskin.skin_log import read_skin_log
+
+    skin = load_skin(skin_path, cfg)
+    with _progress_bar("observing") as bar:
+        bar.add_task(f"observing {input_path.name} on {skin.name}", total=None)
+        log = read_skin_log(input_path, skin)
+        from thermoskin.skin_log import long_columns
+        from thermoskin.skin_observe import observe_skin
+
+        obs = observe_skin(log, skin)
+        live = [k for k in ("q_i_hat", "dq_i_hat", "contact", "gap") if k in log.cols]
+        extra = {f"{k}_live": log.cols[k] for k in live}
+        extra.update({"T_in": obs.T_in, **obs.columns})
+        write_log(output, long_columns(log, extra, drop=tuple(live)))
+    _skin_report(skin, obs.events, output.with_suffix(".png"), events_path, groups_path,
+                 f"thermoskin observe {input_path.name}")
+    console.print(f"{log.n} samples of {len(skin.patches)} patches at {1 / log.t_s:.0f} Hz, "
+                  f"{len(obs.events)} contacts; wrote {output} and {output.with_suffix('.png')}"
+                  + (f", {events_path}" if events_path else "") + (f", {groups_path}" if groups_path else ""))
+
+
+def _skin_report(skin: Any, events: list[Any], picture: Path, events_path: Path | None,
+                 groups_path: Path | None, title: str) -> None:
+    """Print a skin's contacts and body contacts; write the events, groups and the layout picture."""
+    import math as _m
+
+    from rich.table import Table
+
+    from thermoskin.skin_groups import group_events, groups_columns
+    from thermoskin.skin_log import write_table
+    from thermoskin.skin_observe import events_columns
+    from thermoskin.skin_plot import plot_layout
+
+    groups = group_events(skin, events)
+    tab = Table(title="Detected contacts per patch")
+    for name in ("patch", "onset s", "detected s", "release s", "sign", "peak dq W", "position mm", "sd mm"):
+        tab.add_column(name, justify="right")
+    for e in events[:TABLE_ROWS]:
+        ev, pos = e.event, e.position
+        tab.add_row(e.name, f"{ev.onset:.3f}", f"{ev.detected_at:.3f}", f"{ev.release:.3f}", f"{ev.sign:+d}",
+                    f"{ev.peak_dq:.3f}", "" if _m.isnan(pos.mean) else f"{pos.mean * 1e3:.1f}",
+                    "" if _m.isnan(pos.sd) else f"{pos.sd * 1e3:.1f}")
+    console.print(tab)
+    gt = Table(title="Body contacts (events on neighbouring patches overlapping in time)")
+    for name in ("#", "link", "onset s", "release s", "patches", "x mm", "y mm", "heat W"):
+        gt.add_column(name, justify="right")
+    for k, g in enumerate(groups[:TABLE_ROWS], 1):
+        gt.add_row(str(k), g.link, f"{g.onset:.3f}", f"{g.release:.3f}", "+".join(g.patches),
+                   f"{g.centre[0] * 1e3:.0f}", f"{g.centre[1] * 1e3:.0f}", f"{g.heat:.3f}")
+    console.print(gt)
+    try:
+        if events_path is not None:
+            write_table(events_path, events_columns(events))
+        if groups_path is not None:
+            write_table(groups_path, groups_columns(groups))
+    except OSError as e:
+        raise UserError(f"cannot write {e.filename}: {e.strerror or e}") from None
+    marks = [{"patch": e.name, "position": e.position.mean, "position_sd": e.position.sd,
+              "label": f"{e.event.onset:.1f} s"} for e in events]
+    plot_layout(skin, marks, picture, title=f"{title}: {len(events)} contacts on {skin.name}")
 
 
 def _read_log(path: Path, required: Any) -> dict[str, Any]:
@@ -586,11 +667,18 @@ SETTLE_S = 10.0
 @click.option("--record", "record_path", type=click.Path(path_type=Path), default=None,
               help="Record every signal, command, event and the parameters to this MCAP file.")
 @_live_options
+@click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
+              help="Run a whole skin of many patches (TOML) in closed loop on the simulated device "
+                   "(scenario default: multi): the long-format log, every patch estimated (events with "
+                   "patch,position,position_sd), the body contacts (--groups) and the layout picture.")
+@click.option("--groups", "groups_path", type=click.Path(path_type=Path), default=None,
+              help="With --skin: also write the body contacts, one row each.")
 @_user_errors
 def run(scenario: str, duration: float | None, setpoint: float | None,
         config_path: Path | None, log_path: Path, plot_path: Path | None, events_path: Path | None,
         device: str, realtime: bool, record_path: Path | None, live_addr: str | None,
-        live_rate: float, live_wait: float) -> None:
+        live_rate: float, live_wait: float, skin_path: Path | None = None,
+        groups_path: Path | None = None) -> None:
     """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
 
     From ambient, the MPC and the inner loop bring T_w to its command while the observer
@@ -615,6 +703,17 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     from thermoskin.runtime.runlog import RunLog
     from thermoskin.runtime.stopping import StopRequest
 
+    if skin_path is not None:
+        single_only = (device != "sim", realtime, record_path is not None, live_addr is not None,
+                       setpoint is not None)
+        if any(single_only):
+            raise UserError("--skin runs the simulated skin in this process: --device, --realtime, --record, "
+                            "--live and --setpoint are for the single patch")
+        _run_skin(skin_path, None if scenario == "fingers" else scenario, duration, config_path, log_path,
+                  plot_path, events_path, groups_path)
+        return
+    if groups_path is not None:
+        raise UserError("--groups needs --skin (a skin of many patches)")
     serial = device.startswith("serial://")
     if device != "sim" and not serial:
         raise UserError(f"--device {device!r}: must be sim or serial://PATH")
@@ -747,6 +846,52 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         click.echo(f"thermoskin: {why} at t = {n * cfg.sampling.t_s:.3f} s; the device is in its "
                    "safe state; log, plot and recording written", err=True)
         sys.exit(stop.exit_code)
+
+
+def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, config_path: Path | None,
+              log_path: Path, plot_path: Path | None, events_path: Path | None,
+              groups_path: Path | None) -> None:
+    """``run --skin``: the whole skin in closed loop (one controller per water loop,
+    ``runtime/skin_loop.py``), then every patch estimated over the log as written
+    (``skin_observe``): events, body contacts, the layout picture beside the log."""
+    from thermoskin.paths import LOG_SUFFIXES, distinct
+    from thermoskin.runtime.skin_loop import run_skin
+    from thermoskin.sim.skin_scenarios import skin_scenario
+    from thermoskin.skin import load_skin
+    from thermoskin.skin_log import read_skin_log
+    from thermoskin.skin_observe import observe_skin
+
+    if plot_path is None:
+        plot_path = log_path.with_suffix(".png")
+    _outputs(("--log", log_path, LOG_SUFFIXES, "log"), ("--plot", plot_path, (".png",), "picture"),
+             ("--events", events_path, (".csv",), "events file"),
+             ("--groups", groups_path, (".csv",), "groups file"))
+    distinct(("--log", log_path), ("--plot", plot_path), ("--events", events_path), ("--groups", groups_path))
+    cfg = _config(config_path)
+    skin = load_skin(skin_path, cfg)
+    if duration is not None:
+        _check_duration(duration, cfg.sampling.t_s)
+    try:
+        sc = skin_scenario(scenario or "multi", skin, duration)
+    except (KeyError, ValueError) as e:
+        raise UserError(str(e).strip("'\"")) from None
+    console.print(f"[bold]thermoskin run --skin[/]: {skin.name} ({len(skin.patches)} patches on "
+                  f"{len(skin.loops)} loops) in closed loop on the simulated skin, scenario '{sc.name}' "
+                  f"({len(sc.contacts)} contacts), {sc.duration:g} s")
+    with _progress_bar("running") as bar:
+        task = bar.add_task("closed loop", total=1.0)
+        try:
+            res = run_skin(skin, sc, log_path, progress=lambda f: bar.update(task, completed=f))
+        except OSError as e:
+            raise UserError(f"cannot write {log_path}: {e.strerror or e}") from None
+    obs = observe_skin(read_skin_log(log_path, skin), skin)
+    _skin_report(skin, obs.events, plot_path, events_path, groups_path, f"thermoskin run --skin {sc.name}")
+    track = ", ".join(f"{lp.name} {e:.3f} K" for lp, e in zip(skin.loops, res.tracking, strict=True))
+    console.print(f"{sc.duration:g} s in {res.wall_s:.1f} s ({res.realtime_factor:.1f}x real time, the "
+                  f"closed loop); mean |T_w - T_w_cmd| over the second half: {track}; "
+                  f"{len(obs.events)} contacts; "
+                  f"wrote {log_path} and {plot_path}" + (f", {events_path}" if events_path else "")
+                  + (f", {groups_path}" if groups_path else ""))
 
 
 def _loop_figures(res: Any, n: int) -> None:

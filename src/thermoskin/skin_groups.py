@@ -1,0 +1,136 @@
+"""Contacts across patches: events on neighbouring patches that overlap in time, one body contact.
+
+Whole-body skins report a contact as a body link, a place on it, the cells involved and a
+strength (iCub's ``skinContact``). Two patch events belong to one contact when they are on the
+same link, overlap in time (``[onset, release]``, with ``slack`` s of tolerance) and the
+patches are neighbours: their rectangles on the link's unrolled surface come within ``reach``
+m of each other. Grouping is transitive (a grasp over four patches in a row is one contact).
+
+A :class:`BodyContact` has the link, the time span, the patches, the total heat flow (the sum
+of the events' mean estimated heat, W, signed) and the centre on the link: the heat-weighted
+mean of each event's point (its position along the pipe where known, else the patch's centre).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from thermoskin.skin import Skin
+from thermoskin.skin_observe import SkinEvent
+
+REACH = 0.02
+"""Patches whose rectangles come within this distance (m) are neighbours."""
+SLACK = 0.3
+"""Events this far apart in time (s) still overlap (detections differ by a few tenths)."""
+
+GROUP_COLUMNS = ("contact", "link", "onset", "release", "n_patches", "patches", "x", "y", "heat")
+"""Columns of the groups table: number, link, span (s), patches (names joined by ``+``), centre on
+the link (m), total heat flow (W)."""
+
+
+@dataclass(frozen=True)
+class BodyContact:
+    """One contact on a body link (module doc)."""
+
+    link: str
+    onset: float
+    release: float
+    patches: tuple[str, ...]
+    centre: tuple[float, float]
+    heat: float
+    members: tuple[int, ...]
+    """Indices of the member events in the list given to :func:`group_events`."""
+
+    def row(self, number: int) -> dict[str, object]:
+        return {"contact": number, "link": self.link, "onset": self.onset, "release": self.release,
+                "n_patches": len(self.patches), "patches": "+".join(self.patches),
+                "x": self.centre[0], "y": self.centre[1], "heat": self.heat}
+
+
+def gap(skin: Skin, a: int, b: int) -> float:
+    """Distance (m) between the rectangles of patches ``a`` and ``b`` on their link (inf on
+    different links; 0 where they overlap)."""
+    pa, pb = skin.patches[a], skin.patches[b]
+    if pa.link != pb.link:
+        return math.inf
+    ca, cb = pa.corners(), pb.corners()
+    if _overlap(ca, cb):
+        return 0.0
+    return min(min(_seg_dist(p, cb[k], cb[(k + 1) % 4]) for p in ca for k in range(4)),
+               min(_seg_dist(p, ca[k], ca[(k + 1) % 4]) for p in cb for k in range(4)))
+
+
+def _seg_dist(p: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
+    ax, ay = a
+    dx, dy = b[0] - ax, b[1] - ay
+    L2 = dx * dx + dy * dy
+    u = 0.0 if L2 == 0 else min(1.0, max(0.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / L2))
+    return math.hypot(p[0] - ax - u * dx, p[1] - ay - u * dy)
+
+
+def _overlap(ca: list[tuple[float, float]], cb: list[tuple[float, float]]) -> bool:
+    """Two convex quadrilaterals intersect (separating axis test)."""
+    for poly in (ca, cb):
+        for k in range(4):
+            (x0, y0), (x1, y1) = poly[k], poly[(k + 1) % 4]
+            nx, ny = y0 - y1, x1 - x0
+            pa = [nx * x + ny * y for x, y in ca]
+            pb = [nx * x + ny * y for x, y in cb]
+            if max(pa) < min(pb) - 1e-12 or max(pb) < min(pa) - 1e-12:
+                return False
+    return True
+
+
+def group_events(skin: Skin, events: list[SkinEvent], *, reach: float = REACH,
+                 slack: float = SLACK) -> list[BodyContact]:
+    """The body contacts of ``events`` (module doc), in order of onset."""
+    n = len(events)
+    parent = list(range(n))
+
+    def find(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for a in range(n):
+        ea = events[a]
+        for b in range(a + 1, n):
+            eb = events[b]
+            if ea.event.onset > eb.event.release + slack or eb.event.onset > ea.event.release + slack:
+                continue
+            if ea.patch == eb.patch or gap(skin, ea.patch, eb.patch) > reach:
+                continue
+            parent[find(a)] = find(b)
+    groups: dict[int, list[int]] = {}
+    for a in range(n):
+        groups.setdefault(find(a), []).append(a)
+    out = []
+    for members in groups.values():
+        evs = [events[m] for m in members]
+        link = skin.patches[evs[0].patch].link
+        pts, ws = [], []
+        for e in evs:
+            p = skin.patches[e.patch]
+            s = e.position.mean
+            pts.append(p.point_at(s) if math.isfinite(s) else p.centre)
+            ws.append(abs(e.event.mean_dq) + 1e-12)
+        w = np.array(ws)
+        xy = np.array(pts)
+        cx, cy = (w @ xy) / w.sum()
+        names = tuple(dict.fromkeys(e.name for e in evs))
+        out.append(BodyContact(link, min(e.event.onset for e in evs), max(e.event.release for e in evs),
+                               names, (float(cx), float(cy)), float(sum(e.event.mean_dq for e in evs)),
+                               tuple(members)))
+    out.sort(key=lambda g: (g.onset, g.link))
+    return out
+
+
+def groups_columns(groups: list[BodyContact]) -> dict[str, np.ndarray]:
+    """The groups as columns of :data:`GROUP_COLUMNS` (numbered from 1)."""
+    rows = [g.row(k + 1) for k, g in enumerate(groups)]
+    kind = {"link": object, "patches": object, "contact": np.int64, "n_patches": np.int64}
+    return {c: np.array([r[c] for r in rows], dtype=kind.get(c, float)) for c in GROUP_COLUMNS}

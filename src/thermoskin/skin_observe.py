@@ -1,0 +1,148 @@
+"""Estimation and detection on a skin of many patches: ``thermoskin observe LOG --skin SKIN.toml``.
+
+Per patch, the one-patch estimator of the compiled kernel (:class:`~thermoskin.patches.PatchEstimators`,
+one state row per patch, ``kernel.run_rows`` over the long-format rows), each patch with
+
+- **its own model**: the network of its ``[skin]`` (Table I scaled to its size, ``skin.py``)
+  and its loop's flow (eq. 1's ``R_w(v)``, the loop's pump), :func:`patch_config`;
+- **its own inlet water** as the input ``T_p`` (``skin_inlet``): the upstream patch's outlet
+  carried through the pipe between them (the tank's water, delayed, for the first patch), so
+  that heat a touch upstream put into the water is an input downstream, not a touch there.
+
+Events gain ``patch`` (its name), ``position`` and ``position_sd`` (m from the patch's inlet,
+``skin_position``; NaN where not identifiable) and ``heat`` (W, the position fit's heat into
+the sheet). Events of neighbouring patches are grouped into body contacts (``skin_groups``).
+
+**The estimator's noise for a patch of a skin.** The paper's network lumps the pipe into one
+node, which tracks its inlet within ``R_w C_w`` (25 ms); a patch of a skin is fed water whose
+temperature steps from parcel to parcel (the upstream patch's outlet swings with the pump's
+on/off chatter, the tank's with the supply pipe's delay), and its pipe is many cells. The
+lumped model then errs at every pump switch; :data:`SKIN_ESTIMATOR` lets the pipe node and
+the inlet's rate follow that (``S_w``, ``S_p``) instead of taking it as a touch, and waits
+:data:`SKIN_DETECTOR` ``t_warmup`` for the loops' pumps to settle into their chatter.
+A key the user's config sets above these is kept.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thermoskin.events import ContactEvent
+from thermoskin.params import Config
+from thermoskin.patches import PatchEstimators
+from thermoskin.skin import NETWORK_KEYS, Skin
+from thermoskin.skin_inlet import inlet_inputs
+from thermoskin.skin_log import SkinLog
+from thermoskin.skin_position import NAN_POSITION, PatchLocator, Position
+
+Array = NDArray[np.float64]
+
+SKIN_ESTIMATOR = {"S_w": 3e-3, "S_p": 100.0}
+"""Process noise of a skin patch's model (module doc): K^2/s on the pipe node, K^2/s^3 on the
+inlet's rate (the paper's single patch: 1e-8 and 0.01)."""
+SKIN_DETECTOR = {"t_warmup": 5.0}
+"""Detector settings of a skin patch (the paper's single patch: ``t_warmup`` 1 s)."""
+
+SKIN_EVENT_COLUMNS = ("patch", "onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq",
+                      "energy", "position", "position_sd", "heat")
+"""Columns of a skin's events table: the patch's name, :data:`~thermoskin.events.EVENT_COLUMNS`,
+the position along its pipe and its sd (m from the inlet; empty where not identifiable), the
+heat of the position fit (W)."""
+
+
+def patch_config(skin: Skin, i: int) -> Config:
+    """The estimator's config of patch ``i``: its loop's config, its own network, the skin's
+    noise (module doc)."""
+    p = skin.patches[i]
+    lc = skin.loops[p.loop].cfg
+    net = {k: getattr(p.skin, k) for k in NETWORK_KEYS}
+    cfg = dataclasses.replace(lc, skin=dataclasses.replace(lc.skin, **net))
+    es = {k: max(v, getattr(cfg.estimator, k)) for k, v in SKIN_ESTIMATOR.items()}
+    de = {k: max(v, getattr(cfg.detector, k)) for k, v in SKIN_DETECTOR.items()}
+    return dataclasses.replace(cfg, estimator=dataclasses.replace(cfg.estimator, **es),
+                               detector=dataclasses.replace(cfg.detector, **de))
+
+
+@dataclass(frozen=True)
+class SkinEvent:
+    """A contact on one patch: the one-patch event, the patch, its position along the pipe."""
+
+    patch: int
+    name: str
+    event: ContactEvent
+    position: Position = NAN_POSITION
+
+    def row(self) -> dict[str, float | str]:
+        r: dict[str, float | str] = {"patch": self.name}
+        r.update(self.event.row())
+        pos = self.position
+        r.update({"position": pos.mean, "position_sd": pos.sd, "heat": pos.heat})
+        return r
+
+
+@dataclass
+class SkinObservation:
+    """Per (sample, patch) outputs ``(n, P)`` and the events, in order of onset."""
+
+    columns: dict[str, Array]
+    events: list[SkinEvent]
+    T_in: Array
+    fresh_in: NDArray[np.int64]
+    groups: list[object] = field(default_factory=list)
+
+
+def thermocouples(log: SkinLog, skin: Skin) -> list[Array]:
+    """The log's thermocouple columns ``T_w, T_w2, ...`` (``(n, P)``; NaN where absent)."""
+    out = [log.cols["T_w"]]
+    for j in range(2, skin.n_thermocouples + 1):
+        out.append(log.cols.get(f"T_w{j}", np.full_like(log.cols["T_w"], math.nan)))
+    return out
+
+
+def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObservation:
+    """Estimate, detect and locate on every patch of ``skin`` over ``log`` (module doc)."""
+    from thermoskin.pipeline import check_interval
+
+    check_interval(log.t_s)
+    n, P = log.n, len(skin.patches)
+    fresh = log.cols["fresh"].astype(np.int64) if log.has("fresh") else None
+    Y = thermocouples(log, skin)
+    c = log.cols
+    T_in, fr = inlet_inputs(skin, log.t_s, Y, c["T_p"], c["v"], c["T_a"], fresh)
+    est = PatchEstimators([patch_config(skin, i) for i in range(P)], t_s=log.t_s, parallel=False)
+    patch = np.tile(np.arange(P, dtype=np.int64), n)
+    cmd = c["T_w_cmd"].ravel() if log.has("T_w_cmd") else None
+    cols, _ = est.run_rows(patch, np.repeat(log.t, P), c["T_w"].ravel(), T_in.ravel(), c["v"].ravel(),
+                           c["T_a"].ravel(), T_w_cmd=cmd, fresh=fr.ravel())
+    est.finish(float(log.t[-1]))
+    out = {k: cols[k].reshape(n, P) for k in ("q_i_hat", "dq_i_hat", "contact", "gap")}
+    events: list[SkinEvent] = []
+    locators: dict[int, PatchLocator] = {}
+    for i, ev in est.events:
+        pos = NAN_POSITION
+        if locate and len(skin.patches[i].thermocouples) >= 2:
+            loc = locators.get(i) or locators.setdefault(i, PatchLocator(skin, i, log.t_s))
+            k_on = round((ev.onset - log.t[0]) / log.t_s)
+            k_off = round((ev.release - log.t[0]) / log.t_s)
+            bits = [1] + [4 << j for j in range(1, len(skin.patches[i].thermocouples))]
+            fr_i = None if fresh is None else [(fresh[:, i] & b) != 0 for b in bits]
+            pos = loc.locate(k_on, k_off, T_in[:, i], c["T_a"][:, i], c["v"][:, i],
+                             [y[:, i] for y in Y[:len(bits)]], fr_i, out["dq_i_hat"][:, i])
+        events.append(SkinEvent(i, skin.patches[i].name, ev, pos))
+    events.sort(key=lambda e: (e.event.onset, e.patch))
+    return SkinObservation(out, events, T_in, fr)
+
+
+def events_columns(events: list[SkinEvent]) -> dict[str, NDArray[np.generic]]:
+    """The events as columns of :data:`SKIN_EVENT_COLUMNS`."""
+    rows = [e.row() for e in events]
+    out: dict[str, NDArray[np.generic]] = {}
+    for k in SKIN_EVENT_COLUMNS:
+        vals = [r[k] for r in rows]
+        out[k] = np.array(vals, dtype=object if k == "patch" else np.int64 if k == "sign" else float)
+    return out
