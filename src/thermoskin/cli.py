@@ -1218,5 +1218,56 @@ def reproduce(out_dir: Path, only: str | None) -> None:
     run_reproduce(out_dir, figs, console=console, progress=_progress_bar)
 
 
+
+@main.command()
+@click.argument("sweep_toml", type=click.Path(path_type=Path))
+@click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
+              help="RESULTS.parquet: one row per point (kept and resumed if it exists).")
+@click.option("--dask", "dask_address", default=None,
+              help="Run the chunks on a Dask cluster: its scheduler ADDRESS (tcp://host:8786), "
+                   "or 'local' for a local cluster (pip install 'thermoskin[dask]').")
+@_user_errors
+def sweep(sweep_toml: Path, output: Path, dask_address: str | None) -> None:
+    """Run a parameter sweep (docs/sweep.md): every point of SWEEP_TOML, batched.
+
+    Rows are written as chunks finish; a rerun skips the points already written.
+    """
+    from thermoskin.paths import check_output
+    from thermoskin.sweep.run import run_sweep
+    from thermoskin.sweep.spec import load_sweep
+
+    check_output(output, "-o", (".parquet",), "results file")
+    if dask_address is not None and not dask_address.strip():
+        raise UserError("--dask: give a scheduler address (tcp://host:8786) or 'local'")
+    sw = load_sweep(sweep_toml)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("points, left"),
+                  TimeRemainingColumn(), console=err_console, transient=True,
+                  disable=not err_console.is_terminal) as bar:
+        task = bar.add_task("sweep", total=len(sw.points))
+        res = run_sweep(sw, output, dask=dask_address,
+                        progress=lambda done, total: bar.update(task, completed=done))
+    console.print(f"{res.rows} points in {output} ({res.ran} run now in {res.wall_s:.1f} s, "
+                  f"{res.skipped} already done)")
+
+
+@main.command(name="sweep-plot")
+@click.argument("results", type=click.Path(path_type=Path))
+@click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
+              help="PLOT.png")
+@click.option("--metric", "metrics", multiple=True,
+              help="Metric(s) to draw (repeat; default: every metric in the file).")
+@_user_errors
+def sweep_plot(results: Path, output: Path, metrics: tuple[str, ...]) -> None:
+    """Heat maps (two keys) or parallel coordinates of metrics against a sweep's keys."""
+    from thermoskin.paths import check_output
+    from thermoskin.sweep.plot import plot_results
+
+    check_output(output, "-o", (".png", ".pdf", ".svg"), "plot")
+    plot_results(results, output, list(metrics) or None)
+    console.print(f"plot written to {output}")
+
+
 if __name__ == "__main__":
     main()
