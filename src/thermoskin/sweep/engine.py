@@ -35,7 +35,7 @@ from thermoskin.control.inner import model_feedforward
 from thermoskin.control.mpc import Mpc
 from thermoskin.estimator import TouchEstimator
 from thermoskin.evaluation import match_events
-from thermoskin.events import ContactEvent
+from thermoskin.events import NEV, ContactEvent
 from thermoskin.params import Config
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.finger import contact_profile
@@ -281,7 +281,7 @@ def _run_chunk(points: Sequence[tuple[Config, int]], spec: ScenarioSpec,
     NOISE = np.ascontiguousarray(np.stack([r.noise for r in rows]))
     CONV = np.ascontiguousarray(np.stack([r.conv for r in rows]))
     RES = np.zeros((N, SK.NR))
-    EVENTS = np.zeros((N, EVENT_CAP, len(ContactEvent.__dataclass_fields__)))
+    EVENTS = np.zeros((N, EVENT_CAP, NEV))
     SK.run_rows(PS, prof("G_c"), prof("T_f"), prof("T_a"), prof("cmd"), prof("T_p"), prof("cls", np.int8),
                 NOISE, CONV, mid, PR, *tabs, cid, Kmat, Fmat, Pm, Pinv, RES, EVENTS)
     out = []
