@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -18,6 +20,10 @@ def logs():  # type: ignore[no-untyped-def]
     one = simulate(SCENARIOS["one-finger"].with_duration(25.0), cfg)
     one["T_w"][9000:9050] = np.nan  # a loose thermocouple
     yield "1 kHz, a NaN burst", cfg, one
+    # the pump-cycle correction (16 bins: the 50 ms phases clip at the last bin)
+    es = dataclasses.replace(cfg.estimator, switch_bins=16, switch_learn=0.05)
+    sc = dataclasses.replace(cfg, estimator=es)
+    yield "pump-cycle correction", sc, one
     for name in ("boards-10hz", "ambient-step", "cold", "setpoints"):
         cond = get_condition(name, 4242)
         c = cond.config(cfg)

@@ -65,6 +65,8 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     # a log coarser than the loop holds each pump switch up to one of its intervals late
     pr[K.PR_VSW] = 0.29 if t_s > 1.5 * cfg.sampling.t_s else 0.0
     pr[K.PR_ICW] = 1.0 / cfg.skin.C_w
+    pr[K.PR_NPH] = cfg.estimator.switch_bins
+    pr[K.PR_APH] = cfg.estimator.switch_learn
     pr[K.PR_TAMBH] = d.t_air + 3.0 * cfg.sensor.lag_T_a
     F1, F2 = eq8.filters
     (pr[K.PR_F1B0], pr[K.PR_F1B1], pr[K.PR_F1B2]), (_, pr[K.PR_F1A1], pr[K.PR_F1A2]) = F1.b, F1.a

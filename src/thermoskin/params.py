@@ -149,6 +149,12 @@ class EstimatorParams(_Validated):
     S_a: float = _p(1e-3, "K^2/s", 1e-12, 1e6,
                     doc="random-walk density of the ambient temperature T_a")
     S_w: float = _p(1e-8, "K^2/s", 0.0, 1e6, doc="model error on the pipe node")
+    switch_bins: int = _p(0, "samples", 0, 64,
+                          doc="pump-cycle correction of T_w: the mean no-touch misfit per sample "
+                              "since the last pump switch, this many bins per direction (a pipe "
+                              "of many cells, docs/skin.md; 0: none)")
+    switch_learn: float = _p(0.02, "", 1e-6, 1.0,
+                             doc="its learning weight per no-touch reading")
     tank_gain: float | None = _p(None, "K/s", 0.0, 1e3, optional=True,
                                  doc="the tank's rate per unit Peltier drive; default: the [peltier] "
                                      "modules' Peltier heat over the tank's capacitance")

@@ -20,6 +20,13 @@ on/off chatter, the tank's with the supply pipe's delay), and its pipe is many c
 lumped model then errs at every pump switch; :data:`SKIN_ESTIMATOR` lets the pipe node and
 the inlet's rate follow that (``S_w``, ``S_p``) instead of taking it as a touch, and waits
 :data:`SKIN_DETECTOR` ``t_warmup`` for the loops' pumps to settle into their chatter.
+On a patch fed straight from the tank the misfit is the same shape in every cycle of the
+pump's chatter (the water carried along the pipe's cells, not mixed into one node: the
+reading lags the node after a switch to flow, then overtakes it); the estimator's pump-cycle
+correction (``estimator.switch_bins``: the mean no-touch innovation of ``T_w`` per sample
+since the last switch, learned and subtracted) takes it out, so :data:`TANK_FED_ESTIMATOR`
+needs far less pipe noise. Fed through a pipe, the inlet's own steps dominate and the
+correction did not help (docs/skin.md).
 A key the user's config sets above these is kept.
 """
 
@@ -45,6 +52,10 @@ Array = NDArray[np.float64]
 SKIN_ESTIMATOR = {"S_w": 3e-3, "S_p": 100.0}
 """Process noise of a skin patch's model (module doc): K^2/s on the pipe node, K^2/s^3 on the
 inlet's rate (the paper's single patch: 1e-8 and 0.01)."""
+TANK_FED_ESTIMATOR = {"S_w": 3e-4, "S_p": 100.0, "switch_bins": 64}
+"""The same for a patch fed straight from the tank (first of its loop, no supply pipe): its
+misfit is locked to the pump's cycle, which the pump-cycle correction learns (``switch_bins``,
+module doc), so the pipe node needs ten times less noise."""
 SKIN_DETECTOR = {"t_warmup": 5.0}
 """Detector settings of a skin patch (the paper's single patch: ``t_warmup`` 1 s)."""
 
@@ -62,7 +73,10 @@ def patch_config(skin: Skin, i: int) -> Config:
     lc = skin.loops[p.loop].cfg
     net = {k: getattr(p.skin, k) for k in NETWORK_KEYS}
     cfg = dataclasses.replace(lc, skin=dataclasses.replace(lc.skin, **net))
-    es = {k: max(v, getattr(cfg.estimator, k)) for k, v in SKIN_ESTIMATOR.items()}
+    lp = skin.loops[p.loop]
+    tank_fed = lp.patches[0] == i and lp.pipes[0].length == 0.0
+    es = {k: max(v, getattr(cfg.estimator, k))
+          for k, v in (TANK_FED_ESTIMATOR if tank_fed else SKIN_ESTIMATOR).items()}
     de = {k: max(v, getattr(cfg.detector, k)) for k, v in SKIN_DETECTOR.items()}
     return dataclasses.replace(cfg, estimator=dataclasses.replace(cfg.estimator, **es),
                                detector=dataclasses.replace(cfg.detector, **de))

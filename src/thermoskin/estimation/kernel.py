@@ -119,7 +119,11 @@ NCU = 4        # zero, and since then the sums of g e / S and g^2 / S (their rat
 WBUF = CU + 4 * NCU  # warm-up buffer: NWB q values
 NWB = 256
 SCR = WBUF + NWB  # scratch: Phi P (25)
-NSTATE = SCR + 25
+PHASE = SCR + 25  # samples since the last pump switch
+PHDIR = SCR + 26  # that switch: 0 to a lower water resistance (more flow), 1 to a higher
+NPH = 64          # most phase bins of the pump-cycle correction, per direction
+TPL = SCR + 27    # the correction: mean no-touch innovation of T_w per (direction, phase), K
+NSTATE = TPL + 2 * NPH
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -169,7 +173,9 @@ PR_TRETR = 48    # a contact begun this shortly before a sudden change of the ai
 PR_DHI = 49      # the larger design change of q_i, W
 PR_VSW = 50      # pump-switch timing uncertainty (0: switches at the samples, as in the loop)
 PR_ICW = 51      # 1/C_w, K/J
-NPARAM = 52
+PR_NPH = 52      # phase bins of the pump-cycle correction of T_w (0: none)
+PR_APH = 53      # its learning weight per no-touch reading
+NPARAM = 54
 
 
 # step result bits
@@ -641,9 +647,15 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
                   * pr[PR_TS] * pr[PR_ICW])
             st[X] += 0.5 * dT
             st[P] += (pr[PR_VSW] * dT) ** 2
+        if iv != int(st[IVP]):
+            st[PHASE] = 0.0
+            st[PHDIR] = 0.0 if Rw[iv] < Rw[int(st[IVP])] else 1.0
+        else:
+            st[PHASE] += 1.0
         st[IVP] = iv
     else:
         iv = int(st[IVP])
+        st[PHASE] += 1.0
     gap = st[E8GAP] > 0.0
     st[GAP] = 1.0 if gap else 0.0
     st[SGE] = st[SGG] = 0.0
@@ -660,7 +672,18 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
             st[X + 2] = st[B]
             _cusums_reset(st, t)
         if (fresh & 1) != 0 and math.isfinite(T_w):
-            _update(st, pr, 0, T_w, R)
+            y = T_w
+            nph = int(pr[PR_NPH])
+            if nph > 0:
+                # the pump-cycle correction: the reading less the mean misfit at this phase of
+                # the cycle, learned while no touch is detected
+                ph = int(st[PHASE])
+                j = TPL + int(st[PHDIR]) * nph + (ph if ph < nph - 1 else nph - 1)
+                c = st[j]
+                if st[MODE] != INCONTACT:
+                    st[j] = c + pr[PR_APH] * (T_w - st[X] - c)
+                y = T_w - c
+            _update(st, pr, 0, y, R)
             st[GAPRUN] = 0.0
             dt = t - st[TLW]
             if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is

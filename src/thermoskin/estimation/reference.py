@@ -72,6 +72,8 @@ class ReferenceEstimator:
         self.kappa, self.rate, self.t_last_w = 1.0, 0.0, -1e300
         self.gap_run = 0
         self.iv_prev = 0
+        self.phase, self.ph_dir = 0, 0
+        self.tpl = np.zeros((2, max(1, self.cfg.estimator.switch_bins)))
         self.cmd = math.nan
         self.armed, self.n_in = False, 0
         self.mode, self.n_seen, self.warm = "warm", 0, []
@@ -133,9 +135,15 @@ class ReferenceEstimator:
                       * self.t_s / self.cfg.skin.C_w)
                 self.x[I_TW] += 0.5 * dT
                 self.P[I_TW, I_TW] += (self.vsw * dT) ** 2
+            if iv != self.iv_prev:
+                self.phase = 0
+                self.ph_dir = 0 if (self.R_w(tb.v_values[iv]) < self.R_w(tb.v_values[self.iv_prev])) else 1
+            else:
+                self.phase += 1
             self.iv_prev = iv
         else:
             iv = self.iv_prev
+            self.phase += 1
         self.gap = not (math.isfinite(T_w) and math.isfinite(T_p) and math.isfinite(T_a) and v == v)
         ge = gg = 0.0
         if not self.ready:
@@ -150,7 +158,15 @@ class ReferenceEstimator:
                     self.x[I_Q] = self.b
                     self._reset_cusums(t)
             if fresh & 1 and math.isfinite(T_w):
-                a, c = self._update(I_TW, T_w)
+                y = T_w
+                nph = self.cfg.estimator.switch_bins
+                if nph > 0:  # the pump-cycle correction (kernel: PR_NPH)
+                    j = (self.ph_dir, min(self.phase, nph - 1))
+                    corr = self.tpl[j]
+                    if self.mode != "contact":
+                        self.tpl[j] = corr + self.cfg.estimator.switch_learn * (T_w - self.x[I_TW] - corr)
+                    y = T_w - corr
+                a, c = self._update(I_TW, y)
                 ge, gg = ge + a, gg + c
                 self.gap_run = 0
                 dt = t - self.t_last_w
