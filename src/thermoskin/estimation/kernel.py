@@ -780,11 +780,13 @@ def _outputs(st, out, k):
 def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
               fresh, codes, EV):
     """One sample of every patch: the readings are arrays over patches; ``codes[i]`` its bits,
-    ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``)."""
+    ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``). Calls :func:`step` (compiled
+    once, not inlined again: this entry point is for a few patches; many go to
+    :func:`step_many_parallel`)."""
     for i in range(ST.shape[0]):
         m = mid[i]
-        codes[i] = _step_one(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t,
-                             T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
+        codes[i] = step(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t,
+                        T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
 
 
 @njit(cache=True, parallel=True)
@@ -803,7 +805,8 @@ def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, 
              drive, fresh, out, events, ev_patch):
     """A long-format log (one row per sample and patch, in time order): each row steps its
     patch's state; fills ``out`` per row (as :func:`run`), ``events`` and ``ev_patch`` (the
-    patch of each); returns the event count."""
+    patch of each); returns the event count. Calls :func:`step` (compiled once, not inlined
+    again: the cost is a call per row, and a shorter first compile)."""
     n = t.shape[0]
     ev = np.empty(NEV)
     ne = 0
@@ -812,8 +815,8 @@ def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, 
         i = patch[k]
         m = mid[i]
         st = ST[i]
-        c = _step_one(st, PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t[k], T_w[k],
-                      T_p[k], T_a[k], T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
+        c = step(st, PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t[k], T_w[k],
+                 T_p[k], T_a[k], T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
         _outputs(st, out, k)
         if c & C_ENDED:
             if ne < cap:
