@@ -12,6 +12,10 @@ The objects a lab composes in its own code (``docs/api.md`` shows each with exam
     many = ts.PatchEstimators(cfg, n=100)         # many patches, one compiled loop
     log = ts.read_log("run.csv")                  # CSV or Parquet; ts.write_log, ts.LogReader, ts.LogWriter
     ts.write_events("events.csv", res.events)     # one row per contact
+    skin = ts.load_skin("examples/forearm.toml")  # a skin of many patches: ts.run_skin, ts.read_skin_log,
+                                                  # ts.observe_skin, ts.group_events
+    ts.characterise_events(events, columns, cfg)  # what touched; ts.calibrate (fit a network to a log);
+                                                  # ts.load_sweep / ts.run_sweep (design sweeps)
 
 Names are imported on first use, so ``import thermoskin`` stays light.
 """
@@ -50,6 +54,16 @@ _EXPORTS = {
     "run_closed_loop": "thermoskin.runtime.closed_loop",
     "SkinController": "thermoskin.runtime.controller",
     "match_events": "thermoskin.evaluation",
+    "Skin": "thermoskin.skin",
+    "load_skin": "thermoskin.skin",
+    "read_skin_log": "thermoskin.skin_log",
+    "observe_skin": "thermoskin.skin_observe",
+    "group_events": "thermoskin.skin_groups",
+    "run_skin": "thermoskin.runtime.skin_loop",
+    "characterise_events": "thermoskin.characterise",
+    "calibrate": "thermoskin.calibrate",
+    "load_sweep": "thermoskin.sweep.spec",
+    "run_sweep": "thermoskin.sweep.run",
 }
 
 __all__ = [
@@ -64,17 +78,27 @@ __all__ = [
     "Observation",
     "PatchEstimators",
     "Scenario",
+    "Skin",
     "SkinController",
     "ThermalExchangeObserver",
     "Touch",
     "TouchEstimator",
     "__version__",
+    "calibrate",
+    "characterise_events",
+    "group_events",
     "load_config",
+    "load_skin",
+    "load_sweep",
     "match_events",
     "observe",
     "observe_file",
+    "observe_skin",
     "read_log",
+    "read_skin_log",
     "run_closed_loop",
+    "run_skin",
+    "run_sweep",
     "save_config",
     "simulate",
     "write_events",
@@ -96,6 +120,8 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs
+    from thermoskin.calibrate import calibrate
+    from thermoskin.characterise import characterise_events
     from thermoskin.estimator import Observation, TouchEstimator
     from thermoskin.evaluation import match_events
     from thermoskin.events import EVENT_COLUMNS, ContactEvent, write_events
@@ -107,5 +133,12 @@ if TYPE_CHECKING:  # for type checkers and IDEs
     from thermoskin.pipeline import observe, observe_file
     from thermoskin.runtime.closed_loop import run_closed_loop
     from thermoskin.runtime.controller import SkinController
+    from thermoskin.runtime.skin_loop import run_skin
     from thermoskin.sim.run import simulate
     from thermoskin.sim.scenarios import SCENARIOS, Scenario
+    from thermoskin.skin import Skin, load_skin
+    from thermoskin.skin_groups import group_events
+    from thermoskin.skin_log import read_skin_log
+    from thermoskin.skin_observe import observe_skin
+    from thermoskin.sweep.run import run_sweep
+    from thermoskin.sweep.spec import load_sweep
