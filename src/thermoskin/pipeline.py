@@ -106,12 +106,15 @@ class StreamResult:
 
 
 def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg: Config,
-                 progress: Callable[[int, int | None], None] | None = None) -> StreamResult:
+                 progress: Callable[[int, int | None], None] | None = None, *,
+                 characterise: bool = True) -> StreamResult:
     """:func:`observe` streamed from a log file to another (CSV or Parquet each), in chunks:
     memory does not grow with the log's length. The output holds every input column, the
     input's own estimates renamed ``*_live``, then ``q_i_hat, dq_i_hat, contact, gap``.
     Implausible values are dropped per chunk as :func:`observe` drops them (a log still being
-    written, or cut by a kill, is read to its last whole line)."""
+    written, or cut by a kill, is read to its last whole line). ``characterise``: say what
+    touched, per contact as it closes (:mod:`thermoskin.characterise`; about 15 ms a contact);
+    False leaves the events' character fields empty."""
     from thermoskin.logio import LogReader, LogWriter
 
     with LogReader(path, required=INPUT_COLUMNS, live=True) as reader:
@@ -127,7 +130,7 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
         counts: dict[str, int] = {}
         first: dict[str, float] = {}
         valid: dict[str, bool] = {}
-        ch = Characteriser(cfg)
+        ch = Characteriser(cfg) if characterise else None
         events: list[ContactEvent] = []
         with LogWriter(out, out_names, atomic=True) as writer:  # whole, or not at all
             for chunk in reader:
@@ -145,8 +148,11 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
                 c = clean.columns
                 cols, new = est.feed(c["t"], c["T_w"], c["T_p"], c["v"], c["T_a"],
                                      T_w_cmd=c.get("T_w_cmd"), fresh=fresh, drive=c.get("drive"))
-                ch.feed(c["t"], cols["dq_i_hat"], c["T_w"], c["T_a"])
-                events.extend(ch.annotate(e) for e in new)  # a closed contact's data are all in
+                if ch is not None:
+                    ch.feed(c["t"], cols["dq_i_hat"], c["T_w"], c["T_a"])
+                    events.extend(ch.annotate(e) for e in new)  # a closed contact's data are all in
+                else:
+                    events.extend(new)
                 if clean.rejected.any():
                     cols["gap"] = (cols["gap"] | clean.rejected).astype(np.int8)
                 if "q_i_hat" in live:
@@ -166,8 +172,11 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
         assert est is not None  # a log has two rows at least (LogReader checks)
         n_closed = len(est.events)
         est.finish(t_last)
-        ch.finish()
-        events.extend(ch.annotate(e) for e in est.events[len(events):])
+        if ch is not None:
+            ch.finish()
+            events.extend(ch.annotate(e) for e in est.events[len(events):])
+        else:
+            events.extend(est.events[len(events):])
         assert len(events) == len(est.events) >= n_closed
     return StreamResult(events=events, rows=rows, t_s=t_s, periods=fresh_inf.periods or
                         dict.fromkeys(("T_w", "T_p", "T_a"), 1.0), gaps=gaps,
