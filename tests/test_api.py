@@ -35,3 +35,14 @@ def test_docs_examples_run() -> None:
             exec(compile(block, f"{DOC.name} block {i + 1}", "exec"), ns)
         except Exception as e:  # the failing block, in the message
             raise AssertionError(f"docs/api.md block {i + 1} fails: {e!r}\n{block}") from e
+
+
+def test_no_public_name_hides_a_module() -> None:
+    """A lazily exported name equal to a submodule's would replace ``thermoskin.<module>``
+    once used (``thermoskin.calibrate`` the function instead of the module)."""
+    import pkgutil
+
+    import thermoskin
+
+    modules = {m.name for m in pkgutil.iter_modules(thermoskin.__path__)}
+    assert not modules & set(thermoskin.__all__)

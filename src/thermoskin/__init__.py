@@ -14,7 +14,7 @@ The objects a lab composes in its own code (``docs/api.md`` shows each with exam
     ts.write_events("events.csv", res.events)     # one row per contact
     skin = ts.load_skin("examples/forearm.toml")  # a skin of many patches: ts.run_skin, ts.read_skin_log,
                                                   # ts.observe_skin, ts.group_events
-    ts.characterise_events(events, columns, cfg)  # what touched; ts.calibrate (fit a network to a log);
+    ts.characterise_events(events, columns, cfg)  # what touched; thermoskin.calibrate.calibrate (a fit);
                                                   # ts.load_sweep / ts.run_sweep (design sweeps)
 
 Names are imported on first use, so ``import thermoskin`` stays light.
@@ -61,7 +61,6 @@ _EXPORTS = {
     "group_events": "thermoskin.skin_groups",
     "run_skin": "thermoskin.runtime.skin_loop",
     "characterise_events": "thermoskin.characterise",
-    "calibrate": "thermoskin.calibrate",
     "load_sweep": "thermoskin.sweep.spec",
     "run_sweep": "thermoskin.sweep.run",
 }
@@ -84,7 +83,6 @@ __all__ = [
     "Touch",
     "TouchEstimator",
     "__version__",
-    "calibrate",
     "characterise_events",
     "group_events",
     "load_config",
@@ -120,7 +118,6 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs
-    from thermoskin.calibrate import calibrate
     from thermoskin.characterise import characterise_events
     from thermoskin.estimator import Observation, TouchEstimator
     from thermoskin.evaluation import match_events
