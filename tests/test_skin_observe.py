@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +13,8 @@ from thermoskin.sim.scenarios import Scenario
 from thermoskin.sim.skin_scenarios import SkinContact, SkinScenario
 from thermoskin.skin import Pipe, load_skin
 from thermoskin.skin_inlet import delayed, displacement, inlet_inputs
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_delay_is_the_pipe_length_over_the_flow():
@@ -27,7 +30,7 @@ def test_delay_is_the_pipe_length_over_the_flow():
 
 def test_inlet_is_the_upstream_outlet_delayed_and_cooled():
     """Patch 2 of a loop gets patch 1's outlet reading, L/v later, cooled by exp(-age/tau)."""
-    skin = load_skin("examples/forearm.toml")
+    skin = load_skin(ROOT / "examples" / "forearm.toml")
     n, P = 2000, len(skin.patches)
     t_s = skin.cfg.sampling.t_s
     rng = np.random.default_rng(1)
@@ -58,7 +61,7 @@ def runs(tmp_path_factory):
     from thermoskin.skin_log import read_skin_log
     from thermoskin.skin_observe import observe_skin
 
-    skin = load_skin("examples/forearm.toml")
+    skin = load_skin(ROOT / "examples" / "forearm.toml")
     d1, d4 = "dorsal1", "dorsal4"
     up = _short(skin, [SkinContact(Touch(t_on=12.0, duration=2.5, n_fingers=3, person="man1"),
                                    patch=d1, position=0.015)])

@@ -81,14 +81,10 @@ def test_one_patch_no_pipe_is_the_single_spatial_plant() -> None:
     np.testing.assert_allclose(b.state(0), a.skin.x, rtol=0, atol=1e-9)
 
 
-def _closed(skin_data: dict[str, Any]) -> Config:
-    """No loss to the air anywhere: skin, tank, sink, pipes (a physical limit beyond the
-    parameters' bounds, so set past their validation)."""
-    return Config()
-
-
 def _parse_closed(data: dict[str, Any], cfg: Config) -> Any:
-    """:func:`parse_skin`, then every patch's and tank's loss to the air set to 1e15 K/W."""
+    """:func:`parse_skin`, then no loss to the air anywhere: every patch's and tank's loss set to
+    1e15 K/W, a physical limit beyond the parameters' bounds, so set past their validation
+    (safe: each parsed skin and loop holds its own parameter objects)."""
     skin = parse_skin(data, "three.toml", cfg)
     objs = [p.skin for p in skin.patches] + [lp.cfg.skin for lp in skin.loops]
     for o in objs:
@@ -121,7 +117,7 @@ def test_energy_balance_of_a_loop() -> None:
     for p in data["loops"]["a"]["pipes"]:
         if isinstance(p, dict):
             p["tau_loss"] = math.inf
-    cfg = _closed(data)
+    cfg = Config()
     skin = _parse_closed(data, cfg)
     plant = SkinPlant(skin, _scenario(1.5, T_a=20.0))
     plant.reset("ambient")
@@ -149,13 +145,12 @@ def test_outlet_is_next_inlet_after_the_pipe() -> None:
     D01 = round(0.02 / (V_ON * t_s))  # the pipe from p0 to p1: 142 samples
     D12 = 1  # no pipe from p1 to p2: the patches are stepped together
     D_sup = round(0.01 / (V_ON * t_s))
-    outs, ins, tps = [], [], []
+    outs, ins = [], []
     nm = plant.nmax
-    for k in range(plant.n):
+    for _ in range(plant.n):
         plant.apply([0.0], [V_ON])
         outs.append(plant.last_outlet_means())
         ins.append(plant.Z[:, nm].copy())  # the inlet each patch had over the sample
-        tps.append(plant.T_p_true[0] if k == 0 else tps[-1])
     outs, ins = np.array(outs), np.array(ins)
     T_a = 20.0
     a01 = math.exp(-D01 * t_s / 5.0)
@@ -215,7 +210,7 @@ def test_upstream_touch_reaches_downstream_later_and_weaker() -> None:
 
 def test_still_water_reaches_the_tank_at_the_loop_ends_only() -> None:
     """Pump stopped: only p0's inlet and p2's outlet exchange with the tank (W(0)/2 each)."""
-    cfg = _closed(THREE)
+    cfg = Config()
     skin = _parse_closed(copy.deepcopy(THREE), cfg)
     plant = SkinPlant(skin, _scenario(0.2, T_a=20.0))
     plant.reset("ambient")

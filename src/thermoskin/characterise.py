@@ -121,9 +121,6 @@ PRIOR_SEED = 20150713
 T0_SMOOTH = 0.5
 """Edges of the ``T_0`` priors softened by a Gaussian of this s.d., K."""
 
-KINDS = ("tap", "hold", "stroke", "grasp")
-"""Kinds of touch; ``stroke`` and ``grasp`` need several patches (:mod:`thermoskin.touchkind`)."""
-
 
 # --------------------------------------------------------------------------------- model
 def flux_kernel(kappa: float | Array, tau: float | Array) -> Array:
@@ -141,9 +138,11 @@ def sheet_coupling(cfg: Config) -> float:
 
 
 def no_touch_sheet(cfg: Config, T_w: Array | float, T_a: Array | float) -> Array:
-    """``T_x = R_par (T_w/R_g + T_a/R_ag)``: the sheet's temperature without a touch, °C."""
-    sk = cfg.skin
-    return np.asarray(sheet_coupling(cfg) * (np.asarray(T_w) / sk.R_g + np.asarray(T_a) / sk.R_ag))
+    """``T_x = R_par (T_w/R_g + T_a/R_ag)``: the sheet's temperature without a touch, °C
+    (:func:`thermoskin.estimation.model.sheet_equilibrium`, over arrays)."""
+    from thermoskin.estimation.model import sheet_equilibrium
+
+    return np.asarray(sheet_equilibrium(cfg, np.asarray(T_w), np.asarray(T_a)))  # type: ignore[arg-type]
 
 
 def regressors(kappa: float, tau: Array, T_x: Array, T_x0: float) -> tuple[Array, Array]:

@@ -503,6 +503,28 @@ def _merge(base: Config, data: dict[str, Any], source: str) -> Config:
     return dataclasses.replace(base, **sections)
 
 
+def read_toml(path: str | Path, what: str, error: type[ConfigError] | None = None) -> dict[str, Any]:
+    """The TOML file at ``path`` as a dict; ``error`` (default :class:`ConfigError`) with one
+    line naming ``what`` (``"config file"``, ``"skin description"``, ...) and the path when
+    it is a directory, missing, unreadable, not UTF-8 or not valid TOML."""
+    err = ConfigError if error is None else error
+    p = Path(path)
+    if p.is_dir():
+        raise err(f"{what} {p} is a directory, not a TOML file")
+    if not p.exists():
+        raise err(f"{what} {p} does not exist")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise err(f"cannot read {what} {p}: {e.strerror or e}") from None
+    except UnicodeDecodeError:
+        raise err(f"{p} is not valid TOML: not UTF-8 text") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise err(f"{p} is not valid TOML: {' '.join(str(e).split())}") from None
+
+
 def load_config(path: str | Path | None = None, preset: str = "paper") -> Config:
     """The preset, overridden by the TOML file at ``path`` if given."""
     if preset not in PRESETS:
@@ -511,20 +533,7 @@ def load_config(path: str | Path | None = None, preset: str = "paper") -> Config
     if path is None:
         return cfg
     p = Path(path)
-    if p.is_dir():
-        raise ConfigError(f"config file {p} is a directory, not a TOML file")
-    if not p.exists():
-        raise ConfigError(f"config file {p} does not exist")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as e:
-        raise ConfigError(f"cannot read config file {p}: {e.strerror or e}") from None
-    except UnicodeDecodeError:
-        raise ConfigError(f"{p} is not valid TOML: not UTF-8 text") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{p} is not valid TOML: {e}") from None
+    data = read_toml(p, "config file")
     return _merge(cfg, data, source=str(p))
 
 

@@ -64,7 +64,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from thermoskin.params import Config, ConfigError, SkinParams
+from thermoskin.params import Config, ConfigError, SkinParams, read_toml
 from thermoskin.physics.spatial import SpatialParams
 
 REF_LENGTH = 0.03
@@ -196,6 +196,12 @@ class Loop:
     feedback: int
     tank: tuple[float, float]
     cfg: Config
+
+
+def tc_fresh_bit(j: int) -> int:
+    """``fresh`` bit of a patch's thermocouple ``j`` in a skin's log (0: ``T_w``, bit 1 as on
+    the single patch; ``T_w2, T_w3, ...``: 8, 16, ..., above the tank's 2 and the air's 4)."""
+    return 1 if j == 0 else 4 << j
 
 
 @dataclass(frozen=True)
@@ -478,14 +484,7 @@ def load_skin(path: str | Path | None = None, cfg: Config | None = None) -> Skin
     """The skin described in the TOML file ``path`` (None: :func:`single_skin`) on config ``cfg``."""
     if path is None:
         return single_skin(cfg)
-    p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"skin description {p} does not exist")
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise ConfigError(f"{p} is not valid TOML: {' '.join(str(e).split())}") from None
-    return parse_skin(data, str(p), cfg)
+    return parse_skin(read_toml(path, "skin description"), str(Path(path)), cfg)
 
 
 SINGLE = """\

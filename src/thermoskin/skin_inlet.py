@@ -30,12 +30,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.skin import Skin
+from thermoskin.skin import Skin, tc_fresh_bit
 
 Array = NDArray[np.float64]
 Ints = NDArray[np.int64]
 
-FRESH_T_W, FRESH_T_P = 1, 2
+FRESH_T_P = 2  # the tank's fresh bit
 
 
 def source_thermocouple(skin: Skin, i: int) -> int:
@@ -79,8 +79,7 @@ def inlet_inputs(skin: Skin, t_s: float, T_w: list[Array], T_p: Array, v: Array,
                 u = lp.patches[q - 1]
                 j = source_thermocouple(skin, u)
                 src = T_w[j][:, u]
-                bit = FRESH_T_W if j == 0 else 4 << j
-                sbit = fr[:, u] & bit
+                sbit = fr[:, u] & tc_fresh_bit(j)
             if pipe.length <= 0.0 and q == 0:
                 continue  # fed straight from the tank: the tank is the inlet
             kp = delayed(x, pipe.length)

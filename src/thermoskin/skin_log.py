@@ -153,10 +153,6 @@ def long_columns(log: SkinLog, extra: dict[str, Array], drop: tuple[str, ...] = 
     return out
 
 
-def finite_or_nan(x: float) -> float:
-    return x if math.isfinite(x) else math.nan
-
-
 def write_table(path: str | os.PathLike[str], columns: dict[str, NDArray[np.generic]]) -> Path:
     """A small table with text columns (events, groups) as CSV, written atomically; floats in their
     shortest round-trip form, NaN as an empty field."""

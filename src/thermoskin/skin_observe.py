@@ -14,7 +14,7 @@ Events gain ``patch`` (its name), ``position`` and ``position_sd`` (m from the p
 the sheet). Events of neighbouring patches are grouped into body contacts (``skin_groups``).
 
 **The estimator's noise for a patch of a skin.** The paper's network lumps the pipe into one
-node, which tracks its inlet within ``R_w C_w`` (25 ms); a patch of a skin is fed water whose
+node, which tracks its inlet within ``R_w C_w`` (about 26 ms); a patch of a skin is fed water whose
 temperature steps from parcel to parcel (the upstream patch's outlet swings with the pump's
 on/off chatter, the tank's with the supply pipe's delay), and its pipe is many cells. The
 lumped model then errs at every pump switch; :data:`SKIN_ESTIMATOR` lets the pipe node and
@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
-from thermoskin.skin import NETWORK_KEYS, Skin
+from thermoskin.skin import NETWORK_KEYS, Skin, tc_fresh_bit
 from thermoskin.skin_inlet import inlet_inputs
 from thermoskin.skin_log import SkinLog
 from thermoskin.skin_position import NAN_POSITION, PatchLocator, Position
@@ -143,7 +143,7 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
             loc = locators.get(i) or locators.setdefault(i, PatchLocator(skin, i, log.t_s))
             k_on = round((ev.onset - log.t[0]) / log.t_s)
             k_off = round((ev.release - log.t[0]) / log.t_s)
-            bits = [1] + [4 << j for j in range(1, len(skin.patches[i].thermocouples))]
+            bits = [tc_fresh_bit(j) for j in range(len(skin.patches[i].thermocouples))]
             fr_i = None if fresh is None else [(fresh[:, i] & b) != 0 for b in bits]
             pos = loc.locate(k_on, k_off, T_in[:, i], c["T_a"][:, i], c["v"][:, i],
                              [y[:, i] for y in Y[:len(bits)]], fr_i, out["dq_i_hat"][:, i])

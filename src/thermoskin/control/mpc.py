@@ -152,6 +152,42 @@ def prediction_matrices(a: float, b: float, c: float, H: int
     return Phi, Gam, s
 
 
+def interval_ok(T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float, hi0: float, hi1: float,
+                hi2: float, lo0: float, lo1: float, lo2: float, s_hi: float, s_lo: float, ub: float,
+                lb: float) -> bool:
+    """:meth:`Mpc.feasible`'s sufficient interval bound on plain floats: ``u*`` lies within
+    ``T_p_prev [s_lo, s_hi] + sum_j d_j [lo_j, hi_j]`` (``d = theta - T_p_prev``); True if
+    that is inside ``[lb, ub]``. Plain Python, also compiled as it is by the sweep's batch."""
+    d0 = T_w - T_p_prev
+    d1 = T_a - T_p_prev
+    d2 = T_w_cmd - T_p_prev
+    if T_p_prev >= 0.0:
+        up = T_p_prev * s_hi
+        dn = T_p_prev * s_lo
+    else:
+        up = T_p_prev * s_lo
+        dn = T_p_prev * s_hi
+    if d0 >= 0.0:
+        up += d0 * hi0
+        dn += d0 * lo0
+    else:
+        up += d0 * lo0
+        dn += d0 * hi0
+    if d1 >= 0.0:
+        up += d1 * hi1
+        dn += d1 * lo1
+    else:
+        up += d1 * lo1
+        dn += d1 * hi1
+    if d2 >= 0.0:
+        up += d2 * hi2
+        dn += d2 * lo2
+    else:
+        up += d2 * lo2
+        dn += d2 * hi2
+    return up <= ub and dn >= lb
+
+
 class Mpc:
     """The MPC of eqs. 9-11 on a persistent, warm-started daqp workspace.
 
@@ -302,36 +338,8 @@ class Mpc:
                 or self._box_test(T_w, T_a, T_w_cmd, T_p_prev))
 
     def _in_interval(self, T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float) -> bool:
-        """The sufficient interval bound of ``feasible`` (plain floats)."""
-        d0 = T_w - T_p_prev
-        d1 = T_a - T_p_prev
-        d2 = T_w_cmd - T_p_prev
-        hi0, hi1, hi2, lo0, lo1, lo2, s_hi, s_lo = self._interval
-        if T_p_prev >= 0.0:
-            up = T_p_prev * s_hi
-            dn = T_p_prev * s_lo
-        else:
-            up = T_p_prev * s_lo
-            dn = T_p_prev * s_hi
-        if d0 >= 0.0:
-            up += d0 * hi0
-            dn += d0 * lo0
-        else:
-            up += d0 * lo0
-            dn += d0 * hi0
-        if d1 >= 0.0:
-            up += d1 * hi1
-            dn += d1 * lo1
-        else:
-            up += d1 * lo1
-            dn += d1 * hi1
-        if d2 >= 0.0:
-            up += d2 * hi2
-            dn += d2 * lo2
-        else:
-            up += d2 * lo2
-            dn += d2 * hi2
-        return up <= self._ub_inner and dn >= self._lb_inner
+        """The sufficient interval bound of ``feasible`` (:func:`interval_ok`)."""
+        return interval_ok(T_w, T_a, T_w_cmd, T_p_prev, *self._interval, self._ub_inner, self._lb_inner)
 
     def _box_test(self, T_w: float, T_a: float, T_w_cmd: float, T_p_prev: float) -> bool:
         """The exact test ``Gx (theta, 1) <= 0``; the same mat-vec leaves ``q`` in ``_q``."""

@@ -182,8 +182,9 @@ NPARAM = 54
 C_CONTACT, C_STARTED, C_ENDED = 1, 2, 4
 
 
+@njit(cache=True)
 def new_state() -> np.ndarray:
-    """A fresh (uninitialised) patch state."""
+    """A fresh (uninitialised) patch state (compiled: the sweep's batch makes its own)."""
     st = np.zeros(NSTATE)
     st[TREL] = -1e300
     st[KAPPA] = 1.0

@@ -309,7 +309,6 @@ class SimulatedPlant:
         skin = self.skin
         G = self._G_x[i]
         GT = G * self._T_x[i] if G > 0.0 else 0.0
-        active = []
         for lo, hi, g, tch in self.touchers:
             if lo <= i < hi:
                 tch.begin(g[i - lo])
@@ -317,7 +316,6 @@ class SimulatedPlant:
                 if ge > 0.0:
                     G += ge
                     GT += ge * tch.T_eff
-                active.append(tch)
         T_f = GT / G if G > 0.0 else T_F_IDLE
         T_g0 = skin.T_g
         if self.spatial:
@@ -325,5 +323,6 @@ class SimulatedPlant:
         else:
             skin.step(T_p, v, T_a, G, T_f)
         T_gm = 0.5 * (T_g0 + skin.T_g)
-        for tch in active:
-            tch.end(T_gm)
+        for lo, hi, _, tch in self.touchers:  # the same touchers, without a list per sample
+            if lo <= i < hi:
+                tch.end(T_gm)

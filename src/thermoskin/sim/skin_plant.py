@@ -82,9 +82,9 @@ from thermoskin.physics.spatial import (
     spatial_steady_state,
 )
 from thermoskin.sim.board_bank import BoardBank
-from thermoskin.sim.sensors import FRESH_W, Board
+from thermoskin.sim.sensors import Board
 from thermoskin.sim.skin_scenarios import SkinScenario, contact_arrays
-from thermoskin.skin import Skin
+from thermoskin.skin import Skin, tc_fresh_bit
 
 Array = NDArray[np.float64]
 
@@ -108,11 +108,6 @@ def _one_blas_thread() -> Any:
 
         _POOL.append(ThreadpoolController())
     return _POOL[0].limit(limits=1, user_api="blas")
-
-
-def tc_fresh_bit(j: int) -> int:
-    """``fresh`` bit of a patch's thermocouple ``j`` (0: ``T_w`` = 1; then ``T_w2`` = 8, 16, ...)."""
-    return FRESH_W if j == 0 else 4 << j
 
 
 @dataclass(frozen=True)
@@ -669,12 +664,6 @@ class SkinPlant:
                 self._begin()
             self._Tp_true[:] = self._T_p[self.k - self._block0]
         return self._Tp_true
-
-    def T_w_true(self) -> Array:
-        """The pipe at every thermocouple now, °C, as ``T_w_read`` (thermocouple, patch)."""
-        out = np.full((self.n_tc, self.P), math.nan)
-        out[self._tc_j, self._tc_p] = self.Z[self._tc_p, self._tc_cell]
-        return out
 
     def measure(self) -> None:
         """The boards' readings now (``T_w_read``, ``T_p_read``, ``T_a_read``, ``fresh``); once per

@@ -3,10 +3,10 @@
 :func:`run_chunk` takes points (a config and a seed each) that share a structure (the
 same scenario length, sampling interval and MPC horizon), builds each row's parameters,
 tables and input profiles in numpy, runs them all in :func:`thermoskin.sweep.kernel.run_rows`
-and scores each row. :func:`run_one` is the same point through the one-point path
+and scores each row. The same point through the one-point path
 (:func:`~thermoskin.runtime.closed_loop.run_closed_loop`, or
-:func:`~thermoskin.sim.run.simulate` then :func:`~thermoskin.pipeline.observe`) scored
-from its log: the reference the tests hold the batch to.
+:func:`~thermoskin.sim.run.simulate` then :func:`~thermoskin.pipeline.observe`) is the
+reference ``tests/test_sweep.py`` holds the batch to.
 
 Metrics of a point (a row of ``RESULTS.parquet``):
 

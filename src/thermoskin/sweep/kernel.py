@@ -38,6 +38,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from thermoskin.control.mpc import interval_ok
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.sweep.qp import box_qp
 
@@ -107,19 +108,6 @@ def _zoh(ps, Rw, G, c):
 
 
 @njit(cache=True, inline="always")
-def _new_state():
-    """``estimation.kernel.new_state`` in compiled code."""
-    st = np.zeros(K.NSTATE)
-    st[K.TREL] = -1e300
-    st[K.KAPPA] = 1.0
-    st[K.TLW] = -1e300
-    st[K.TAMB] = -1e300
-    st[K.CMD] = math.nan
-    st[K.QIH] = math.nan
-    return st
-
-
-@njit(cache=True, inline="always")
 def _read(x, y, k, ch, lag, noise_T, q, NOISE, CONV, last):
     """One board (``sim.sensors.Board.read``): returns ``(reading, fresh, new lag state)``."""
     if lag > 0.0:
@@ -137,40 +125,14 @@ def _read(x, y, k, ch, lag, noise_T, q, NOISE, CONV, last):
     return r, 1, y
 
 
+_interval_ok = njit(cache=True, inline="always")(interval_ok)
+
+
 @njit(cache=True, inline="always")
 def _in_interval(ps, T_w, T_a, cmd, prev):
-    """``Mpc._in_interval``: the sufficient bound of the fast path."""
-    d0 = T_w - prev
-    d1 = T_a - prev
-    d2 = cmd - prev
-    hi0, hi1, hi2 = ps[S_IV0], ps[S_IV1], ps[S_IV2]
-    lo0, lo1, lo2 = ps[S_IV3], ps[S_IV4], ps[S_IV5]
-    s_hi, s_lo = ps[S_IV6], ps[S_IV7]
-    if prev >= 0.0:
-        up = prev * s_hi
-        dn = prev * s_lo
-    else:
-        up = prev * s_lo
-        dn = prev * s_hi
-    if d0 >= 0.0:
-        up += d0 * hi0
-        dn += d0 * lo0
-    else:
-        up += d0 * lo0
-        dn += d0 * hi0
-    if d1 >= 0.0:
-        up += d1 * hi1
-        dn += d1 * lo1
-    else:
-        up += d1 * lo1
-        dn += d1 * hi1
-    if d2 >= 0.0:
-        up += d2 * hi2
-        dn += d2 * lo2
-    else:
-        up += d2 * lo2
-        dn += d2 * hi2
-    return up <= ps[S_TPMAX] - 1e-9 and dn >= ps[S_TPMIN] + 1e-9
+    """``Mpc._in_interval`` (:func:`thermoskin.control.mpc.interval_ok`, compiled)."""
+    return _interval_ok(T_w, T_a, cmd, prev, ps[S_IV0], ps[S_IV1], ps[S_IV2], ps[S_IV3], ps[S_IV4],
+                        ps[S_IV5], ps[S_IV6], ps[S_IV7], ps[S_TPMAX] - 1e-9, ps[S_TPMIN] + 1e-9)
 
 
 @njit(cache=True)
@@ -181,7 +143,7 @@ def _row(ps, G_c, T_f, T_a_true, cmd, T_p_presc, cls, NOISE, CONV, pr, Phi, Gam,
     t_s = ps[S_TS]
     closed = ps[S_CLOSED] != 0.0
     H = Kmat.shape[0]
-    st = _new_state()
+    st = K.new_state()
     ev = np.zeros(K.NEV)
     c = np.zeros(12)
     # QP workspace

@@ -39,14 +39,13 @@ import hashlib
 import itertools
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from thermoskin.params import Config, ConfigError, load_config, to_toml
+from thermoskin.params import Config, ConfigError, load_config, read_toml, to_toml
 from thermoskin.sim.scenarios import SCENARIOS
 from thermoskin.skin import REF_LENGTH, REF_WIDTH, _scaled_skin
 from thermoskin.sweep.engine import EXTRA, LOOPS, METRICS, ScenarioSpec
@@ -265,14 +264,7 @@ def load_sweep(path: str | Path) -> Sweep:
     """Parse and check ``SWEEP.toml``; every point's config is built (and so checked) here."""
     p = Path(path)
     src = str(p)
-    if p.is_dir():
-        raise SweepError(f"{src} is a directory, not a sweep file")
-    if not p.exists():
-        raise SweepError(f"sweep file {src} does not exist")
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise SweepError(f"{src} is not valid TOML: {' '.join(str(e).split())}") from None
+    data = read_toml(p, "sweep file", SweepError)
     for k in data:
         if k not in ("sweep", "scenario", "keys"):
             raise _err(src, k, "unknown table (known: sweep, scenario, keys)")
