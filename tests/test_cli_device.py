@@ -149,6 +149,13 @@ def test_killed_recording_loses_at_most_a_second(tmp_path: Path) -> None:
     assert info["truncated"] or not info["complete"]
     assert 3.0 - 1.0 - 0.6 <= t[-1] <= 3.1  # at most the last second lost (0.6 s start-up)
     assert np.allclose(np.diff(t), 1e-3)  # contiguous: nothing lost in between
+    # its export ends at the last whole sample, so every command reads it (a sample whose
+    # estimate was never written would be a NaN estimate, which logs refuse)
+    out = tmp_path / "k_export.csv"
+    r = thermoskin("export", str(rec), "-o", str(out))
+    assert r.returncode == 0 and "cut off" in r.stderr, r.stderr
+    cols = read_log(out)
+    assert np.isfinite(cols["q_i_hat"]).all() and t[-1] - 0.01 <= cols["t"][-1] <= t[-1]
 
 
 def test_interrupted_recording_is_finished(tmp_path: Path) -> None:

@@ -528,7 +528,12 @@ def to_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample",
     (``control.drive``: the commanded drive, next to ``drive``, the one the device applied).
     A field with any value that is not a number (text, an object) is a text column
     (see :data:`Column`). ``info`` as in :func:`iter_messages`.
+
+    A recording cut off while its last sample was being recorded (a killed run) ends with
+    samples whose other messages were never written: those trailing rows are left out, so
+    that the table ends at its last whole sample (where ``info`` says it is not complete).
     """
+    info = {} if info is None else info
     data = read_mcap(path, [sample_topic, *merge], info)
     samples = data.get(sample_topic, [])
     if not samples:
@@ -552,12 +557,27 @@ def to_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample",
                     if col is None:
                         col = cols[name] = [nan] * n
                     col[i] = v
+    if not info.get("complete", True):
+        n = _whole_rows(cols, set(cols) - base, n)
+        cols = {k: c[:n] for k, c in cols.items()}
     for name, col in cols.items():
         if {type(v) for v in col} <= {float, int, bool}:
             cols[name] = [float(v) for v in col]
         else:
             cols[name] = [_text(v) for v in col]
     return cols
+
+
+def _whole_rows(cols: dict[str, list[Any]], merged: set[str], n: int) -> int:
+    """Rows up to the last one that has every merged field that began before it."""
+    def has(v: Any) -> bool:
+        return not (isinstance(v, float) and v != v)
+
+    first = {name: next((i for i, v in enumerate(cols[name]) if has(v)), n) for name in merged}
+    for k in range(n - 1, -1, -1):
+        if all(has(cols[name][k]) or first[name] >= k for name in merged):
+            return k + 1
+    return n
 
 
 def _is_text(col: Column) -> bool:
