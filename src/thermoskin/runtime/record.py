@@ -531,7 +531,8 @@ def to_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample",
 
     A recording cut off while its last sample was being recorded (a killed run) ends with
     samples whose other messages were never written: those trailing rows are left out, so
-    that the table ends at its last whole sample (where ``info`` says it is not complete).
+    that the table ends at its last whole sample (where ``info`` says it is not complete),
+    and the report's end (``info["report"].t_end``, in its cut-off warning) says so.
     """
     info = {} if info is None else info
     data = read_mcap(path, [sample_topic, *merge], info)
@@ -558,8 +559,12 @@ def to_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample",
                         col = cols[name] = [nan] * n
                     col[i] = v
     if not info.get("complete", True):
-        n = _whole_rows(cols, set(cols) - base, n)
-        cols = {k: c[:n] for k, c in cols.items()}
+        n_whole = _whole_rows(cols, set(cols) - base, n)
+        if n_whole < n:
+            cols = {k: c[:n_whole] for k, c in cols.items()}
+            rep = info.get("report")
+            if rep is not None and getattr(rep, "cut_off", False):
+                rep.t_end = float(cols["t"][-1])  # where the readable recording ends, as said
     for name, col in cols.items():
         if {type(v) for v in col} <= {float, int, bool}:
             cols[name] = [float(v) for v in col]
