@@ -172,7 +172,9 @@ def test_interrupted_recording_is_finished(tmp_path: Path) -> None:
              ("rt-hup", signal.SIGHUP, ["--realtime"])]
     procs = []
     for name, _, extra in cases:
-        p = subprocess.Popen([*CMD, "run", *extra, "--scenario", "none", "--duration", "60",
+        # the in-process runs go at about 100x real time: a long run, still going when signalled
+        duration = "60" if extra else "1800"
+        p = subprocess.Popen([*CMD, "run", *extra, "--scenario", "none", "--duration", duration,
                               "--log", str(tmp_path / f"{name}.csv"), "--plot", str(tmp_path / f"{name}.png"),
                               "--record", str(tmp_path / f"{name}.mcap")],
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
