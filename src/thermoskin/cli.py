@@ -14,6 +14,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
+# isort: off
+import thermoskin._blas  # noqa: F401  (one BLAS thread: before numpy is loaded)
+# isort: on
 import click
 import numpy as np
 from rich.console import Console

@@ -103,6 +103,15 @@ class Observation:
     events: list[ContactEvent]
 
 
+def warm_up(cfg: Config) -> None:
+    """Load what estimation needs (scipy's matrix exponential, the compiled kernel from
+    numba's cache; about half a second) by running a two-sample estimate: a caller that has
+    other work in flight meanwhile (``observe`` reading ahead) hides that time."""
+    t_s = cfg.sampling.t_s
+    x = np.full(2, 24.0)
+    TouchEstimator(cfg).feed(np.array([0.0, t_s]), x, x, np.zeros(2), x, T_w_cmd=x)
+
+
 class TouchEstimator:
     """Eq. 8, the sensor-aware estimate and the detector of one patch, stepped together.
 

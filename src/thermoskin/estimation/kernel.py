@@ -740,7 +740,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                      fresh, ev)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
         out, events):
     """:func:`step` over arrays; fills ``out`` (rows: q_i_hat, dq_i_hat, q estimate, its sd,
@@ -801,7 +801,7 @@ def step_many_parallel(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_
                              T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd, iv,
              drive, fresh, out, events, ev_patch):
     """A long-format log (one row per sample and patch, in time order): each row steps its

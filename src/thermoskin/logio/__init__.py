@@ -43,6 +43,7 @@ from thermoskin.logio.common import (
     nan_allowed,
     sample_time,
 )
+from thermoskin.logio.overlap import WriteBehind, prefetch
 from thermoskin.logio.stream import LogReader, LogWriter
 
 __all__ = [
@@ -54,10 +55,12 @@ __all__ = [
     "LogError",
     "LogReader",
     "LogWriter",
+    "WriteBehind",
     "check_time",
     "log_format",
     "nan_allowed",
     "partial_last_line",
+    "prefetch",
     "read_log",
     "sample_time",
     "write_log",

@@ -18,7 +18,6 @@ writer is killed inside that ``write``: then the last line may be cut, which
 from __future__ import annotations
 
 import csv
-import io
 import os
 from collections import Counter
 from collections.abc import Iterator
@@ -252,8 +251,9 @@ def _integral(a: np.ndarray) -> np.ndarray | None:
     return ai if np.array_equal(ai, a) else None
 
 
-def format_rows(names: list[str], cols: list[np.ndarray]) -> bytes:
-    """CSV lines (no header) of the columns: shortest round-trip floats, integers as integers."""
+def write_rows(fd: int, names: list[str], cols: list[np.ndarray]) -> None:
+    """Append CSV lines (no header) of the columns to ``fd``: shortest round-trip floats,
+    integers as integers. polars formats straight into the file (no copy of the text)."""
     import polars as pl
 
     data: dict[str, Any] = {}
@@ -265,9 +265,8 @@ def format_rows(names: list[str], cols: list[np.ndarray]) -> bytes:
         elif a.dtype.kind == "b":
             out = a.astype(np.int8)
         data[n] = out
-    buf = io.BytesIO()
-    pl.DataFrame(data).write_csv(buf, include_header=False, line_terminator="\n")
-    return buf.getvalue()
+    with os.fdopen(fd, "wb", buffering=0, closefd=False) as fh:
+        pl.DataFrame(data).write_csv(fh, include_header=False, line_terminator="\n")
 
 
 def write_all(fd: int, data: bytes) -> None:

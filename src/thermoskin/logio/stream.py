@@ -32,7 +32,7 @@ from thermoskin.logio.common import (
     log_format,
     missing_columns,
 )
-from thermoskin.logio.csvlog import CsvSource, format_rows, parse_block, write_all
+from thermoskin.logio.csvlog import CsvSource, parse_block, write_all, write_rows
 from thermoskin.logio.parquetlog import ROW_GROUP_ROWS, ParquetSink, ParquetSource, bad_value_message
 
 #: A CSV writer hands its buffered rows to the OS after this many seconds or rows.
@@ -277,7 +277,7 @@ class LogWriter:
             return
         buf, self._buf, self._buffered = self._buf, [], 0
         cols = buf[0] if len(buf) == 1 else [np.concatenate(c) for c in zip(*buf, strict=True)]
-        write_all(self._fd, format_rows(self.names, cols))
+        write_rows(self._fd, self.names, cols)
 
     def close(self) -> Path:
         """Flush, close and (``atomic``) rename into place; returns the log's path."""
