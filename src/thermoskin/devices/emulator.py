@@ -415,11 +415,11 @@ class PtyEmulator:
         for msg in self.decoder.feed(data):
             if silent:
                 continue
-            if msg.TYPE == proto.T_HELLO:
-                self._out.clear()
-                if not self.connected.is_set():
-                    self._t0 = time.monotonic()
-                    self.connected.set()
+            # queued samples are kept at a HELLO (the host ignores those before its HELLO_ACK):
+            # a HELLO repeated by a host whose first one was answered late drops nothing
+            if msg.TYPE == proto.T_HELLO and not self.connected.is_set():
+                self._t0 = time.monotonic()
+                self.connected.set()
             for reply in core.on_message(msg):
                 self._send(reply)
         self._flush()
