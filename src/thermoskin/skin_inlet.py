@@ -78,7 +78,7 @@ def inlet_inputs(skin: Skin, t_s: float, T_w: list[Array], T_p: Array, v: Array,
 class _PipeState:
     """One pipe's stream: its source's first reading, the last ``k'`` (global index)."""
 
-    __slots__ = ("src0", "kk_last")
+    __slots__ = ("kk_last", "src0")
 
     def __init__(self) -> None:
         self.src0 = 0.0
