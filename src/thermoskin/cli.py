@@ -629,9 +629,10 @@ def _live_options(fn: F) -> F:
                              f"{DEFAULT_ADDRESS}) and a live page on PORT+1.")(fn)  # type: ignore[return-value]
 
 
-def _start_live(addr: str, rate: float, wait: float, cfg: Any, **kw: Any) -> Any:
+def _start_live(addr: str, rate: float, wait: float, cfg: Any,
+                view: str = "layout docs/foxglove-layout.json", **kw: Any) -> Any:
     """The live server at ``addr`` (one-line errors), its addresses printed; waits for a viewer.
-    ``kw``: a skin's ``topics`` and ``params`` (``LiveServer``)."""
+    ``view``: how to look at it in Foxglove; ``kw``: a skin's ``topics`` and ``params`` (``LiveServer``)."""
     from thermoskin.live import LiveError, LiveServer, parse_address
 
     if not (rate > 0 and math.isfinite(rate)):
@@ -643,7 +644,7 @@ def _start_live(addr: str, rate: float, wait: float, cfg: Any, **kw: Any) -> Any
     except LiveError as e:
         raise UserError(str(e)) from None
     console.print(f"[bold]live[/]: Foxglove WebSocket {live.ws_url} (Foxglove or Lichtblick: open "
-                  f"connection, Foxglove WebSocket; layout docs/foxglove-layout.json); page "
+                  f"connection, Foxglove WebSocket; {view}); page "
                   f"{live.page_url}; signals at {rate:g} Hz")
     if wait > 0:
         console.print(f"[bold]live[/]: waiting up to {wait:g} s for a viewer")
@@ -682,8 +683,10 @@ SETTLE_S = 10.0
 @_live_options
 @click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
               help="Run a whole skin of many patches (TOML) in closed loop on the simulated device "
-                   "(scenario default: multi): the long-format log, every patch estimated (events with "
-                   "patch,position,position_sd), the body contacts (--groups) and the layout picture.")
+                   "(scenario default: multi): every patch estimated and its contacts printed as the run "
+                   "goes; --live and --record serve / record per-patch topics and a scene (docs/live.md); "
+                   "the long-format log, events with patch,position,position_sd, the body contacts "
+                   "(--groups) and the layout picture.")
 @click.option("--groups", "groups_path", type=click.Path(path_type=Path), default=None,
               help="With --skin: also write the body contacts, one row each.")
 @_user_errors
@@ -1007,7 +1010,8 @@ def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str
         sinks.append((_RecorderSink(rec), SkinMessages(skin)))
     if live_addr is not None:
         try:
-            live = _start_live(live_addr, live_rate, live_wait, cfg, topics=topics, params=params)
+            live = _start_live(live_addr, live_rate, live_wait, cfg, topics=topics, params=params,
+                               view="a 3D panel on /skin/scene, plots of /patch/NAME/estimate.dq_i_hat")
         except BaseException:
             for s, _ in sinks:
                 s.close()
