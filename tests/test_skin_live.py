@@ -303,7 +303,7 @@ def test_skin_page_in_headless_chromium(browser: Browser, tmp_path: Path) -> Non
             time.sleep(0.1)
     browser.call("Page.enable")
     browser.call("Page.navigate", url=page)
-    shot = tmp_path / "skin.png"
+    shot = tmp_path / "page.png"  # (skin.png is the run's layout picture)
     seen = []
     while p.poll() is None and time.monotonic() < t_end:
         s = browser.eval(STATE)
