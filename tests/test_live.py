@@ -86,6 +86,7 @@ class FoxgloveClient:
                 self.channels = {c["id"]: c for c in m["channels"]}
         subs = [{"id": 100 + i, "channelId": cid} for i, cid in enumerate(self.channels)]
         self.topic_of = {s["id"]: self.channels[s["channelId"]]["topic"] for s in subs}
+        self.json_of = {s["id"]: self.channels[s["channelId"]]["encoding"] == "json" for s in subs}
         self.ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
         self.received: list[tuple[float, str, int, dict[str, Any]]] = []
         self.closed = threading.Event()
@@ -101,8 +102,9 @@ class FoxgloveClient:
                     continue
                 op, sub, log_time = struct.unpack_from("<BIQ", frame)
                 if op == 1:
+                    payload = frame[13:]  # JSON, or kept as bytes (a protobuf scene)
                     self.received.append((time.monotonic(), self.topic_of[sub], log_time,
-                                          json.loads(frame[13:])))
+                                          json.loads(payload) if self.json_of[sub] else bytes(payload)))
         except Exception:
             pass
         finally:

@@ -632,8 +632,10 @@ def _live_options(fn: F) -> F:
                              f"{DEFAULT_ADDRESS}) and a live page on PORT+1.")(fn)  # type: ignore[return-value]
 
 
-def _start_live(addr: str, rate: float, wait: float, cfg: Any) -> Any:
-    """The live server at ``addr`` (one-line errors), its addresses printed; waits for a viewer."""
+def _start_live(addr: str, rate: float, wait: float, cfg: Any,
+                view: str = "layout docs/foxglove-layout.json", **kw: Any) -> Any:
+    """The live server at ``addr`` (one-line errors), its addresses printed; waits for a viewer.
+    ``view``: how to look at it in Foxglove; ``kw``: a skin's ``topics`` and ``params`` (``LiveServer``)."""
     from thermoskin.live import LiveError, LiveServer, parse_address
 
     if not (rate > 0 and math.isfinite(rate)):
@@ -641,11 +643,11 @@ def _start_live(addr: str, rate: float, wait: float, cfg: Any) -> Any:
     if not (wait >= 0 and math.isfinite(wait)):
         raise UserError(f"--live-wait {wait}: must be >= 0 s")
     try:
-        live = LiveServer(*parse_address(addr), config=cfg, rate=rate)
+        live = LiveServer(*parse_address(addr), config=cfg, rate=rate, **kw)
     except LiveError as e:
         raise UserError(str(e)) from None
     console.print(f"[bold]live[/]: Foxglove WebSocket {live.ws_url} (Foxglove or Lichtblick: open "
-                  f"connection, Foxglove WebSocket; layout docs/foxglove-layout.json); page "
+                  f"connection, Foxglove WebSocket; {view}); page "
                   f"{live.page_url}; signals at {rate:g} Hz")
     if wait > 0:
         console.print(f"[bold]live[/]: waiting up to {wait:g} s for a viewer")
@@ -684,8 +686,10 @@ SETTLE_S = 10.0
 @_live_options
 @click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
               help="Run a whole skin of many patches (TOML) in closed loop on the simulated device "
-                   "(scenario default: multi): the long-format log, every patch estimated (events with "
-                   "patch,position,position_sd), the body contacts (--groups) and the layout picture.")
+                   "(scenario default: multi): every patch estimated and its contacts printed as the run "
+                   "goes; --live and --record serve / record per-patch topics and a scene (docs/live.md); "
+                   "the long-format log, events with patch,position,position_sd, the body contacts "
+                   "(--groups) and the layout picture.")
 @click.option("--groups", "groups_path", type=click.Path(path_type=Path), default=None,
               help="With --skin: also write the body contacts, one row each.")
 @_user_errors
@@ -719,13 +723,12 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     from thermoskin.runtime.stopping import StopRequest
 
     if skin_path is not None:
-        single_only = (device != "sim", realtime, record_path is not None, live_addr is not None,
-                       setpoint is not None, probe_amp is not None)
+        single_only = (device != "sim", realtime, setpoint is not None, probe_amp is not None)
         if any(single_only):
-            raise UserError("--skin runs the simulated skin in this process: --device, --realtime, --record, "
-                            "--live, --setpoint and --probe are for the single patch")
+            raise UserError("--skin runs the simulated skin in this process: --device, --realtime, "
+                            "--setpoint and --probe are for the single patch")
         _run_skin(skin_path, None if scenario == "fingers" else scenario, duration, config_path, log_path,
-                  plot_path, events_path, groups_path)
+                  plot_path, events_path, groups_path, record_path, live_addr, live_rate, live_wait)
         return
     if groups_path is not None:
         raise UserError("--groups needs --skin (a skin of many patches)")
@@ -881,23 +884,29 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
 
 def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, config_path: Path | None,
               log_path: Path, plot_path: Path | None, events_path: Path | None,
-              groups_path: Path | None) -> None:
+              groups_path: Path | None, record_path: Path | None = None, live_addr: str | None = None,
+              live_rate: float = 100.0, live_wait: float = 0.0) -> None:
     """``run --skin``: the whole skin in closed loop (one controller per water loop,
-    ``runtime/skin_loop.py``), then every patch estimated over the log as written
-    (``skin_observe``): events, body contacts, the layout picture beside the log."""
+    ``runtime/skin_loop.py``), every patch estimated and its contacts detected block by block as
+    the loop goes (``skin_observe.SkinEstimator``), printed as they come and served live / recorded
+    (``runtime/skin_topics.py``); at the end the positions and body contacts from the log
+    (``observe_skin``, which gives the live contacts again), the layout picture beside the log."""
     from thermoskin.paths import LOG_SUFFIXES, distinct
     from thermoskin.runtime.skin_loop import run_skin
+    from thermoskin.runtime.skin_topics import figures
     from thermoskin.sim.skin_scenarios import skin_scenario
     from thermoskin.skin import load_skin
     from thermoskin.skin_log import read_skin_log
-    from thermoskin.skin_observe import observe_skin
+    from thermoskin.skin_observe import SkinEstimator, observe_skin
 
     if plot_path is None:
         plot_path = log_path.with_suffix(".png")
     _outputs(("--log", log_path, LOG_SUFFIXES, "log"), ("--plot", plot_path, (".png",), "picture"),
              ("--events", events_path, (".csv",), "events file"),
-             ("--groups", groups_path, (".csv",), "groups file"))
-    distinct(("--log", log_path), ("--plot", plot_path), ("--events", events_path), ("--groups", groups_path))
+             ("--groups", groups_path, (".csv",), "groups file"),
+             ("--record", record_path, (".mcap",), "recording"))
+    distinct(("--log", log_path), ("--plot", plot_path), ("--events", events_path), ("--groups", groups_path),
+             ("--record", record_path))
     cfg = _config(config_path)
     skin = load_skin(skin_path, cfg)
     if duration is not None:
@@ -908,21 +917,110 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
         raise UserError(str(e).strip("'\"")) from None
     console.print(f"[bold]thermoskin run --skin[/]: {skin.name} ({len(skin.patches)} patches on "
                   f"{len(skin.loops)} loops) in closed loop on the simulated skin, scenario '{sc.name}' "
-                  f"({len(sc.contacts)} contacts), {sc.duration:g} s")
-    with _progress_bar("running") as bar:
-        task = bar.add_task("closed loop", total=1.0)
-        try:
-            res = run_skin(skin, sc, log_path, progress=lambda f: bar.update(task, completed=f))
-        except OSError as e:
-            raise UserError(f"cannot write {log_path}: {e.strerror or e}") from None
+                  f"({len(sc.contacts)} contacts), {sc.duration:g} s; every patch estimated as it goes")
+    est = SkinEstimator(skin, cfg.sampling.t_s)
+    sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait)
+    P = len(skin.patches)
+    names = [p.name for p in skin.patches]
+    width = max(len(n) for n in names)
+    try:
+        for sink, msgs in sinks:
+            sink.event(0.0, "run-start", device="sim", scenario=sc.name, skin=skin.name)
+            for topic, t, m in msgs.start():
+                sink.publish(topic, t, m)
+        with _progress_bar("running") as bar:
+            task = bar.add_task("closed loop", total=1.0)
+
+            def on_block(block: dict[str, Any]) -> None:
+                m = len(block["t"]) // P
+                cols = {k: np.asarray(v).reshape(m, P) for k, v in block.items() if k not in ("t", "patch")}
+                t = np.asarray(block["t"])[::P]
+                b = est.block(t, cols)
+                for c in b.changes:
+                    if c.on:
+                        bar.console.print(f"  t = {c.t:7.3f} s  {names[c.patch]:<{width}}  contact detected "
+                                          f"({c.sign:+d})")
+                    elif c.event is not None:
+                        e = c.event
+                        bar.console.print(f"  t = {c.t:7.3f} s  {names[c.patch]:<{width}}  released after "
+                                          f"{e.duration:.2f} s (onset {e.onset:.3f} s), peak dq "
+                                          f"{e.peak_dq * 1e3:.0f} mW")
+                for sink, msgs in sinks:
+                    for topic, tt, msg in msgs.messages(t, cols, b):
+                        sink.publish(topic, tt, msg)
+
+            try:
+                res = run_skin(skin, sc, log_path, progress=lambda f: bar.update(task, completed=f),
+                               on_block=on_block)
+            except OSError as e:
+                raise UserError(f"cannot write {log_path}: {e.strerror or e}") from None
+        t_end = (res.n - 1) * cfg.sampling.t_s
+        est.finish(t_end)
+        for sink, _ in sinks:
+            for i, e in sorted(est.events, key=lambda x: (x[1].onset, x[0])):
+                sink.event(e.onset, "contact", patch=names[i], **figures(e))
+            sink.event(t_end, "run-end", wall_s=res.wall_s)
+    finally:
+        for sink, _ in sinks:
+            sink.close()
     obs = observe_skin(read_skin_log(log_path, skin), skin)
+    live = sorted(((i, e) for i, e in est.events), key=lambda x: (x[1].onset, x[0]))
+    if live != [(e.patch, e.event) for e in obs.events]:  # one estimator: never, unless a bug
+        click.echo(f"thermoskin: warning: the contacts estimated from {log_path} differ from the live ones "
+                   f"({len(obs.events)} against {len(live)})", err=True)
     _skin_report(skin, obs.events, plot_path, events_path, groups_path, f"thermoskin run --skin {sc.name}")
     track = ", ".join(f"{lp.name} {e:.3f} K" for lp, e in zip(skin.loops, res.tracking, strict=True))
     console.print(f"{sc.duration:g} s in {res.wall_s:.1f} s ({res.realtime_factor:.1f}x real time, the "
-                  f"closed loop); mean |T_w - T_w_cmd| over the second half: {track}; "
+                  f"closed loop and the live estimation); mean |T_w - T_w_cmd| over the second half: "
+                  f"{track}; "
                   f"{len(obs.events)} contacts; "
                   f"wrote {log_path} and {plot_path}" + (f", {events_path}" if events_path else "")
-                  + (f", {groups_path}" if groups_path else ""))
+                  + (f", {groups_path}" if groups_path else "") + (f", {record_path}" if record_path else ""))
+
+
+class _RecorderSink:
+    """A :class:`~thermoskin.runtime.record.Recorder` with the live server's ``publish``."""
+
+    def __init__(self, rec: Any) -> None:
+        self.rec = rec
+
+    def publish(self, topic: str, t: float, data: Any) -> None:
+        self.rec.write(topic, t, data)
+
+    def event(self, t: float, kind: str, **detail: Any) -> None:
+        self.rec.event(t, kind, **detail)
+
+    def close(self) -> None:
+        self.rec.close()
+
+
+def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str | None, live_rate: float,
+                live_wait: float) -> list[tuple[Any, Any]]:
+    """The recording (every sample) and the live server (decimated) of a skin's run, each with its
+    :class:`~thermoskin.runtime.skin_topics.SkinMessages`."""
+    from thermoskin.runtime.skin_topics import SkinMessages, layout, skin_topics
+
+    sinks: list[tuple[Any, Any]] = []
+    topics = skin_topics(skin)
+    params = {"skin": layout(skin)}
+    if record_path is not None:
+        from thermoskin.runtime.record import Recorder, RecordingError
+
+        try:
+            rec = Recorder(record_path, cfg, schemas=topics, params=params)
+        except RecordingError as e:
+            raise UserError(str(e)) from None
+        sinks.append((_RecorderSink(rec), SkinMessages(skin)))
+    if live_addr is not None:
+        try:
+            live = _start_live(live_addr, live_rate, live_wait, cfg, topics=topics, params=params,
+                               view="a 3D panel on /skin/scene, plots of /patch/NAME/estimate.dq_i_hat")
+        except BaseException:
+            for s, _ in sinks:
+                s.close()
+            raise
+        sinks.append((live, SkinMessages(skin, live_rate)))
+    return sinks
 
 
 def _loop_figures(res: Any, n: int) -> None:

@@ -23,6 +23,12 @@ so the inlet gets no fresh reading (the estimator predicts it). A reading of ``T
 fresh at ``k'`` is fresh at ``k`` the first time ``k'`` reaches it (bit 2 of ``fresh``). With
 no connecting pipe (the paper's single patch) the inlet is the tank itself, unchanged. Before
 the log's first ``L`` of water has passed, the inlet is the source's first reading.
+
+**Chunk by chunk.** Every quantity above is causal: ``x(k)`` sums the past, ``k' <= k``. A live
+run feeds the rows block by block (:class:`InletStream`), keeping of the past only what is still
+to come out of the pipes (the samples from the oldest ``k'`` on); the whole log
+(:func:`inlet_inputs`) is the same stream fed in one block, so both give the same values to the
+bit (``x(k)`` is summed in the same order).
 """
 
 from __future__ import annotations
@@ -66,33 +72,101 @@ def inlet_inputs(skin: Skin, t_s: float, T_w: list[Array], T_p: Array, v: Array,
     """Each patch's inlet water and the fresh bits that go with it, ``(T_in, fresh_in)`` of shape
     ``(n, P)`` (module doc). ``T_w[j]`` is thermocouple ``j``'s ``(n, P)`` array; ``T_p, v, T_a``
     and ``fresh`` (None: every reading fresh) are ``(n, P)``."""
-    n, P = T_p.shape
-    T_in = T_p.copy()
-    fr = np.full((n, P), 7, dtype=np.int64) if fresh is None else fresh.astype(np.int64).copy()
-    for lp in skin.loops:
-        x = displacement(v[:, lp.patches[0]], t_s)
-        for q, i in enumerate(lp.patches):
-            pipe = lp.pipes[q]
-            if q == 0:
-                src, sbit = T_p[:, i], fr[:, i] & FRESH_T_P
-            else:
-                u = lp.patches[q - 1]
-                j = source_thermocouple(skin, u)
-                src = T_w[j][:, u]
-                sbit = fr[:, u] & tc_fresh_bit(j)
-            if pipe.length <= 0.0 and q == 0:
-                continue  # fed straight from the tank: the tank is the inlet
-            kp = delayed(x, pipe.length)
-            before = kp < 0
-            kk = np.where(before, 0, kp)
-            age = (np.arange(n) - kk) * t_s
-            keep = 0.0 if pipe.tau_loss <= 0.0 else 1.0 / pipe.tau_loss
-            val = T_a[:, i] + (src[kk] - T_a[:, i]) * np.exp(-age * keep)
-            val[before] = src[0]
-            new = np.ones(n, dtype=bool)
-            new[1:] = kk[1:] != kk[:-1]
-            f = (sbit[kk] != 0) & new & ~before
-            f[0] = True
-            T_in[:, i] = val
-            fr[:, i] = (fr[:, i] & ~FRESH_T_P) | np.where(f, FRESH_T_P, 0)
-    return T_in, fr
+    return InletStream(skin, t_s).push(T_w, T_p, v, T_a, fresh)
+
+
+class _PipeState:
+    """One pipe's stream: its source's first reading, the last ``k'`` (global index)."""
+
+    __slots__ = ("kk_last", "src0")
+
+    def __init__(self) -> None:
+        self.src0 = 0.0
+        self.kk_last = -1
+
+
+class InletStream:
+    """:func:`inlet_inputs` block by block (module doc): :meth:`push` the next rows, get their inlets."""
+
+    def __init__(self, skin: Skin, t_s: float) -> None:
+        self.skin, self.t_s = skin, float(t_s)
+        self.k = 0  # samples pushed so far
+        L = len(skin.loops)
+        self._x_last = [0.0] * L   # x of the last sample pushed
+        self._a_last = [0.0] * L   # its v t_s: the next sample's increment
+        self._base = [0] * L       # global index of each loop's history's first sample
+        self._x: list[Array] = [np.zeros(0)] * L
+        self._src: list[list[Array]] = [[np.zeros(0)] * len(lp.patches) for lp in skin.loops]
+        self._sbit: list[list[Ints]] = [[np.zeros(0, dtype=np.int64)] * len(lp.patches) for lp in skin.loops]
+        self._pipe = [[_PipeState() for _ in lp.patches] for lp in skin.loops]
+
+    def push(self, T_w: list[Array], T_p: Array, v: Array, T_a: Array,
+             fresh: Ints | None) -> tuple[Array, Ints]:
+        """The next ``m`` rows (arrays ``(m, P)`` as :func:`inlet_inputs`): their ``(T_in, fresh_in)``."""
+        m, P = T_p.shape
+        t_s = self.t_s
+        k0 = self.k
+        T_in = T_p.copy()
+        fr = np.full((m, P), 7, dtype=np.int64) if fresh is None else fresh.astype(np.int64).copy()
+        if m == 0:
+            return T_in, fr
+        kg = np.arange(k0, k0 + m, dtype=np.int64)
+        for li, lp in enumerate(self.skin.loops):
+            a = np.nan_to_num(np.asarray(v[:, lp.patches[0]], dtype=float), nan=0.0) * t_s
+            if k0 == 0:
+                x_new = np.empty(m)
+                x_new[0] = 0.0
+                np.cumsum(a[:-1], out=x_new[1:])
+            else:  # x(k) = x(k-1) + v(k-1) t_s, summed in the whole log's order
+                x_new = np.cumsum(np.concatenate(([self._x_last[li], self._a_last[li]], a[:-1])))[1:]
+            self._x_last[li], self._a_last[li] = float(x_new[-1]), float(a[-1])
+            base = self._base[li]
+            xh = np.concatenate((self._x[li], x_new))
+            keep_from = k0 + m - 1  # the oldest sample a pipe still needs
+            for q, i in enumerate(lp.patches):
+                pipe = lp.pipes[q]
+                if q == 0:
+                    src, sbit = T_p[:, i], fr[:, i] & FRESH_T_P
+                else:
+                    u = lp.patches[q - 1]
+                    j = source_thermocouple(self.skin, u)
+                    src = T_w[j][:, u]
+                    sbit = fr[:, u] & tc_fresh_bit(j)
+                sh = np.concatenate((self._src[li][q], np.asarray(src, dtype=float)))
+                bh = np.concatenate((self._sbit[li][q], sbit.astype(np.int64)))
+                self._src[li][q], self._sbit[li][q] = sh, bh
+                st = self._pipe[li][q]
+                if k0 == 0:
+                    st.src0 = float(src[0])
+                if pipe.length <= 0.0 and q == 0:
+                    continue  # fed straight from the tank: the tank is the inlet
+                if pipe.length <= 0.0:
+                    kp = kg.copy()
+                else:
+                    kp = (np.searchsorted(xh, x_new - pipe.length * (1.0 - 1e-12), side="right") - 1
+                          ).astype(np.int64)
+                    kp = np.where(kp < 0, -1, kp + base)
+                before = kp < 0
+                kk = np.where(before, 0, kp)
+                age = (kg - kk) * t_s
+                keep = 0.0 if pipe.tau_loss <= 0.0 else 1.0 / pipe.tau_loss
+                val = T_a[:, i] + (sh[kk - base] - T_a[:, i]) * np.exp(-age * keep)
+                val[before] = st.src0
+                new = np.empty(m, dtype=bool)
+                new[0] = k0 == 0 or kk[0] != st.kk_last
+                new[1:] = kk[1:] != kk[:-1]
+                f = (bh[kk - base] != 0) & new & ~before
+                if k0 == 0:
+                    f[0] = True
+                st.kk_last = int(kk[-1])
+                keep_from = min(keep_from, st.kk_last)
+                T_in[:, i] = val
+                fr[:, i] = (fr[:, i] & ~FRESH_T_P) | np.where(f, FRESH_T_P, 0)
+            cut = max(keep_from - base, 0)
+            self._base[li] = base + cut
+            self._x[li] = xh[cut:]
+            for q in range(len(lp.patches)):
+                self._src[li][q] = self._src[li][q][cut:]
+                self._sbit[li][q] = self._sbit[li][q][cut:]
+        self.k = k0 + m
+        return T_in, fr

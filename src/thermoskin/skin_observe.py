@@ -28,22 +28,32 @@ since the last switch, learned and subtracted) takes it out, so :data:`TANK_FED_
 needs far less pipe noise. Fed through a pipe, the inlet's own steps dominate and the
 correction did not help (docs/skin.md).
 A key the user's config sets above these is kept.
+
+**Live and offline, one estimator.** :class:`SkinEstimator` takes the rows block by block
+(``thermoskin run --skin`` hands it every block of the closed loop as it is written); its inlet
+water is :class:`~thermoskin.skin_inlet.InletStream` and every patch's filter and detector keep
+their state from block to block, so the outputs do not depend on where the blocks are cut.
+:func:`observe_skin` is the same estimator fed the whole log as one block: ``observe --skin`` on a
+run's log gives the run's live contacts again. The position along the pipe needs the whole
+contact and the samples before it, so it is computed from the log (:func:`observe_skin`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
+from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
 from thermoskin.skin import NETWORK_KEYS, Skin, tc_fresh_bit
-from thermoskin.skin_inlet import inlet_inputs
+from thermoskin.skin_inlet import InletStream
 from thermoskin.skin_log import SkinLog
 from thermoskin.skin_position import NAN_POSITION, PatchLocator, Position
 
@@ -112,29 +122,130 @@ class SkinObservation:
 
 def thermocouples(log: SkinLog, skin: Skin) -> list[Array]:
     """The log's thermocouple columns ``T_w, T_w2, ...`` (``(n, P)``; NaN where absent)."""
-    out = [log.cols["T_w"]]
+    return block_thermocouples(log.cols, skin)
+
+
+def block_thermocouples(cols: Mapping[str, Array], skin: Skin) -> list[Array]:
+    """The thermocouple columns ``T_w, T_w2, ...`` of ``(m, P)`` columns (NaN where absent)."""
+    out = [cols["T_w"]]
     for j in range(2, skin.n_thermocouples + 1):
-        out.append(log.cols.get(f"T_w{j}", np.full_like(log.cols["T_w"], math.nan)))
+        out.append(cols.get(f"T_w{j}", np.full_like(cols["T_w"], math.nan)))
     return out
 
 
-def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObservation:
-    """Estimate, detect and locate on every patch of ``skin`` over ``log`` (module doc)."""
-    from thermoskin.pipeline import check_interval
+def loop_t_s(t_s: float, skin: Skin) -> float:
+    """A log's sampling interval as the estimator takes it: the configured ``sampling.t_s`` where the
+    log's is that within 0.1 % (the median of the differences of its times carries their rounding),
+    else the log's own (as the single patch's ``observe`` does)."""
+    cfg_t_s = skin.cfg.sampling.t_s
+    return cfg_t_s if abs(t_s - cfg_t_s) <= 1e-3 * cfg_t_s else float(t_s)
 
-    check_interval(log.t_s)
-    n, P = log.n, len(skin.patches)
+
+@dataclass(frozen=True)
+class Change:
+    """A contact flag's change on one patch: detected (``on``) or released, at the row's time ``t``;
+    ``sign`` the contact's (+1 heat in, -1 heat out); ``event`` the finished contact at a release."""
+
+    t: float
+    patch: int
+    on: bool
+    sign: int
+    event: ContactEvent | None = None
+
+
+@dataclass
+class SkinBlock:
+    """One block's outputs, ``(m, P)`` each, and its contact changes in time order."""
+
+    columns: dict[str, Array]
+    T_in: Array
+    fresh_in: NDArray[np.int64]
+    changes: list[Change]
+
+
+class SkinEstimator:
+    """Every patch of ``skin`` estimated and its contacts detected, block by block (module doc).
+
+    :meth:`block` takes the next ``m`` samples as ``(m, P)`` columns (``T_w``, ``T_w2``, ...,
+    ``T_p``, ``v``, ``T_a``, optional ``fresh`` and ``T_w_cmd``) with their times ``t`` (``m``);
+    :attr:`events` collects the finished contacts ``(patch, ContactEvent)`` in the order they end.
+    """
+
+    def __init__(self, skin: Skin, t_s: float) -> None:
+        from thermoskin.pipeline import check_interval
+
+        check_interval(t_s)
+        self.skin, self.t_s = skin, float(t_s)
+        self.P = len(skin.patches)
+        self.est = PatchEstimators([patch_config(skin, i) for i in range(self.P)], t_s=self.t_s,
+                                   parallel=False)
+        self.inlet = InletStream(skin, self.t_s)
+        self._contact = np.zeros(self.P, dtype=np.int64)
+        self._patch = np.zeros(0, dtype=np.int64)
+
+    @property
+    def events(self) -> list[tuple[int, ContactEvent]]:
+        return self.est.events
+
+    def block(self, t: Array, cols: Mapping[str, Array]) -> SkinBlock:
+        """Estimate the next block (class doc)."""
+        m, P = len(t), self.P
+        fresh = cols["fresh"].astype(np.int64) if "fresh" in cols else None
+        T_in, fr = self.inlet.push(block_thermocouples(cols, self.skin), cols["T_p"], cols["v"],
+                                   cols["T_a"], fresh)
+        if len(self._patch) < m * P:
+            self._patch = np.tile(np.arange(P, dtype=np.int64), m)
+        cmd = cols["T_w_cmd"].ravel() if "T_w_cmd" in cols else None
+        out, ended = self.est.run_rows(self._patch[:m * P], np.repeat(t, P), cols["T_w"].ravel(),
+                                       T_in.ravel(), cols["v"].ravel(), cols["T_a"].ravel(), T_w_cmd=cmd,
+                                       fresh=fr.ravel())
+        res = {k: out[k].reshape(m, P) for k in ("q_i_hat", "dq_i_hat", "contact", "gap")}
+        return SkinBlock(res, T_in, fr, self._changes(t, res["contact"], ended))
+
+    def _changes(self, t: Array, contact: NDArray[np.generic],
+                 ended: list[tuple[int, ContactEvent]]) -> list[Change]:
+        """The block's contact changes; a detection's sign is its contact's: the event of the same
+        contact if it ended in the block, else the patch's detector state (it is still on)."""
+        c = contact.astype(np.int64)
+        prev = np.vstack((self._contact[None, :], c[:-1]))
+        ks, ps = np.nonzero(c != prev)
+        if not len(ks):
+            return []
+        ends: dict[int, list[ContactEvent]] = {}
+        for i, ev in ended:
+            ends.setdefault(i, []).append(ev)
+        self._contact = c[-1].copy()
+        # a patch's contacts end in order: at a detection, every earlier contact of the patch
+        # has met its release, so the contact's event is the next one not yet matched
+        pos: dict[int, int] = {}
+        out: list[Change] = []
+        for k, i in zip(ks.tolist(), ps.tolist(), strict=True):
+            evs = ends.get(i, [])
+            j = pos.get(i, 0)
+            ev = evs[j] if j < len(evs) else None
+            if c[k, i]:
+                sign = int(ev.sign) if ev is not None else int(self.est.ST[i, K.SIGN])
+                out.append(Change(float(t[k]), i, True, sign))
+            else:
+                pos[i] = j + 1
+                out.append(Change(float(t[k]), i, False, int(ev.sign) if ev is not None else 0, ev))
+        return out
+
+    def finish(self, t: float) -> None:
+        """End every contact still open at ``t`` (the end of the run or log)."""
+        self.est.finish(t)
+
+
+def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObservation:
+    """Estimate, detect and locate on every patch of ``skin`` over ``log`` (module doc): the
+    :class:`SkinEstimator` fed the whole log as one block."""
+    est = SkinEstimator(skin, loop_t_s(log.t_s, skin))
     fresh = log.cols["fresh"].astype(np.int64) if log.has("fresh") else None
+    b = est.block(log.t, log.cols)
+    est.finish(float(log.t[-1]))
+    out, T_in, fr = b.columns, b.T_in, b.fresh_in
     Y = thermocouples(log, skin)
     c = log.cols
-    T_in, fr = inlet_inputs(skin, log.t_s, Y, c["T_p"], c["v"], c["T_a"], fresh)
-    est = PatchEstimators([patch_config(skin, i) for i in range(P)], t_s=log.t_s, parallel=False)
-    patch = np.tile(np.arange(P, dtype=np.int64), n)
-    cmd = c["T_w_cmd"].ravel() if log.has("T_w_cmd") else None
-    cols, _ = est.run_rows(patch, np.repeat(log.t, P), c["T_w"].ravel(), T_in.ravel(), c["v"].ravel(),
-                           c["T_a"].ravel(), T_w_cmd=cmd, fresh=fr.ravel())
-    est.finish(float(log.t[-1]))
-    out = {k: cols[k].reshape(n, P) for k in ("q_i_hat", "dq_i_hat", "contact", "gap")}
     events: list[SkinEvent] = []
     locators: dict[int, PatchLocator] = {}
     for i, ev in est.events:
@@ -144,7 +255,7 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
             k_on = round((ev.onset - log.t[0]) / log.t_s)
             k_off = round((ev.release - log.t[0]) / log.t_s)
             bits = [tc_fresh_bit(j) for j in range(len(skin.patches[i].thermocouples))]
-            fr_i = None if fresh is None else [(fresh[:, i] & b) != 0 for b in bits]
+            fr_i = None if fresh is None else [(fresh[:, i] & b_) != 0 for b_ in bits]
             pos = loc.locate(k_on, k_off, T_in[:, i], c["T_a"][:, i], c["v"][:, i],
                              [y[:, i] for y in Y[:len(bits)]], fr_i, out["dq_i_hat"][:, i])
         events.append(SkinEvent(i, skin.patches[i].name, ev, pos))

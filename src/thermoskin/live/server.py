@@ -5,7 +5,9 @@ loop process. It advertises one channel per topic of the recording, with the sam
 schemas (:data:`~thermoskin.runtime.record.TOPIC_SCHEMAS`), so one Foxglove layout serves
 live runs and recordings. Messages carry ``log_time = t`` in ns of the loop clock, as in
 the recording. Signals are decimated to ``rate`` Hz (:mod:`thermoskin.live.messages`);
-events are sent at once; ``/params`` is sent again to every new subscriber (latched).
+events are sent at once; ``/params`` (and a skin's ``/skin/scene``) is sent again to every new
+subscriber (latched). A skin's run serves its own topics (``topics``,
+:mod:`thermoskin.runtime.skin_topics`), the scene as protobuf (``foxglove.SceneUpdate``).
 
 The WebSocket is served by ``foxglove-sdk`` (its subprotocol is ``foxglove.sdk.v1``, the
 Foxglove WebSocket protocol v1 under its current name). The page (``page.html``, one
@@ -93,10 +95,17 @@ class _PageServer(ThreadingHTTPServer):
         super().__init__((host, port), _PageHandler)
 
 
-def _schema(topic: str) -> foxglove.Schema:
-    schema = TOPIC_SCHEMAS[topic]
-    return foxglove.Schema(name=schema.get("title", topic.strip("/").replace("/", ".")),
-                           encoding="jsonschema", data=json.dumps(schema).encode())
+#: Topics whose last message is sent again to a new subscriber.
+LATCHED = ("/params", "/skin/scene")
+
+
+def _channel(topic: str, schema: Any, context: foxglove.Context) -> foxglove.Channel:
+    """A JSON channel for a JSON schema (a dict), a protobuf one for a ``foxglove.Schema``."""
+    if isinstance(schema, dict):
+        fs = foxglove.Schema(name=schema.get("title", topic.strip("/").replace("/", ".")),
+                             encoding="jsonschema", data=json.dumps(schema).encode())
+        return foxglove.Channel(topic, schema=fs, message_encoding="json", context=context)
+    return foxglove.Channel(topic, schema=schema, message_encoding=schema.encoding, context=context)
 
 
 def _config_object(config: Any) -> Any:
@@ -108,18 +117,22 @@ def _config_object(config: Any) -> Any:
 class LiveServer:
     """Foxglove WebSocket on ``host:port`` and the live page on ``host:port+1``.
 
-    ``config`` (a :class:`~thermoskin.params.Config` or a mapping) is sent on ``/params``;
-    ``rate`` (Hz of the loop clock) is what :meth:`write_rows` decimates signals to.
+    ``config`` (a :class:`~thermoskin.params.Config` or a mapping) is sent on ``/params``
+    (``params``: more fields of that message, e.g. a skin's layout);
+    ``rate`` (Hz of the loop clock) is what :meth:`write_rows` decimates signals to;
+    ``topics`` (topic: schema, a JSON schema or a ``foxglove.Schema``) replaces the recording's
+    topics (a skin's run, :func:`~thermoskin.runtime.skin_topics.skin_topics`).
     Raises :class:`~thermoskin.live.address.LiveError` if a port cannot be bound.
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8765, *, config: Any = None,
-                 rate: float = 100.0, page: bool = True, name: str = "thermoskin") -> None:
+                 rate: float = 100.0, page: bool = True, name: str = "thermoskin",
+                 topics: Mapping[str, Any] | None = None, params: Mapping[str, Any] | None = None) -> None:
         self.host, self.port = host, port
         self.rows = RowMessages(rate)
         self.published = 0
         self._lock = threading.Lock()
-        self._params: tuple[bytes, int] | None = None
+        self._latched: dict[str, tuple[bytes, int]] = {}
         self._first_sub = threading.Event()
         self._timers: list[threading.Timer] = []
         self._closed = False
@@ -133,8 +146,9 @@ class LiveServer:
                                              session_id=str(time.time_ns()))
         except RuntimeError as e:
             raise LiveError(f"{where}: cannot serve the WebSocket there ({_reason(e)})") from None
-        self.channels = {topic: foxglove.Channel(topic, schema=_schema(topic), message_encoding="json",
-                                                 context=self.context) for topic in TOPIC_SCHEMAS}
+        self.topics = dict(TOPIC_SCHEMAS if topics is None else topics)
+        self.channels = {topic: _channel(topic, schema, self.context)
+                         for topic, schema in self.topics.items()}
         if page:
             try:
                 self._http = _PageServer(host, port + 1, page_html())
@@ -145,7 +159,7 @@ class LiveServer:
             threading.Thread(target=self._http.serve_forever, name="thermoskin-live-page",
                              daemon=True).start()
         if config is not None:
-            self.publish("/params", 0.0, {"config": _config_object(config)})
+            self.publish("/params", 0.0, {"config": _config_object(config), **(params or {})})
 
     # ------------------------------------------------------------------ addresses
     @property
@@ -157,23 +171,27 @@ class LiveServer:
         return f"http://{url_host(self.host)}:{self.port + 1}/" if self._http is not None else None
 
     # ------------------------------------------------------------------ publishing
-    def publish(self, topic: str, t: float, data: Mapping[str, Any]) -> None:
-        """Send one message (``t`` s of the loop clock is added to it) to the subscribers."""
+    def publish(self, topic: str, t: float, data: Mapping[str, Any] | bytes) -> None:
+        """Send one message to the subscribers: a mapping as JSON (``t`` s of the loop clock is added
+        to it), bytes as they are (an encoded protobuf message)."""
         ch = self.channels.get(topic)
         if ch is None:
-            raise KeyError(f"live: no channel {topic!r} (the recording's topics: {', '.join(TOPIC_SCHEMAS)})")
-        latched = topic == "/params"
+            raise KeyError(f"live: no channel {topic!r} (this run's topics: {', '.join(self.topics)})")
+        latched = topic in LATCHED
         if not (latched or ch.has_sinks()):
             return
-        obj = {"t": t}
-        for k, v in data.items():
-            if k != "t":
-                obj[k] = clean(v)
-        payload = json.dumps(obj, separators=(",", ":"), allow_nan=False).encode()
+        if isinstance(data, bytes):
+            payload = data
+        else:
+            obj = {"t": t}
+            for k, v in data.items():
+                if k != "t":
+                    obj[k] = clean(v)
+            payload = json.dumps(obj, separators=(",", ":"), allow_nan=False).encode()
         ns = max(0, round(t * 1e9))
         if latched:
             with self._lock:
-                self._params = (payload, ns)
+                self._latched[topic] = (payload, ns)
         ch.base.log(payload, ns)
         self.published += 1
 
@@ -195,17 +213,17 @@ class LiveServer:
     # ------------------------------------------------------------------ clients
     def _subscribed(self, topic: str) -> None:
         self._first_sub.set()
-        if topic == "/params" and not self._closed:
-            timer = threading.Timer(LATCH_DELAY_S, self._resend_params)
+        if topic in LATCHED and not self._closed:
+            timer = threading.Timer(LATCH_DELAY_S, self._resend, (topic,))
             timer.daemon = True
             self._timers.append(timer)
             timer.start()
 
-    def _resend_params(self) -> None:
+    def _resend(self, topic: str) -> None:
         with self._lock:
-            latched = self._params
+            latched = self._latched.get(topic)
         if latched is not None and not self._closed:
-            self.channels["/params"].base.log(*latched)
+            self.channels[topic].base.log(*latched)
 
     def wait_for_client(self, timeout: float) -> bool:
         """Wait up to ``timeout`` s for a first subscription (and a little more for the rest of

@@ -273,13 +273,20 @@ class Recorder:
     the main thread) SIGINT and SIGTERM wait until a write is complete and SIGTERM
     finishes the file before it ends the process (see :class:`_SignalGuard`). Use a
     recorder from the thread that made it.
+
+    ``schemas`` (topic: schema) adds topics to :data:`TOPIC_SCHEMAS` (a skin's,
+    :mod:`~thermoskin.runtime.skin_topics`): a JSON schema (a dict), or a ``foxglove.Schema``
+    (``name``, ``encoding``, ``data``) whose messages are written as the bytes given (protobuf).
+    ``params``: more fields of the ``/params`` message (a skin's layout).
     """
 
     def __init__(self, path: str | os.PathLike[str], config: Any = None, *,
                  flush_interval: float = 0.5, fsync: bool = False,
                  compression: str = "zstd", chunk_size: int = 64 * 1024,
-                 guard_signals: bool = True) -> None:
+                 guard_signals: bool = True, schemas: Mapping[str, Any] | None = None,
+                 params: Mapping[str, Any] | None = None) -> None:
         self.path = Path(path)
+        self.schemas: dict[str, Any] = {**TOPIC_SCHEMAS, **(schemas or {})}
         self.flush_interval = float(flush_interval)
         self.fsync = bool(fsync)
         comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
@@ -310,23 +317,30 @@ class Recorder:
                     "started": _dt.datetime.now(_dt.UTC).isoformat(),
                     "time": "log_time = t (s) of the loop clock, in ns",
                 })
-                self.write("/params", 0.0, {"config": _config_object(config)})
+                self.write("/params", 0.0, {"config": _config_object(config), **(params or {})})
         except BaseException:
             self.close()  # the caller gets no recorder to close: a finished file all the same
             raise
 
     def _channel(self, topic: str) -> int:
-        schema = TOPIC_SCHEMAS.get(topic, _ANY_SCHEMA)
-        name = schema.get("title", topic.strip("/").replace("/", "."))
-        sid = self._writer.register_schema(name=name, encoding="jsonschema",
-                                           data=json.dumps(schema).encode())
-        cid = self._writer.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+        schema = self.schemas.get(topic, _ANY_SCHEMA)
+        if isinstance(schema, dict):
+            name = schema.get("title", topic.strip("/").replace("/", "."))
+            sid = self._writer.register_schema(name=name, encoding="jsonschema",
+                                               data=json.dumps(schema).encode())
+            enc = "json"
+        else:
+            sid = self._writer.register_schema(name=schema.name, encoding=schema.encoding,
+                                               data=bytes(schema.data))
+            enc = schema.encoding
+        cid = self._writer.register_channel(topic=topic, message_encoding=enc, schema_id=sid)
         self._channels[topic] = cid
         self._seq[topic] = 0
         return cid
 
-    def write(self, topic: str, t: float, data: Mapping[str, Any]) -> None:
-        """Record ``data`` (a flat mapping; ``t`` is added if absent) on ``topic`` at time ``t`` s."""
+    def write(self, topic: str, t: float, data: Mapping[str, Any] | bytes) -> None:
+        """Record ``data`` (a flat mapping; ``t`` is added if absent; or bytes, an encoded message of
+        the topic's schema) on ``topic`` at time ``t`` s."""
         if self.closed:
             raise RecordingError(f"{self.path}: write after close")
         if self._busy:
@@ -334,10 +348,13 @@ class Recorder:
                                  "the recording holds what was written before")
         if not math.isfinite(t):
             raise RecordingError(f"{self.path}: time t = {t} on {topic} is not finite")
-        obj = {"t": t}
-        for k, v in data.items():
-            obj[k] = _clean(v)
-        payload = json.dumps(obj, separators=(",", ":")).encode()
+        if isinstance(data, bytes):
+            payload = data
+        else:
+            obj = {"t": t}
+            for k, v in data.items():
+                obj[k] = _clean(v)
+            payload = json.dumps(obj, separators=(",", ":")).encode()
         ns = max(0, round(t * 1e9))
         with _GUARD:
             self._busy = True
