@@ -238,3 +238,50 @@ def test_stopped_run_scores_only_what_it_could_see() -> None:
     assert (m.hits, m.misses, m.not_scored, m.false_alarms) == (1, 0, 2, 0)
     m = match_events(touches, ev[:1], t_end=19.0)  # its whole window seen: a miss
     assert (m.hits, m.misses, m.not_scored) == (1, 1, 1)
+
+
+def _last_t(path: Path) -> float:
+    """``t`` of the last whole line of a CSV being written (0 before its first rows)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(max(0, path.stat().st_size - 4096))
+            lines = f.read().split(b"\n")[:-1]  # the last piece may be cut
+        return float(lines[-1].split(b",")[0]) if len(lines) > 1 else 0.0
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
+def test_skin_run_stopped_by_sigterm_keeps_what_ran(tmp_path: Path) -> None:
+    """`run --skin` stopped by SIGTERM mid-run: exit 143, one line; the log holds every sample up
+    to the stop (no gap, every patch), the events and the recording are written."""
+    forearm = Path(__file__).resolve().parents[1] / "examples" / "forearm.toml"
+    log, ev, rec = tmp_path / "run.csv", tmp_path / "ev.csv", tmp_path / "run.mcap"
+    p = subprocess.Popen([*CMD, "run", "--skin", str(forearm), "--duration", "900", "--log", str(log),
+                          "--events", str(ev), "--record", str(rec)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    t_end = time.monotonic() + 120.0
+    try:
+        while _last_t(log) < 6.0:  # long format: t repeats per patch; the last whole line's
+            assert p.poll() is None, p.communicate()
+            assert time.monotonic() < t_end, "the log did not reach t = 6 s"
+            time.sleep(0.05)
+        p.send_signal(signal.SIGTERM)
+        _, err = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 143, err
+    assert "stopped by SIGTERM" in err.splitlines()[-1], err
+    from thermoskin.params import load_config
+    from thermoskin.skin import load_skin
+    from thermoskin.skin_log import read_skin_log
+
+    t = read_skin_log(log, load_skin(forearm, load_config())).t  # every patch of every sample
+    assert 6.0 <= t[-1] < 900.0
+    np.testing.assert_allclose(np.diff(t), 1e-3, atol=1e-9)  # every sample up to the stop
+    assert ev.read_text().splitlines()[0].startswith("patch,")
+    msgs = read_mcap(rec, topics=["/events", "/patch/dorsal1/sample"])
+    kinds = [m.get("kind") for m in msgs["/events"]]
+    assert kinds[0] == "run-start" and kinds[-1] == "run-end", kinds
+    t_rec = [m["t"] for m in msgs["/patch/dorsal1/sample"]]
+    assert t_rec[-1] == pytest.approx(t[-1])  # the recording reaches the log's last sample

@@ -892,12 +892,9 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     (``runtime/skin_topics.py``); at the end the positions and body contacts from the log
     (``observe_skin``, which gives the live contacts again), the layout picture beside the log."""
     from thermoskin.paths import LOG_SUFFIXES, distinct
-    from thermoskin.runtime.skin_loop import run_skin
-    from thermoskin.runtime.skin_topics import figures
     from thermoskin.sim.skin_scenarios import skin_scenario
     from thermoskin.skin import load_skin
-    from thermoskin.skin_log import read_skin_log
-    from thermoskin.skin_observe import SkinEstimator, observe_skin
+    from thermoskin.skin_observe import SkinEstimator
 
     if plot_path is None:
         plot_path = log_path.with_suffix(".png")
@@ -918,7 +915,30 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     console.print(f"[bold]thermoskin run --skin[/]: {skin.name} ({len(skin.patches)} patches on "
                   f"{len(skin.loops)} loops) in closed loop on the simulated skin, scenario '{sc.name}' "
                   f"({len(sc.contacts)} contacts), {sc.duration:g} s; every patch estimated as it goes")
+    from thermoskin.runtime.stopping import StopRequest
+
     est = SkinEstimator(skin, cfg.sampling.t_s)
+    stop = StopRequest().install()
+    try:
+        _run_skin_loop(skin, sc, cfg, est, stop, log_path, plot_path, events_path, groups_path,
+                       record_path, live_addr, live_rate, live_wait)
+    finally:
+        stop.restore()
+    if stop.is_set():
+        why = f"stopped by {stop.name}" if stop.signum else "interrupted"
+        click.echo(f"thermoskin: {why}; log, events, picture and recording written up to the stop", err=True)
+        sys.exit(stop.exit_code)
+
+
+def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_path: Path, plot_path: Path,
+                   events_path: Path | None, groups_path: Path | None, record_path: Path | None,
+                   live_addr: str | None, live_rate: float, live_wait: float) -> None:
+    """The body of ``run --skin`` (:func:`_run_skin`) under its stop request."""
+    from thermoskin.runtime.skin_loop import run_skin
+    from thermoskin.runtime.skin_topics import figures
+    from thermoskin.skin_log import read_skin_log
+    from thermoskin.skin_observe import observe_skin
+
     sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait)
     P = len(skin.patches)
     names = [p.name for p in skin.patches]
@@ -951,10 +971,10 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
 
             try:
                 res = run_skin(skin, sc, log_path, progress=lambda f: bar.update(task, completed=f),
-                               on_block=on_block)
+                               on_block=on_block, stop=stop)
             except OSError as e:
                 raise UserError(f"cannot write {log_path}: {e.strerror or e}") from None
-        t_end = (res.n - 1) * cfg.sampling.t_s
+        t_end = max(res.n - 1, 0) * cfg.sampling.t_s
         est.finish(t_end)
         for sink, _ in sinks:
             for i, e in sorted(est.events, key=lambda x: (x[1].onset, x[0])):
@@ -963,6 +983,9 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     finally:
         for sink, _ in sinks:
             sink.close()
+    if res.n < 2:  # stopped before two samples: nothing to estimate from
+        console.print(f"{res.n} samples; wrote {log_path}")
+        return
     obs = observe_skin(read_skin_log(log_path, skin), skin)
     live = sorted(((i, e) for i, e in est.events), key=lambda x: (x[1].onset, x[0]))
     if live != [(e.patch, e.event) for e in obs.events]:  # one estimator: never, unless a bug
@@ -970,9 +993,9 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
                    f"({len(obs.events)} against {len(live)})", err=True)
     _skin_report(skin, obs.events, plot_path, events_path, groups_path, f"thermoskin run --skin {sc.name}")
     track = ", ".join(f"{lp.name} {e:.3f} K" for lp, e in zip(skin.loops, res.tracking, strict=True))
-    console.print(f"{sc.duration:g} s in {res.wall_s:.1f} s ({res.realtime_factor:.1f}x real time, the "
-                  f"closed loop and the live estimation); mean |T_w - T_w_cmd| over the second half: "
-                  f"{track}; "
+    console.print(f"{res.n * cfg.sampling.t_s:g} s in {res.wall_s:.1f} s ({res.realtime_factor:.1f}x "
+                  f"real time, the closed loop and the live estimation); mean |T_w - T_w_cmd| over the "
+                  f"second half: {track}; "
                   f"{len(obs.events)} contacts; "
                   f"wrote {log_path} and {plot_path}" + (f", {events_path}" if events_path else "")
                   + (f", {groups_path}" if groups_path else "") + (f", {record_path}" if record_path else ""))

@@ -68,8 +68,13 @@ def _table(path: Path) -> dict[str, NDArray[np.generic]]:
         msg = " ".join(str(e).split())
         raise LogError(f"{path}: cannot be read as a {fmt.upper()} log: {msg[:160]}") from None
     out: dict[str, NDArray[np.generic]] = {}
+    import pyarrow as pa
+
     for name in tab.column_names:
         col = tab[name]
+        if pa.types.is_null(col.type):  # every value NaN (Arrow reads "NaN" as null): no contact yet
+            out[name] = np.full(len(col), np.nan)
+            continue
         try:
             a = col.to_numpy(zero_copy_only=False)
         except Exception:

@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 
 from thermoskin.params import Config
 from thermoskin.runtime.controller import SkinController
+from thermoskin.runtime.runlog import FLUSH_S
 from thermoskin.sim.skin_plant import SkinPlant
 from thermoskin.sim.skin_scenarios import SkinScenario
 from thermoskin.skin import Skin
@@ -79,11 +80,14 @@ class SkinRun:
     wall_s: float
     path: Path | None
     tracking: list[float] = field(default_factory=list)
-    """Per loop: mean |T_w - T_w_cmd| of the feedback reading over the second half, K."""
+    """Per loop: mean |T_w - T_w_cmd| of the feedback reading over the second half, K (NaN
+    if the run stopped before it)."""
     contact_s: list[float] = field(default_factory=list)
     """Per patch: seconds in contact."""
     q_peak: list[float] = field(default_factory=list)
     """Per patch: the largest true heat flow, W."""
+    stopped: bool = False
+    """The run was asked to stop (``stop``) before its end: ``n`` samples ran."""
 
     @property
     def realtime_factor(self) -> float:
@@ -95,14 +99,20 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
              tank: str = "peltier", start: str = "equilibrium", block: int = 1000,
              progress: Callable[[float], None] | None = None,
              on_block: Callable[[dict[str, Array]], None] | None = None,
-             step_times: NDArray[np.int64] | None = None) -> SkinRun:
+             step_times: NDArray[np.int64] | None = None, stop: Any = None) -> SkinRun:
     """Run ``scenario`` on ``skin`` in closed loop; write the log to ``path`` (if given).
 
     ``start``: ``"equilibrium"`` (every loop warm at its command, pump running, the drive that
     holds its tank) or ``"ambient"`` (everything at the air). ``on_block(columns)`` gets every
     block of rows as written (long format). ``tank="prescribed"``: the scenario's ``T_p(t)``,
     the controllers' pumps only. ``step_times`` (an int64 array of at least the run's samples):
-    each sample's wall time, ns (a benchmark's; ``time.perf_counter_ns``).
+    each sample's wall time, ns (a benchmark's; ``time.perf_counter_ns``). ``stop``: anything
+    with ``is_set()`` (a :class:`~thermoskin.runtime.stopping.StopRequest`), polled every
+    sample: the run ends after the sample under way, its rows written (``SkinRun.stopped``).
+
+    The log is written as the run goes (a CSV handed to the OS every
+    :data:`~thermoskin.runtime.runlog.FLUSH_S` s), and closed, not discarded, when the run
+    fails: what ran is kept.
     """
     from thermoskin.logio import LogWriter
 
@@ -131,7 +141,7 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
     err_n = [0] * L
     contact_n = np.zeros(P)
     q_peak = np.zeros(P)
-    writer = LogWriter(path, names, atomic=True) if path is not None else None
+    writer = LogWriter(path, names, flush_s=FLUSH_S) if path is not None else None
     setpoints = sorted({0.0, *(t0 for t0, _ in scenario.base.setpoints)})
     cmd_at = scenario.base.T_w_cmd_at
     cmd = cmd_at(0.0)
@@ -144,8 +154,13 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
     clock = time.perf_counter_ns
     ns0 = clock()
     wall0 = time.perf_counter()
+    stopped = False
+    k = -1
     try:
         for k in range(n):
+            if stop is not None and stop.is_set():
+                stopped = True
+                break
             t = k * t_s
             if setpoints and t >= setpoints[0]:
                 cmd = cmd_at(t)
@@ -164,7 +179,7 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
             plant.apply(drives, vs)
             r = k - k0
             buf[r] = rec  # the readings and truth at t_k, the pump over [t_k, t_k+1)
-            if r + 1 == B or k + 1 == n:
+            if r + 1 == B or k + 1 == n or (stop is not None and stop.is_set()):
                 m = r + 1
                 cols = _long(names, k0, m, t_s, patch_col, buf, plant.n_tc)
                 contact_n += cols["contact_true"].reshape(m, P).sum(axis=0)
@@ -180,18 +195,16 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
                 ns1 = clock()
                 step_times[k] = ns1 - ns0
                 ns0 = ns1
-    except BaseException:
+    finally:
         if writer is not None:
-            writer._discard()
-        raise
-    if writer is not None:
-        writer.close()
+            writer.close()  # what ran is kept, whatever ended the run
+    done = k0  # samples written (every one before a stop or the end)
     wall = time.perf_counter() - wall0
-    if progress is not None:
+    if progress is not None and not stopped:
         progress(1.0)
-    return SkinRun(skin, scenario, n, wall, Path(path) if path is not None else None,
-                   tracking=[e / max(m, 1) for e, m in zip(err_sum, err_n, strict=True)],
-                   contact_s=(contact_n * t_s).tolist(), q_peak=q_peak.tolist())
+    return SkinRun(skin, scenario, done, wall, Path(path) if path is not None else None,
+                   tracking=[e / m if m else math.nan for e, m in zip(err_sum, err_n, strict=True)],
+                   contact_s=(contact_n * t_s).tolist(), q_peak=q_peak.tolist(), stopped=stopped)
 
 
 def _long(names: list[str], k0: int, m: int, t_s: float, patch_col: NDArray[np.int64], buf: Array,
