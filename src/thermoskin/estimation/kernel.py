@@ -631,10 +631,7 @@ def _detect(st, pr, t, ev):
         gl = 0.0
     st[RUNL] = gl
     if g > pr[PR_HOFF]:
-        if st[DETECTED] <= st[TFBL] < st[TFB]:
-            t_rel = _between(st, st[TFBL], t)
-        else:
-            t_rel = st[TFB]
+        t_rel = _between(st, st[TFBL], t) if st[DETECTED] <= st[TFBL] < st[TFB] else st[TFB]
         _end(st, t_rel, ev)
         # the touch has gone: the estimate goes back to its baseline, free to correct itself
         st[X + 2] = b
