@@ -15,7 +15,7 @@ hits, misses, false alarms, latency, and the errors of each event's onset, relea
 duration against the touch.
 
     python benchmarks/detection.py --curve [--quiet-h 4] [--seeds 20] [--json]
-    python benchmarks/detection.py --conditions [--seeds 3] [--json]
+    python benchmarks/detection.py --conditions [--seeds 3] [--seed0 9000] [--only a,b] [--json]
 """
 
 from __future__ import annotations
@@ -129,11 +129,11 @@ def _pairs(touches: tuple[Touch, ...], events: list[Any], m: Any) -> list[tuple[
     return out
 
 
-def conditions(seeds: int) -> dict[str, Any]:
+def conditions(seeds: int, seed0: int = SEED0, only: list[str] | None = None) -> dict[str, Any]:
     base = load_config()
     out: dict[str, Any] = {}
-    for name in CONDITIONS:
-        rows = [score_condition(name, SEED0 + k, base) for k in range(seeds)]
+    for name in only or CONDITIONS:
+        rows = [score_condition(name, seed0 + k, base) for k in range(seeds)]
         lat = [x for r in rows for x in r["latencies"]]
         errs = {k: [abs(x) for r in rows for x in r[k]] for k in ("onset_err", "release_err", "duration_err")}
         out[name] = {
@@ -156,6 +156,9 @@ def main() -> None:
     ap.add_argument("--quiet-h", type=float, default=4.0, help="no-touch hours per curve")
     ap.add_argument("--seeds", type=int, default=None, help="logs per population / condition")
     ap.add_argument("--h", default="3,4,5,6,7", help="h_on values of the curve")
+    ap.add_argument("--seed0", type=int, default=SEED0,
+                    help="first seed of --conditions (default 9000, held out: tune on others)")
+    ap.add_argument("--only", default=None, help="comma-separated conditions (default: all)")
     ap.add_argument("--json", action="store_true", help="only the JSON line on stdout")
     a = ap.parse_args()
     if not (a.curve or a.conditions):
@@ -165,7 +168,7 @@ def main() -> None:
     if a.curve:
         res["curve"] = curve(a.quiet_h, a.seeds or 20, [float(x) for x in a.h.split(",")])
     if a.conditions:
-        res["conditions"] = conditions(a.seeds or 3)
+        res["conditions"] = conditions(a.seeds or 3, a.seed0, a.only.split(",") if a.only else None)
     res["wall_s"] = round(time.perf_counter() - t0, 1)
     print(json.dumps(res))
 

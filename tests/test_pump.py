@@ -28,9 +28,37 @@ def test_plain_rule_without_dwell():
 def test_plain_rule_matches_sign_of_error_on_random_input():
     rng = np.random.default_rng(1)
     T_w = CMD + 0.05 * rng.standard_normal(2000)
-    v = run(PumpLogic(PumpParams(), 1e-3, min_dwell=0.0), T_w)
+    v = run(PumpLogic(PumpParams(still_readings=1), 1e-3, min_dwell=0.0), T_w)
     np.testing.assert_array_equal(v[T_w < CMD], 0.141)
     np.testing.assert_array_equal(v[T_w > CMD], 0.0)
+
+
+def test_still_for_two_readings_of_a_slow_board():
+    """A 10 Hz board (a new T_w every 100 samples): once stopped, the pump waits for the second
+    new reading before it runs again, whatever the first one says."""
+    pump = PumpLogic(PumpParams(still_readings=2), 1e-3, min_dwell=0.05)
+    readings = [23.9, 24.2, 23.8, 23.7, 24.1, 24.05, 23.95, 23.9]
+    #  pump after each reading (hand-worked): run, stop, (still: 1st new reading) stop, run,
+    #  stop, stop (above anyway), run (2nd reading since the stop), run
+    exp = [0.141, 0.0, 0.0, 0.141, 0.0, 0.0, 0.141, 0.141]
+    got = []
+    for r in readings:
+        v = [pump.step(r, CMD, fresh=(j == 0)) for j in range(100)]
+        assert len(set(v)) == 1  # the state changes only at a new reading
+        got.append(v[0])
+    assert got == exp
+
+
+def test_still_readings_change_nothing_at_the_loop_rate():
+    """Every sample fresh (1 kHz): two readings are 2 ms, inside the 50 ms dwell; the default
+    pump switches exactly as the paper's rule with that dwell."""
+    rng = np.random.default_rng(4)
+    T_w = CMD + 0.05 * rng.standard_normal(3000)
+    a = run(PumpLogic(PumpParams(), 1e-3), T_w)
+    b = run(PumpLogic(PumpParams(still_readings=1), 1e-3), T_w)
+    assert PumpParams().still_readings == 2
+    np.testing.assert_array_equal(a, b)
+    assert 10 < np.count_nonzero(np.diff(a)) < 3000 / 50
 
 
 def test_hysteresis_band():

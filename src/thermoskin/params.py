@@ -264,6 +264,9 @@ class PumpParams(_Validated):
                            doc="band around the command; 0 gives the paper's chattering")
     min_dwell: float = _p(0.05, "s", 0.0, 60.0,
                           doc="shortest time the pump holds a state (a real pump's inertia)")
+    still_readings: int = _p(2, "readings", 1, 1000,
+                             doc="once stopped, the pump stays stopped for at least this many new "
+                                 "T_w readings (1: the paper's rule)")
 
 
 @dataclass(frozen=True)

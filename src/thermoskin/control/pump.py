@@ -27,7 +27,8 @@ from thermoskin.params import PumpParams
 class PumpLogic:
     """On/off pump command ``v`` from ``T_w`` and ``T_w_cmd`` (Sec. V), with hysteresis and dwell."""
 
-    __slots__ = ("_half", "_held", "_n_dwell", "_v_on", "min_dwell", "on", "params", "t_s")
+    __slots__ = ("_half", "_held", "_n_dwell", "_n_still", "_still", "_v_on", "min_dwell", "on", "params",
+                 "t_s")
 
     def __init__(self, params: PumpParams, t_s: float = 1.0e-3, *,
                  min_dwell: float | None = None) -> None:
@@ -45,6 +46,8 @@ class PumpLogic:
         self._half = 0.5 * float(params.hysteresis)
         # samples a state must be held; the 1e-9 guards min_dwell/t_s landing just above an integer
         self._n_dwell = max(0, math.ceil(self.min_dwell / self.t_s - 1e-9))
+        self._n_still = int(params.still_readings)
+        self._still = self._n_still
         self.on = True
         self._held = self._n_dwell
         self.reset()
@@ -53,20 +56,26 @@ class PumpLogic:
         """Start running (or stopped), as if held for long: the first switch may come at once."""
         self.on = bool(on)
         self._held = self._n_dwell
+        self._still = self._n_still
 
     @property
     def v(self) -> float:
         """The current velocity command, m/s."""
         return self._v_on if self.on else 0.0
 
-    def step(self, T_w: float, T_w_cmd: float) -> float:
-        """One sample: the velocity ``v`` (m/s) to apply from now to the next sample."""
+    def step(self, T_w: float, T_w_cmd: float, fresh: bool = True) -> float:
+        """One sample: the velocity ``v`` (m/s) to apply from now to the next sample.
+
+        ``fresh``: this ``T_w`` is a new reading (not a held one)."""
+        if fresh and not self.on:
+            self._still += 1
         if self._held >= self._n_dwell:
             if self.on:
                 if T_w > T_w_cmd + self._half:
                     self.on = False
                     self._held = 0
-            elif T_w < T_w_cmd - self._half:
+                    self._still = 0
+            elif T_w < T_w_cmd - self._half and self._still >= self._n_still:
                 self.on = True
                 self._held = 0
         if self._held < self._n_dwell:

@@ -61,6 +61,7 @@ MODE = 38      # detector: WARM, IDLE, INCONTACT
 NWARM = 39     # warm-up samples seen
 B = 40         # baseline of the q_i estimate, W
 KAPPA = 41     # scale of the innovations against their predicted standard deviation
+QPRI = 42      # the q_i estimate before this sample's readings, W
 SIGN = 46      # sign of the contact (+1 heat in, -1 heat out)
 ONSET = 47
 DETECTED = 48
@@ -489,6 +490,15 @@ def _end(st, t_release, ev):
 
 
 @njit(cache=True, inline="always")
+def _between(st, t_zero, t):
+    """A change seen first after the reading at ``t_zero``: half a reading interval later
+    (it came somewhere before the next reading), not after ``t``."""
+    r = st[RATE]
+    tc = t_zero + 0.5 / r if r > 0.0 else t_zero
+    return tc if tc < t else t
+
+
+@njit(cache=True, inline="always")
 def _detect(st, pr, t, ev):
     """The detector's sample; returns the step-result bits."""
     q = st[Q]
@@ -530,8 +540,11 @@ def _detect(st, pr, t, ev):
             if hold_all or (hold_other and sgj != st[LASTSIGN]):
                 g = 0.0
             if g <= 0.0:
+                # dated at a pipe reading (between readings nothing is learnt) or where the
+                # evidence fell back to zero
+                if st[o] > 0.0 or st[TLW] == t:
+                    st[o + 1] = t
                 st[o] = 0.0
-                st[o + 1] = t
                 st[o + 2] = st[o + 3] = 0.0
             else:
                 st[o] = g
@@ -556,7 +569,7 @@ def _detect(st, pr, t, ev):
             st[MODE] = INCONTACT
             st[CONTACT] = 1.0
             st[SIGN] = sg
-            st[ONSET] = st[o + 1]
+            st[ONSET] = _between(st, st[o + 1], t)
             st[DETECTED] = t
             d = sg * (q - b)
             st[PEAK] = d
@@ -603,17 +616,22 @@ def _detect(st, pr, t, ev):
         g = 0.0
         st[TFB] = t
     st[RUN] = g
-    # the readings' evidence for the touch heat back at its baseline (a change of -level):
-    # where it last was zero dates the release better than the estimate, which lags
-    lm = st[LVLMAX]
-    Dr = -sg * (lm if lm > pr[PR_D] else pr[PR_D])
-    gl = st[RUNL] + Dr * st[SGE] - 0.5 * Dr * Dr * st[SGG]
+    # the readings' evidence for the touch heat back at its baseline b rather than at its
+    # mean level b + sg L over the contact: the log-likelihood ratio of the two, anchored at
+    # them and not at the estimate (which, following the contact, has taken part of the fall
+    # before the test sees it; the largest level, noisy, set the test too high); where it
+    # last was zero dates the release better than the estimate, which lags
+    lm = st[SUM] / st[COUNT]
+    L = lm if lm > pr[PR_D] else pr[PR_D]
+    Dr = -sg * L
+    gl = st[RUNL] + Dr * st[SGE] - 0.5 * Dr * (2.0 * (b - st[QPRI]) + sg * L) * st[SGG]
     if gl <= 0.0:
+        if st[RUNL] > 0.0 or st[TLW] == t:
+            st[TFBL] = t
         gl = 0.0
-        st[TFBL] = t
     st[RUNL] = gl
     if g > pr[PR_HOFF]:
-        t_rel = st[TFBL] if st[DETECTED] <= st[TFBL] < st[TFB] else st[TFB]
+        t_rel = _between(st, st[TFBL], t) if st[DETECTED] <= st[TFBL] < st[TFB] else st[TFB]
         _end(st, t_rel, ev)
         # the touch has gone: the estimate goes back to its baseline, free to correct itself
         st[X + 2] = b
@@ -660,6 +678,7 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     gap = st[E8GAP] > 0.0
     st[GAP] = 1.0 if gap else 0.0
     st[SGE] = st[SGG] = 0.0
+    st[QPRI] = st[X + 2]
     if st[READY] == 0.0:
         if gap:
             return C_CONTACT if st[MODE] == INCONTACT else 0

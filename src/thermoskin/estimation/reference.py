@@ -146,6 +146,7 @@ class ReferenceEstimator:
             self.phase += 1
         self.gap = not (math.isfinite(T_w) and math.isfinite(T_p) and math.isfinite(T_a) and v == v)
         ge = gg = 0.0
+        self.q_prior = self.x[I_Q]
         if not self.ready:
             if self.gap:
                 return self.contact
@@ -247,8 +248,11 @@ class ReferenceEstimator:
                 if t - self.t_air < self.t_amb_hold or (
                         t - self.t_rel < d.t_refractory and np.sign(c.design) != self.last_sign):
                     g = 0.0
-                if g <= 0:
-                    c.reset(t)
+                if g <= 0:  # the zero is dated at a pipe reading or where the evidence fell
+                    if c.g > 0 or self.t_last_w == t:
+                        c.reset(t)
+                    else:
+                        c.g, c.sum_ge, c.sum_gg = 0.0, 0.0, 0.0
                 else:
                     c.g, c.sum_ge, c.sum_gg = g, c.sum_ge + ge, c.sum_gg + gg
                     quiet = False
@@ -264,7 +268,7 @@ class ReferenceEstimator:
                 self.P[I_Q, I_Q] += 0.25 * jump**2
                 q = self.x[I_Q]
                 self.mode, self.contact, self.sign = "contact", 1, sg
-                self.onset, self.detected = fire.t_zero, t
+                self.onset, self.detected = self._between(fire.t_zero, t), t
                 dd = sg * (q - self.b)
                 self.peak = self.sum = self.level = self.level_max = dd
                 self.count, self.since = 1, 0
@@ -293,13 +297,21 @@ class ReferenceEstimator:
         if g <= 0:
             g, self.t_below = 0.0, t
         self.run_rel = g
-        Dr = -sg * max(self.level_max, d.dq_design)
-        gl = self.run_lik + Dr * ge - 0.5 * Dr * Dr * gg
+        # log-likelihood ratio of q at b against q at b + sg L, L the contact's mean level
+        # (anchored at them, not at the estimate)
+        L = max(self.sum / self.count, d.dq_design)
+        Dr = -sg * L
+        gl = self.run_lik + Dr * ge - 0.5 * Dr * (2 * (b - self.q_prior) + sg * L) * gg
         if gl <= 0:
-            gl, self.t_lik = 0.0, t
+            if self.run_lik > 0 or self.t_last_w == t:
+                self.t_lik = t
+            gl = 0.0
         self.run_lik = gl
         if g > d.h_off:
-            t_rel = self.t_lik if self.detected <= self.t_lik < self.t_below else self.t_below
+            if self.detected <= self.t_lik < self.t_below:
+                t_rel = self._between(self.t_lik, t)
+            else:
+                t_rel = self.t_below
             self._end(t_rel)
             self.x[I_Q] = b
             self.P[I_Q, I_Q] += 0.25 * self.level**2
@@ -310,6 +322,11 @@ class ReferenceEstimator:
             self.b = q
             return 4
         return 1
+
+    def _between(self, t_zero: float, t: float) -> float:
+        """Half a reading interval after the last reading with no news of the change, not after ``t``."""
+        tc = t_zero + 0.5 / self.rate if self.rate > 0 else t_zero
+        return min(tc, t)
 
     def _end(self, t_release: float) -> None:
         mean = self.sum / self.count

@@ -69,7 +69,7 @@ class SkinController:
         if self.probe is not None and self.contact:
             cmd = T_w_cmd + self.probe.offset(t - self._t_det)
         self.T_w_cmd_eff = cmd
-        v = self.pump.step(T_w, cmd)
+        v = self.pump.step(T_w, cmd, bool(fresh & 1))
         self.v = v
         T_p_cmd = self.mpc.step(T_w, T_a, cmd, v > 0.0)
         self.T_p_cmd = T_p_cmd

@@ -77,7 +77,7 @@ def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = Non
         m, T_p_m[k], T_a_m[k] = measure()
         T_w_m[k] = m
         fresh[k] = plant.fresh
-        v = pump_step(m, cmd_l[k]) if logic else v_const
+        v = pump_step(m, cmd_l[k], bool(fresh[k] & 1)) if logic else v_const
         v_col[k] = v
         if touchers:
             q_col[k] = truth()[0]

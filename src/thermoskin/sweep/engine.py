@@ -165,6 +165,7 @@ def prepare(cfg: Config, spec: ScenarioSpec, seed: int) -> Row:
     ps[SK.S_VON] = v_on
     ps[SK.S_HALF] = 0.5 * float(cfg.pump.hysteresis)
     ps[SK.S_NDWELL] = max(0, math.ceil(float(cfg.pump.min_dwell) / t_s - 1e-9))
+    ps[SK.S_NSTILL] = cfg.pump.still_readings
     p, c = cfg.peltier, cfg.control
     tank = PeltierTank(p, t_s, (c.drive_min, c.drive_max))
     ps[SK.S_NMOD], ps[SK.S_SM], ps[SK.S_RM] = p.n_modules, p.S_m, p.R_m

@@ -50,8 +50,8 @@ KELVIN = 273.15
  S_KP, S_KITS, S_SPAN, S_FFMODE, S_FF0, S_FF1, S_FF2, S_FF3,
  S_TPMIN, S_TPMAX, S_K0, S_K1, S_K2, S_K3, S_IV0, S_IV1, S_IV2, S_IV3, S_IV4, S_IV5, S_IV6, S_IV7,
  S_NOISE, S_QUANT, S_LAGW, S_LAGP, S_LAGA, S_TTRACK, S_W0, S_G0, S_P0, S_SINK0, S_TPPREV0,
- S_CLOSED) = range(57)
-NS = 57
+ S_CLOSED, S_NSTILL) = range(58)
+NS = 58
 
 # per-row results (R[i, :])
 R_SSE, R_NTRACK, R_ENERGY, R_SUM1, R_N1, R_SUMQ, R_SUMQ2, R_NQ, R_NARMED, R_QPS, R_QPFALL, R_NEV = range(12)
@@ -171,6 +171,8 @@ def _row(ps, G_c, T_f, T_a_true, cmd, T_p_presc, cls, NOISE, CONV, pr, Phi, Gam,
     on = True
     n_dwell = int(ps[S_NDWELL])
     held = n_dwell
+    n_still = int(ps[S_NSTILL])
+    still = n_still
     half, v_on = ps[S_HALF], ps[S_VON]
     # mpc, inner loop
     prev = ps[S_TPPREV0]
@@ -206,12 +208,15 @@ def _row(ps, G_c, T_f, T_a_true, cmd, T_p_presc, cls, NOISE, CONV, pr, Phi, Gam,
         fresh = fw | (fp << 1) | (fa << 2)
         cm = cmd[k]
         # pump logic (control.pump.PumpLogic.step)
+        if fw and not on:
+            still += 1
         if held >= n_dwell:
             if on:
                 if rw > cm + half:
                     on = False
                     held = 0
-            elif rw < cm - half:
+                    still = 0
+            elif rw < cm - half and still >= n_still:
                 on = True
                 held = 0
         if held < n_dwell:
