@@ -155,7 +155,11 @@ class ParquetSink:
             return
         cols = [np.concatenate([c[j] for c in self._buf]) for j in range(len(self.names))]
         self._buf, self._rows = [], 0
-        table = pa.Table.from_arrays([pa.array(c) for c in cols], schema=self._schema)
+        # zero-copy views of the float64 buffers (``pa.array`` would import pandas to check for it)
+        n = len(cols[0])
+        arrays = [pa.Array.from_buffers(pa.float64(), n, [None, pa.py_buffer(np.ascontiguousarray(c))])
+                  for c in cols]
+        table = pa.Table.from_arrays(arrays, schema=self._schema)
         self._writer.write_table(table, row_group_size=len(cols[0]))
 
     def close(self) -> None:
