@@ -270,6 +270,23 @@ def test_skin_run_live_foxglove_client(tmp_path: Path) -> None:
         rows = list(csv.DictReader(f))
     closed = {(row["patch"], round(float(row["detected"]), 3), int(row["sign"])) for row in rows}
     assert closed == {x[1:] for x in printed}
+    # replay --live of the recording: the same topics and schemas, the same events, scenes and
+    # 100 Hz estimates as the live run sent
+    port2 = free_port_pair()
+    p2 = subprocess.Popen([*CMD, "replay", str(rec), "--live", str(port2), "--speed", "8",
+                           "--live-wait", "60"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True, env=ENV)
+    out2, err2 = Lines(p2.stdout), Lines(p2.stderr)
+    again = FoxgloveClient(port2)
+    finish(p2, out2, err2, timeout=60)
+    again.closed.wait(5)
+    again.close()
+    assert {c["topic"]: (c["schemaName"], c["encoding"]) for c in again.channels.values()} == \
+        {t: (c["schemaName"], c["encoding"]) for t, c in advertised.items()}
+    assert again.of("/events") == client.of("/events")
+    assert [m for _, tp, _, m in again.received if tp == SCENE_TOPIC] == \
+        [m for _, tp, _, m in client.received if tp == SCENE_TOPIC]
+    assert again.of("/patch/dorsal1/estimate") == est
 
 
 @pytest.fixture(name="browser")

@@ -1304,11 +1304,18 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
 def _replay_live(recording: Path, addr: str, rate: float, wait: float, speed: float) -> None:
     """Play ``recording`` into a live server at ``speed`` times real time."""
     from thermoskin.live import play
+    from thermoskin.live.replay import recorded_topics
     from thermoskin.runtime.record import RecordingError
 
     if not recording.is_file():
         raise UserError(f"recording {recording} does not exist")
-    live = _start_live(addr, rate, wait, None)
+    try:
+        topics = recorded_topics(recording)
+    except RecordingError as e:
+        raise UserError(str(e)) from None
+    if not topics:
+        raise UserError(f"{recording}: no channel recorded (nothing to play)")
+    live = _start_live(addr, rate, wait, None, topics=topics)
     try:
         console.print(f"[bold]live[/]: playing {recording} at {speed:g}x")
         res = play(recording, live, speed)

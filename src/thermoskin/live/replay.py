@@ -1,8 +1,11 @@
 """``thermoskin replay RUN.mcap --live``: a recording played into the live server.
 
-Messages go out in file order, paced so that a message at loop time ``t`` leaves at
-``(t - t_first) / speed`` s of wall-clock time after the first; signals are decimated
-to the server's rate per topic (as a live run's), events and ``/params`` all sent.
+The server advertises the recording's own channels and schemas (:func:`recorded_topics`),
+so a single patch's and a skin's recordings (per-patch topics, the protobuf scene) replay
+alike. Messages go out in file order, their recorded payloads as they are, paced so that
+a message at loop time ``t`` leaves at ``(t - t_first) / speed`` s of wall-clock time
+after the first; signals are decimated to the server's rate per topic (as a live run's),
+events, ``/params`` and the scene all sent.
 """
 
 from __future__ import annotations
@@ -15,10 +18,22 @@ from pathlib import Path
 from typing import Any
 
 from thermoskin.live.messages import EVENT_TOPICS, Decimator
-from thermoskin.live.server import LiveServer
-from thermoskin.runtime.record import RecordingError, iter_messages
+from thermoskin.live.server import LATCHED, LiveServer
+from thermoskin.runtime.record import RecordingError, recording_channels, scan_messages
 
 _MAGIC = b"\x89MCAP0\r\n"
+
+
+def recorded_topics(path: str | PathLike[str]) -> dict[str, tuple[str, Any]]:
+    """The recording's channels as :class:`LiveServer` ``topics`` (``(message encoding,
+    foxglove.Schema)`` each): a replay serves exactly the recorded topics and schemas, a
+    single patch's or a skin's (its per-patch topics and the protobuf scene)."""
+    import foxglove
+
+    out: dict[str, tuple[str, Any]] = {}
+    for topic, (enc, name, s_enc, data) in recording_channels(path).items():
+        out[topic] = (enc, foxglove.Schema(name=name or topic, encoding=s_enc, data=data))
+    return out
 
 
 def play(path: str | PathLike[str], live: LiveServer, speed: float = 1.0, *,
@@ -26,8 +41,10 @@ def play(path: str | PathLike[str], live: LiveServer, speed: float = 1.0, *,
          sleep: Callable[[float], None] = time.sleep) -> dict[str, Any]:
     """Play ``path`` into ``live`` at ``speed`` times real time; figures of what was sent.
 
-    Returns ``sent`` (messages), ``skipped`` (signals dropped by decimation), ``t_first``,
-    ``t_last`` (loop clock, s), ``wall_s`` and ``complete`` (the file's footer was read).
+    The recorded payloads go out as they are (JSON or protobuf), at their log time (the loop
+    clock). Returns ``sent`` (messages), ``skipped`` (signals dropped by decimation),
+    ``t_first``, ``t_last`` (loop clock, s), ``wall_s`` and ``complete`` (the file's footer
+    was read and nothing was damaged).
     """
     if not (speed > 0 and math.isfinite(speed)):
         raise ValueError(f"--speed {speed}: must be > 0 and finite")
@@ -39,28 +56,30 @@ def play(path: str | PathLike[str], live: LiveServer, speed: float = 1.0, *,
             raise RecordingError(f"{p} is not an MCAP file (bad magic)")
     rate = live.rows.rate
     decimators: dict[str, Decimator] = {}
-    info: dict[str, Any] = {}
     sent = skipped = 0
     t_first = t_last = math.nan
     wall0 = math.nan
-    for topic, t, msg in iter_messages(p, None, info):
-        if topic not in live.channels:
-            continue
-        if topic not in EVENT_TOPICS:
-            dec = decimators.get(topic)
-            if dec is None:
-                dec = decimators[topic] = Decimator(rate)
-            if not dec.keep(t):
-                skipped += 1
+    sc = scan_messages(p)
+    for batch in sc.batches():
+        for topic, _, log_ns, payload in batch:
+            if topic not in live.channels:
                 continue
-        if math.isnan(wall0):
-            wall0, t_first = clock(), t
-        delay = wall0 + (t - t_first) / speed - clock()
-        if delay > 0.001:
-            sleep(delay)
-        live.publish(topic, t, msg)
-        sent += 1
-        t_last = t
+            t = log_ns * 1e-9
+            if topic not in EVENT_TOPICS and topic not in LATCHED:
+                dec = decimators.get(topic)
+                if dec is None:
+                    dec = decimators[topic] = Decimator(rate)
+                if not dec.keep(t):
+                    skipped += 1
+                    continue
+            if math.isnan(wall0):
+                wall0, t_first = clock(), t
+            delay = wall0 + (t - t_first) / speed - clock()
+            if delay > 0.001:
+                sleep(delay)
+            live.publish(topic, t, bytes(payload))
+            sent += 1
+            t_last = t
     wall = clock() - wall0 if sent else 0.0
     return {"sent": sent, "skipped": skipped, "t_first": t_first, "t_last": t_last, "wall_s": wall,
-            "complete": bool(info.get("complete"))}
+            "complete": bool(sc.report.complete)}

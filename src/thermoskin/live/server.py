@@ -100,7 +100,11 @@ LATCHED = ("/params", "/skin/scene")
 
 
 def _channel(topic: str, schema: Any, context: foxglove.Context) -> foxglove.Channel:
-    """A JSON channel for a JSON schema (a dict), a protobuf one for a ``foxglove.Schema``."""
+    """A JSON channel for a JSON schema (a dict), a protobuf one for a ``foxglove.Schema``, and
+    for ``(message encoding, foxglove.Schema)`` that channel (a recording's, replayed)."""
+    if isinstance(schema, tuple):
+        encoding, fs = schema
+        return foxglove.Channel(topic, schema=fs, message_encoding=encoding, context=context)
     if isinstance(schema, dict):
         fs = foxglove.Schema(name=schema.get("title", topic.strip("/").replace("/", ".")),
                              encoding="jsonschema", data=json.dumps(schema).encode())

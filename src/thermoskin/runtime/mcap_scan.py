@@ -196,6 +196,8 @@ class Scanner:
         self.n = len(data)
         self.report = RecordingReport(Path(path), size=self.n)
         self.topics: dict[int, str] = {}  # channel id -> topic
+        self.schemas: dict[int, tuple[str, str, bytes]] = {}  # schema id -> name, encoding, data
+        self.channel_info: dict[int, tuple[str, int, str]] = {}  # channel -> topic, schema id, encoding
         self._last_seq: dict[int, int] = {}  # channel -> last sequence number read
         self._read: dict[int, int] = {}  # channel -> messages read
         self._gap: dict[int, int] = {}  # channel -> messages counted lost from sequence gaps
@@ -215,6 +217,20 @@ class Scanner:
             self._read_summary()
 
     # --------------------------------------------------------------- records
+
+    def _register(self, b: bytes, op: int, r: int) -> None:
+        """Keep a (structurally valid) schema or channel record starting at body offset ``r``."""
+        if op == OP_SCHEMA:
+            sid = _U16.unpack_from(b, r)[0]
+            name, q = _string(b, r + 2)
+            enc, q = _string(b, q)
+            n = _U32.unpack_from(b, q)[0]
+            self.schemas[sid] = (name, enc, bytes(b[q + 4: q + 4 + n]))
+        elif op == OP_CHANNEL:
+            ch, sid = _U16.unpack_from(b, r)[0], _U16.unpack_from(b, r + 2)[0]
+            topic, q = _string(b, r + 4)
+            self.topics[ch] = topic
+            self.channel_info[ch] = (topic, sid, _string(b, q)[0])
 
     def _record(self, o: int) -> tuple[int, int, int] | None:
         """``(opcode, body start, body end)`` of a structurally valid record at ``o``."""
@@ -250,7 +266,7 @@ class Scanner:
         if len(raw) != usize or (crc and zlib.crc32(raw) != crc):
             return None
         msgs: list[tuple[int, int, int, bytes, int]] = []
-        channels: dict[int, str] = {}
+        records: list[tuple[int, int]] = []  # schemas and channels, kept once the chunk is whole
         q, n = 0, len(raw)
         while q < n:
             if q + 9 > n:
@@ -264,12 +280,13 @@ class Scanner:
                     return None
                 ch, seq, t, pub = _MSG.unpack_from(raw, r)
                 msgs.append((ch, seq, t, raw[r + _MSG.size: end], pub))
-            elif op == OP_CHANNEL:
-                if _fields(raw, r, end, _LAYOUT[OP_CHANNEL]) != end:
+            elif op in (OP_CHANNEL, OP_SCHEMA):
+                if _fields(raw, r, end, _LAYOUT[op]) != end:
                     return None
-                channels[_U16.unpack_from(raw, r)[0]] = _string(raw, r + 4)[0]
+                records.append((op, r))
             q = end
-        self.topics.update(channels)
+        for op, r in records:
+            self._register(raw, op, r)
         return msgs
 
     def _resync(self, o: int) -> tuple[int, list[tuple[int, int, int, bytes, int]]] | None:
@@ -296,6 +313,7 @@ class Scanner:
         if not 8 <= start <= fo:
             return
         topics: dict[int, str] = {}
+        recs: list[tuple[int, int]] = []
         counts: dict[int, int] | None = None
         o = start
         while o < fo:
@@ -305,6 +323,9 @@ class Scanner:
             op, s, e = rec
             if op == OP_CHANNEL:
                 topics[_U16.unpack_from(b, s)[0]] = _string(b, s + 4)[0]
+                recs.append((op, s))
+            elif op == OP_SCHEMA:
+                recs.append((op, s))
             elif op == 0x0B:  # statistics: channel_message_counts map<u16, u64>
                 p = s + 8 + 2 + 4 * 4 + 8 + 8
                 m = _U32.unpack_from(b, p)[0]
@@ -314,6 +335,8 @@ class Scanner:
                 for i in range(p + 4, p + 4 + m, 10):
                     counts[_U16.unpack_from(b, i)[0]] = _U64.unpack_from(b, i + 2)[0]
             o = e
+        for op, r in recs:
+            self._register(b, op, r)
         self.topics.update(topics)
         self.expected = counts
 
@@ -394,8 +417,8 @@ class Scanner:
                 elif op == OP_MESSAGE:
                     ch, seq, t, pub = _MSG.unpack_from(self.b, s)
                     msgs = [(ch, seq, t, self.b[s + _MSG.size: e], pub)]
-                elif op == OP_CHANNEL:
-                    self.topics[_U16.unpack_from(self.b, s)[0]] = _string(self.b, s + 4)[0]
+                elif op in (OP_CHANNEL, OP_SCHEMA):
+                    self._register(self.b, op, s)
                 elif op == OP_DATA_END:  # the data is complete; the summary follows
                     self._data_end = rep.finished = True
                 elif op == OP_FOOTER:

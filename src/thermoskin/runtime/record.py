@@ -456,6 +456,20 @@ def check(path: str | os.PathLike[str]) -> RecordingReport:
     return sc.report
 
 
+def recording_channels(path: str | os.PathLike[str]) -> dict[str, tuple[str, str, str, bytes]]:
+    """Every channel of a recording: ``topic -> (message encoding, schema name, schema
+    encoding, schema data)``, from the summary of a finished file, else from its chunks."""
+    sc = scan_messages(path)
+    if not sc.channel_info:  # cut off (no summary): read the data for its channel records
+        for _ in sc.batches():
+            pass
+    out = {}
+    for topic, sid, enc in sc.channel_info.values():
+        name, s_enc, data = sc.schemas.get(sid, ("", "", b""))
+        out[topic] = (enc, name, s_enc, data)
+    return out
+
+
 def _fill(info: dict[str, Any] | None, rep: RecordingReport) -> None:
     if info is not None:
         info.update(complete=rep.complete, truncated=not rep.complete, error=rep.error, report=rep)
