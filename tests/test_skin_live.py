@@ -340,3 +340,38 @@ def test_skin_page_in_headless_chromium(browser: Browser, tmp_path: Path) -> Non
     assert any((s.get("drawn") or {}).get("dorsal1") == "#e8710a" for s in seen)  # drawn lit, live
     assert final["counts"].get("/patch/dorsal1/estimate", 0) >= 700
     assert shot.stat().st_size > 10_000
+
+
+def test_export_of_a_skin_recording_is_its_long_table(tmp_path: Path) -> None:
+    """`export` of a skin's recording: one row per sample and patch, patches in the skin's order,
+    each patch's sample and estimate joined by t (messages written in any order);
+    a recording whose last sample is missing on one patch ends at the last whole one."""
+    from thermoskin.params import Config
+    from thermoskin.runtime.record import Recorder, export
+    from thermoskin.runtime.skin_topics import layout
+
+    skin = load_skin(FOREARM)
+    names = [p.name for p in skin.patches]
+    rec_path = tmp_path / "s.mcap"
+    rec = Recorder(rec_path, Config(), schemas=skin_topics(skin), params={"skin": layout(skin)})
+    n = 4
+    for r in range(n):
+        t = r * 1e-3
+        for i in reversed(range(len(names))):  # the messages of a sample in another order
+            if r == n - 1 and i == 2:
+                continue  # the last sample of patch 2 never recorded
+            rec.write(f"/patch/{names[i]}/sample", t, {"T_w": 20.0 + i + r / 10, "T_p": 30.0, "T_a": 19.0,
+                                                       "v": 0.1, "fresh": 1})
+            rec.write(f"/patch/{names[i]}/estimate", t, {"q_i_hat": float(i), "dq_i_hat": -float(r),
+                                                         "contact": 0, "gap": 0})
+    rec.close()
+    out = export(rec_path, tmp_path / "s.csv")
+    with out.open() as f:
+        rows = list(csv.DictReader(f))
+    P = len(names)
+    assert len(rows) == (n - 1) * P  # the last sample is not whole
+    for k, row in enumerate(rows):
+        r, i = divmod(k, P)
+        assert float(row["t"]) == pytest.approx(r * 1e-3) and int(float(row["patch"])) == i
+        assert float(row["T_w"]) == pytest.approx(20.0 + i + r / 10)
+        assert float(row["q_i_hat"]) == i and float(row["dq_i_hat"]) == -r

@@ -604,6 +604,43 @@ def to_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample",
     return cols
 
 
+def skin_columns(path: str | os.PathLike[str],
+                 info: dict[str, Any] | None = None) -> dict[str, Column] | None:
+    """A skin's recording (``run --skin --record``: ``/patch/NAME/sample``, ``estimate``,
+    ``truth``) as one long table, one row per sample and patch (sample-major, patches in the
+    skin's order, ``patch`` their index, as the skin's log): each patch's topics joined as
+    :func:`to_columns` joins a single patch's. None if the recording is not a skin's.
+    A cut-off recording ends at the last sample every patch has whole."""
+    samples = [t for t in recording_channels(path) if t.startswith("/patch/") and t.endswith("/sample")]
+    if not samples:
+        return None
+    names = [t[len("/patch/"):-len("/sample")] for t in samples]
+    params = read_mcap(path, ["/params"]).get("/params", [])
+    layout = params[0].get("skin") if params else None
+    if isinstance(layout, dict) and isinstance(layout.get("patches"), list):
+        order = [p.get("name") for p in layout["patches"] if isinstance(p, dict)]
+        if sorted(order) == sorted(names):
+            names = order
+    per: list[dict[str, Column]] = []
+    for i, name in enumerate(names):
+        sub: dict[str, Any] = {}
+        per.append(to_columns(path, f"/patch/{name}/sample", (f"/patch/{name}/estimate",
+                                                              f"/patch/{name}/truth"), info=sub))
+        if i == 0 and info is not None:
+            info.update(sub)
+    n = min(len(c["t"]) for c in per)
+    keys = list(dict.fromkeys(k for c in per for k in c))
+    P = len(per)
+    out: dict[str, Column] = {"t": [x for x in per[0]["t"][:n] for _ in range(P)],
+                              "patch": [float(i) for _ in range(n) for i in range(P)]}
+    for k in keys:
+        if k == "t":
+            continue
+        cols = [c.get(k) or [math.nan] * n for c in per]
+        out[k] = [cols[i][r] for r in range(n) for i in range(P)]
+    return out
+
+
 def _whole_rows(cols: dict[str, list[Any]], merged: set[str], n: int) -> int:
     """Rows up to the last one that has every merged field that began before it."""
     def has(v: Any) -> bool:
@@ -659,7 +696,9 @@ def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
         raise RecordingError(f"cannot export to {out}: the extension must be .csv or .parquet")
     if out.is_dir():
         raise RecordingError(f"cannot export to {out}: it is a directory")
-    cols = to_columns(path_mcap, info=info, **kw)
+    cols = skin_columns(path_mcap, info) if not kw else None
+    if cols is None:
+        cols = to_columns(path_mcap, info=info, **kw)
     if suffix == ".csv":
         if any(_is_text(c) for c in cols.values()):
             return _write_csv(out, cols)
