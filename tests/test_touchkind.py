@@ -68,3 +68,26 @@ def test_neighbours_decide_whether_two_patches_share_a_touch(neighbours: dict[in
                                                              kinds: list[str]) -> None:
     cs = [(0, ev(0.0, 0.5)), (1, ev(0.45, 0.9))]
     assert kinds_of(cs, neighbours) == kinds
+
+
+def test_on_the_forearm_neighbours_are_the_patches_side_by_side() -> None:
+    """`touch_kinds` on examples/forearm.toml: dorsal1-3 lie 10 mm apart along the back of the arm
+    (neighbours), ventral1 on the inside 100 mm away (not): a hand closing on dorsal1-3 is a grasp,
+    a finger sliding dorsal1 -> dorsal2 a stroke, and a touch on ventral1 at the same time as the
+    grasp a hold of its own."""
+    from pathlib import Path
+
+    from thermoskin.skin import load_skin
+    from thermoskin.skin_groups import touch_kinds
+    from thermoskin.skin_observe import SkinEvent
+
+    skin = load_skin(Path(__file__).resolve().parents[1] / "examples" / "forearm.toml")
+    idx = {p.name: p.index for p in skin.patches}
+
+    def se(name: str, onset: float, release: float) -> SkinEvent:
+        return SkinEvent(idx[name], name, ev(onset, release))
+
+    events = [se("dorsal1", 10.0, 13.0), se("dorsal2", 10.1, 13.0), se("dorsal3", 10.2, 12.9),
+              se("ventral1", 10.5, 12.5),
+              se("dorsal1", 20.0, 20.6), se("dorsal2", 20.6, 21.2)]
+    assert touch_kinds(skin, events) == ["grasp", "grasp", "grasp", "hold", "stroke", "stroke"]

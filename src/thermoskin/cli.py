@@ -278,20 +278,22 @@ def _skin_report(skin: Any, events: list[Any], picture: Path, events_path: Path 
 
     from rich.table import Table
 
-    from thermoskin.skin_groups import group_events, groups_columns
+    from thermoskin.skin_groups import group_events, groups_columns, touch_kinds
     from thermoskin.skin_log import write_table
     from thermoskin.skin_observe import events_columns
     from thermoskin.skin_plot import plot_layout
 
     groups = group_events(skin, events)
+    kinds = touch_kinds(skin, events)
     tab = Table(title="Detected contacts per patch")
-    for name in ("patch", "onset s", "detected s", "release s", "sign", "peak dq W", "position mm", "sd mm"):
+    for name in ("patch", "onset s", "detected s", "release s", "sign", "peak dq W", "position mm", "sd mm",
+                 "kind"):
         tab.add_column(name, justify="right")
-    for e in events[:TABLE_ROWS]:
+    for e, kind in list(zip(events, kinds, strict=True))[:TABLE_ROWS]:
         ev, pos = e.event, e.position
         tab.add_row(e.name, f"{ev.onset:.3f}", f"{ev.detected_at:.3f}", f"{ev.release:.3f}", f"{ev.sign:+d}",
                     f"{ev.peak_dq:.3f}", "" if _m.isnan(pos.mean) else f"{pos.mean * 1e3:.1f}",
-                    "" if _m.isnan(pos.sd) else f"{pos.sd * 1e3:.1f}")
+                    "" if _m.isnan(pos.sd) else f"{pos.sd * 1e3:.1f}", kind)
     console.print(tab)
     gt = Table(title="Body contacts (events on neighbouring patches overlapping in time)")
     for name in ("#", "link", "onset s", "release s", "patches", "x mm", "y mm", "heat W"):
@@ -302,7 +304,7 @@ def _skin_report(skin: Any, events: list[Any], picture: Path, events_path: Path 
     console.print(gt)
     try:
         if events_path is not None:
-            write_table(events_path, events_columns(events))
+            write_table(events_path, {**events_columns(events), "kind": np.array(kinds, dtype=object)})
         if groups_path is not None:
             write_table(groups_path, groups_columns(groups))
     except OSError as e:

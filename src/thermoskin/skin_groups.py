@@ -134,3 +134,14 @@ def groups_columns(groups: list[BodyContact]) -> dict[str, np.ndarray]:
     rows = [g.row(k + 1) for k, g in enumerate(groups)]
     kind = {"link": object, "patches": object, "contact": np.int64, "n_patches": np.int64}
     return {c: np.array([r[c] for r in rows], dtype=kind.get(c, float)) for c in GROUP_COLUMNS}
+
+
+def touch_kinds(skin: Skin, events: list[SkinEvent], *, reach: float = REACH) -> list[str]:
+    """Per event, the kind of the touch it belongs to: ``tap``, ``hold``, ``stroke`` or
+    ``grasp`` (:func:`thermoskin.touchkind.touches`, with the patches within ``reach`` of
+    each other on a link as neighbours)."""
+    from thermoskin.touchkind import kinds_of
+
+    P = len(skin.patches)
+    neighbours = {a: {b for b in range(P) if b != a and gap(skin, a, b) <= reach} for a in range(P)}
+    return kinds_of([(e.patch, e.event) for e in events], neighbours)
