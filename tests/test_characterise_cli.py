@@ -57,6 +57,8 @@ def test_observe_events_say_what_touched(sim: Path, tmp_path: Path) -> None:
         rows = list(csv.DictReader(fh))
     assert rows and list(rows[0]) == list(EVENT_COLUMNS)
     log = read_log(sim, nan_columns=("T_f_true",))
+    decided = [r for r in rows if r["toucher"]]
+    assert len(decided) >= 2 and {r["toucher"] for r in decided} == {"human", "object"}  # not all empty
     for r in rows:
         assert r["kind"] in ("tap", "hold")
         assert 0.0 <= float(r["p_human"]) <= 1.0

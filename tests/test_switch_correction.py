@@ -56,3 +56,6 @@ def test_correction_learns_an_injected_switch_pattern() -> None:
     assert abs(np.median(d)) < 0.04 * 2 / np.pi  # at most the pattern's mean
     # and the readings so corrected give no false event where the uncorrected model sees some
     assert not est.events
+    plain = TouchEstimator(base)  # switch_bins 0: no correction
+    plain.run(log["t"], T_w, log["T_p"], log["v"], log["T_a"], log["T_w_cmd"], log["fresh"])
+    assert len(plain.events) >= 10
