@@ -42,6 +42,7 @@ import numpy as np
 
 from thermoskin.characterise import Characteriser
 from thermoskin.control.probe import SetpointProbe
+from thermoskin.evaluation import match_events
 from thermoskin.params import Config
 from thermoskin.physics import contact as ct
 from thermoskin.runtime.closed_loop import run_closed_loop
@@ -74,14 +75,11 @@ def run_one(args: tuple[int, str, str, float]) -> dict[str, Any]:
     ch = Characteriser(cfg)
     ch.feed(c["t"], c["dq_i_hat"], c["T_w"], c["T_a"])
     ch.finish()
-    used: set[int] = set()
+    m = match_events(sc.touches, res.events)
     rows = []
-    for tc in sc.touches:
-        hit = next((i for i, e in enumerate(res.events) if i not in used
-                    and tc.t_on <= e.detected_at <= tc.t_off + 1.0), None)
+    for tc, hit in zip(sc.touches, m.pairs, strict=True):
         row: dict[str, Any] = {"truth": truth_of(tc), "detected": hit is not None}
         if hit is not None:
-            used.add(hit)
             e = res.events[hit]
             row["latency"] = e.detected_at - tc.t_on
             row["release_err"] = e.release - tc.t_off
@@ -107,7 +105,7 @@ def run_one(args: tuple[int, str, str, float]) -> dict[str, Any]:
            "out_p50": float(np.median(err[~inc])), "out_p99": float(np.percentile(err[~inc], 99)),
            "out_max": float(err[~inc].max())}
     return {"seed": seed, "skin": skin, "probe": probe, "rows": rows,
-            "false_alarms": len(res.events) - len(used), "regulation": reg, "wall_s": res.wall_s}
+            "false_alarms": m.false_alarms, "regulation": reg, "wall_s": res.wall_s}
 
 
 def _share(x: list[bool]) -> float:

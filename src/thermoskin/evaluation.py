@@ -26,6 +26,8 @@ class Match:
     spurious: list[ContactEvent] = field(default_factory=list)
     not_scored: int = 0
     """Touches left out because the run ended (``t_end``) before they could be told."""
+    pairs: list[int | None] = field(default_factory=list)
+    """Per touch (in order), the index of its event in ``events``; None if it has none."""
 
 
 def match_events(touches: Sequence[Touch], events: Sequence[ContactEvent],
@@ -40,13 +42,16 @@ def match_events(touches: Sequence[Touch], events: Sequence[ContactEvent],
     used: set[int] = set()
     lat: list[float] = []
     missed: list[Touch] = []
+    pairs: list[int | None] = []
     not_scored = 0
     for tc in touches:
         if tc.t_on >= t_end:
             not_scored += 1
+            pairs.append(None)
             continue
         hit = next((i for i, e in enumerate(events) if i not in used
                     and tc.t_on <= e.detected_at <= tc.t_on + tc.duration + late), None)
+        pairs.append(hit)
         if hit is None and tc.t_on + tc.duration + late > t_end:
             not_scored += 1
         elif hit is None:
@@ -56,7 +61,8 @@ def match_events(touches: Sequence[Touch], events: Sequence[ContactEvent],
             lat.append(events[hit].detected_at - tc.t_on)
     spurious = [e for i, e in enumerate(events) if i not in used]
     return Match(hits=len(lat), misses=len(missed), false_alarms=len(spurious),
-                 latencies=np.asarray(lat), missed=missed, spurious=spurious, not_scored=not_scored)
+                 latencies=np.asarray(lat), missed=missed, spurious=spurious, not_scored=not_scored,
+                 pairs=pairs)
 
 
 def touches_from_truth(t: NDArray[np.float64], contact_true: NDArray[np.float64],
