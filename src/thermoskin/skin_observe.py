@@ -7,7 +7,9 @@ one state row per patch, ``kernel.run_rows`` over the long-format rows), each pa
   and its loop's flow (eq. 1's ``R_w(v)``, the loop's pump), :func:`patch_config`;
 - **its own inlet water** as the input ``T_p`` (``skin_inlet``): the upstream patch's outlet
   carried through the pipe between them (the tank's water, delayed, for the first patch), so
-  that heat a touch upstream put into the water is an input downstream, not a touch there.
+  that heat a touch upstream put into the water is an input downstream, not a touch there;
+  lagged by the crossing of the patch's own pipe that the lumped node leaves out
+  (``skin_lag``; the ``T_in`` output and the position keep the inlet itself).
 
 Events gain ``patch`` (its name), ``position`` and ``position_sd`` (m from the patch's inlet,
 ``skin_position``; NaN where not identifiable) and ``heat`` (W, the position fit's heat into
