@@ -33,6 +33,8 @@ bit (``x(k)`` is summed in the same order).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -75,6 +77,31 @@ def inlet_inputs(skin: Skin, t_s: float, T_w: list[Array], T_p: Array, v: Array,
     return InletStream(skin, t_s).push(T_w, T_p, v, T_a, fresh)
 
 
+def _through(length: float, tau_loss: float, st: _PipeState, xh: Array, x_new: Array, base: int, kg: Ints,
+             k0: int, sh: Array, bh: Ints, T_a: Array, t_s: float) -> tuple[Array, NDArray[np.bool_]]:
+    """One pipe of ``length`` over a block (module doc): the water out of it and its fresh flags;
+    ``st`` keeps the last ``k'``."""
+    if length <= 0.0:
+        kp = kg.copy()
+    else:
+        kp = (np.searchsorted(xh, x_new - length * (1.0 - 1e-12), side="right") - 1).astype(np.int64)
+        kp = np.where(kp < 0, -1, kp + base)
+    before = kp < 0
+    kk = np.where(before, 0, kp)
+    age = (kg - kk) * t_s
+    keep = 0.0 if tau_loss <= 0.0 else 1.0 / tau_loss
+    val = T_a + (sh[kk - base] - T_a) * np.exp(-age * keep)
+    val[before] = st.src0
+    new = np.empty(len(kg), dtype=bool)
+    new[0] = k0 == 0 or kk[0] != st.kk_last
+    new[1:] = kk[1:] != kk[:-1]
+    f = (bh[kk - base] != 0) & new & ~before
+    if k0 == 0:
+        f[0] = True
+    st.kk_last = int(kk[-1])
+    return val, f
+
+
 class _PipeState:
     """One pipe's stream: its source's first reading, the last ``k'`` (global index)."""
 
@@ -86,9 +113,14 @@ class _PipeState:
 
 
 class InletStream:
-    """:func:`inlet_inputs` block by block (module doc): :meth:`push` the next rows, get their inlets."""
+    """:func:`inlet_inputs` block by block (module doc): :meth:`push` the next rows, get their inlets.
 
-    def __init__(self, skin: Skin, t_s: float) -> None:
+    ``lag`` (m of pumped water per patch, optional): :meth:`push` also computes, in
+    :attr:`lagged`, each patch's inlet as it was ``lag[i]`` of water earlier (the pipe
+    ``lag[i]`` longer; a patch fed straight from the tank is not lagged): the input the lumped
+    model takes (``skin_lag``)."""
+
+    def __init__(self, skin: Skin, t_s: float, lag: Sequence[float] | None = None) -> None:
         self.skin, self.t_s = skin, float(t_s)
         self.k = 0  # samples pushed so far
         L = len(skin.loops)
@@ -99,6 +131,10 @@ class InletStream:
         self._src: list[list[Array]] = [[np.zeros(0)] * len(lp.patches) for lp in skin.loops]
         self._sbit: list[list[Ints]] = [[np.zeros(0, dtype=np.int64)] * len(lp.patches) for lp in skin.loops]
         self._pipe = [[_PipeState() for _ in lp.patches] for lp in skin.loops]
+        self.lag = None if lag is None else [float(x) for x in lag]
+        self._lpipe = [[_PipeState() for _ in lp.patches] for lp in skin.loops]
+        self.lagged: tuple[Array, Ints] | None = None
+        """The last :meth:`push`'s lagged ``(T_in, fresh_in)`` (with ``lag``; else None)."""
 
     def push(self, T_w: list[Array], T_p: Array, v: Array, T_a: Array,
              fresh: Ints | None) -> tuple[Array, Ints]:
@@ -108,6 +144,8 @@ class InletStream:
         k0 = self.k
         T_in = T_p.copy()
         fr = np.full((m, P), 7, dtype=np.int64) if fresh is None else fresh.astype(np.int64).copy()
+        T_lag, fr_lag = T_in.copy(), fr.copy()
+        self.lagged = (T_lag, fr_lag) if self.lag is not None else None
         if m == 0:
             return T_in, fr
         kg = np.arange(k0, k0 + m, dtype=np.int64)
@@ -137,31 +175,18 @@ class InletStream:
                 self._src[li][q], self._sbit[li][q] = sh, bh
                 st = self._pipe[li][q]
                 if k0 == 0:
-                    st.src0 = float(src[0])
+                    st.src0 = self._lpipe[li][q].src0 = float(src[0])
                 if pipe.length <= 0.0 and q == 0:
                     continue  # fed straight from the tank: the tank is the inlet
-                if pipe.length <= 0.0:
-                    kp = kg.copy()
-                else:
-                    kp = (np.searchsorted(xh, x_new - pipe.length * (1.0 - 1e-12), side="right") - 1
-                          ).astype(np.int64)
-                    kp = np.where(kp < 0, -1, kp + base)
-                before = kp < 0
-                kk = np.where(before, 0, kp)
-                age = (kg - kk) * t_s
-                keep = 0.0 if pipe.tau_loss <= 0.0 else 1.0 / pipe.tau_loss
-                val = T_a[:, i] + (sh[kk - base] - T_a[:, i]) * np.exp(-age * keep)
-                val[before] = st.src0
-                new = np.empty(m, dtype=bool)
-                new[0] = k0 == 0 or kk[0] != st.kk_last
-                new[1:] = kk[1:] != kk[:-1]
-                f = (bh[kk - base] != 0) & new & ~before
-                if k0 == 0:
-                    f[0] = True
-                st.kk_last = int(kk[-1])
-                keep_from = min(keep_from, st.kk_last)
-                T_in[:, i] = val
-                fr[:, i] = (fr[:, i] & ~FRESH_T_P) | np.where(f, FRESH_T_P, 0)
+                todo = [(pipe.length, st, T_in, fr)]
+                if self.lag is not None:
+                    todo.append((pipe.length + self.lag[i], self._lpipe[li][q], T_lag, fr_lag))
+                for length, ps, T_out, f_out in todo:
+                    val, f = _through(length, pipe.tau_loss, ps, xh, x_new, base, kg, k0, sh, bh, T_a[:, i],
+                                      t_s)
+                    keep_from = min(keep_from, ps.kk_last)
+                    T_out[:, i] = val
+                    f_out[:, i] = (f_out[:, i] & ~FRESH_T_P) | np.where(f, FRESH_T_P, 0)
             cut = max(keep_from - base, 0)
             self._base[li] = base + cut
             self._x[li] = xh[cut:]

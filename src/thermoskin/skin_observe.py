@@ -7,7 +7,9 @@ one state row per patch, ``kernel.run_rows`` over the long-format rows), each pa
   and its loop's flow (eq. 1's ``R_w(v)``, the loop's pump), :func:`patch_config`;
 - **its own inlet water** as the input ``T_p`` (``skin_inlet``): the upstream patch's outlet
   carried through the pipe between them (the tank's water, delayed, for the first patch), so
-  that heat a touch upstream put into the water is an input downstream, not a touch there.
+  that heat a touch upstream put into the water is an input downstream, not a touch there;
+  lagged by the crossing of the patch's own pipe that the lumped node leaves out
+  (``skin_lag``; the ``T_in`` output and the position keep the inlet itself).
 
 Events gain ``patch`` (its name), ``position`` and ``position_sd`` (m from the patch's inlet,
 ``skin_position``; NaN where not identifiable) and ``heat`` (W, the position fit's heat into
@@ -54,6 +56,7 @@ from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
 from thermoskin.skin import NETWORK_KEYS, Skin, tc_fresh_bit
 from thermoskin.skin_inlet import InletStream
+from thermoskin.skin_lag import lumped_lag
 from thermoskin.skin_log import SkinLog
 from thermoskin.skin_position import NAN_POSITION, PatchLocator, Position
 
@@ -177,9 +180,10 @@ class SkinEstimator:
         check_interval(t_s)
         self.skin, self.t_s = skin, float(t_s)
         self.P = len(skin.patches)
-        self.est = PatchEstimators([patch_config(skin, i) for i in range(self.P)], t_s=self.t_s,
-                                   parallel=False)
-        self.inlet = InletStream(skin, self.t_s)
+        cfgs = [patch_config(skin, i) for i in range(self.P)]
+        self.est = PatchEstimators(cfgs, t_s=self.t_s, parallel=False)
+        lag = [lumped_lag(skin, i, c.skin) for i, c in enumerate(cfgs)]
+        self.inlet = InletStream(skin, self.t_s, lag=lag)
         self._contact = np.zeros(self.P, dtype=np.int64)
         self._patch = np.zeros(0, dtype=np.int64)
 
@@ -195,10 +199,11 @@ class SkinEstimator:
                                    cols["T_a"], fresh)
         if len(self._patch) < m * P:
             self._patch = np.tile(np.arange(P, dtype=np.int64), m)
+        T_lag, fr_lag = self.inlet.lagged  # type: ignore[misc]
         cmd = cols["T_w_cmd"].ravel() if "T_w_cmd" in cols else None
         out, ended = self.est.run_rows(self._patch[:m * P], np.repeat(t, P), cols["T_w"].ravel(),
-                                       T_in.ravel(), cols["v"].ravel(), cols["T_a"].ravel(), T_w_cmd=cmd,
-                                       fresh=fr.ravel())
+                                       T_lag.ravel(), cols["v"].ravel(), cols["T_a"].ravel(), T_w_cmd=cmd,
+                                       fresh=fr_lag.ravel())
         res = {k: out[k].reshape(m, P) for k in ("q_i_hat", "dq_i_hat", "contact", "gap")}
         return SkinBlock(res, T_in, fr, self._changes(t, res["contact"], ended))
 
