@@ -588,7 +588,17 @@ def _detect(st, pr, t, ev):
                     best = g - h
                     fire = j
         if fire >= 0:
+            # of the two CUSUMs of its sign, the one whose step (at its last zero, of the size
+            # its evidence points to) explains the readings better, sum(g e/S)²/sum(g²/S): a
+            # large step seen by the smaller design's CUSUM is dated where noise began to
+            # gather before the touch, and sized by that noise too
             o = CU + 4 * fire
+            j2 = fire + 2 if fire < 2 else fire - 2
+            o2 = CU + 4 * j2
+            if st[o2] > 0.0 and st[o2 + 3] > 0.0 and st[o + 3] > 0.0 and (
+                    st[o2 + 2] * st[o2 + 2] / st[o2 + 3] > st[o + 2] * st[o + 2] / st[o + 3]):
+                fire = j2
+                o = o2
             sg = 1.0 if fire % 2 == 0 else -1.0
             D = pr[PR_D]
             # the change the evidence since the CUSUM left zero points to, sum(g e/S)/sum(g²/S);

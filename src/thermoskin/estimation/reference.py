@@ -274,6 +274,11 @@ class ReferenceEstimator:
                     if g > h and g - h > best:
                         fire, best = c, g - h
             if fire is not None:
+                # of the two CUSUMs of its sign, the step that explains the readings better
+                other = self.cusums[(next(k for k, c in enumerate(self.cusums) if c is fire) + 2) % 4]
+                if other.g > 0 and other.sum_gg > 0 and fire.sum_gg > 0 and (
+                        other.sum_ge**2 / other.sum_gg > fire.sum_ge**2 / fire.sum_gg):
+                    fire = other
                 sg = 1.0 if fire.design > 0 else -1.0
                 D = d.dq_design
                 jump = fire.sum_ge / fire.sum_gg if fire.sum_gg > 0 else sg * D
