@@ -178,7 +178,8 @@ PR_VSW = 50      # pump-switch timing uncertainty (0: switches at the samples, a
 PR_ICW = 51      # 1/C_w, K/J
 PR_NPH = 52      # phase bins of the pump-cycle correction of T_w (0: none)
 PR_APH = 53      # its learning weight per no-touch reading
-NPARAM = 54
+PR_TCONF = 54    # a contact released this soon after its detection, never confirmed, is withdrawn, s
+NPARAM = 55
 
 
 # step result bits
@@ -682,6 +683,19 @@ def _detect(st, pr, t, ev):
         gl = 0.0
     st[RUNL] = gl
     if g > pr[PR_HOFF]:
+        if st[TFBL] == st[DETECTED] and t - st[DETECTED] < pr[PR_TCONF]:
+            # no reading since the detection favoured the contact's level over the baseline
+            # (the release evidence never fell back to zero) and it ended at once: the onset
+            # was noise, not a touch; withdraw it (no event)
+            st[MODE] = IDLE
+            st[CONTACT] = 0.0
+            st[X + 2] = b
+            st[P + 12] += 0.25 * lvl * lvl
+            st[Q] = b
+            st[DQ] = 0.0
+            st[RUN] = 0.0
+            _cusums_reset(st, t)
+            return 0
         t_rel = _between(st, st[TFBL], t) if st[DETECTED] <= st[TFBL] < st[TFB] else st[TFB]
         _end(st, t_rel, ev)
         # the touch has gone: the estimate goes back to its baseline, free to correct itself

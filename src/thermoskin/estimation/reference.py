@@ -329,6 +329,14 @@ class ReferenceEstimator:
             gl = 0.0
         self.run_lik = gl
         if g > d.h_off:
+            if self.t_lik == self.detected and t - self.detected < d.t_confirm:
+                # never confirmed by a reading since the detection, and over at once: noise
+                self.mode, self.contact = "idle", 0
+                self.x[I_Q] = b
+                self.P[I_Q, I_Q] += 0.25 * self.level**2
+                self.dq = 0.0
+                self._reset_cusums(t)
+                return 0
             if self.detected <= self.t_lik < self.t_below:
                 t_rel = self._between(self.t_lik, t)
             else:
