@@ -177,6 +177,9 @@ class DetectorParams(_Validated):
                               "light fingertip) ...")
     dq_design_hi: float = _p(0.6, "W", 1e-4, 100.0,
                              doc="... and this one (two fingers and more)")
+    dq_design_lo: float = _p(0.15, "W", 1e-4, 100.0,
+                             doc="a third pair of CUSUMs, of this design, never fires: it dates and "
+                                 "sizes a step weaker than dq_design")
     h_on: float = _p(6.0, "", 0.0, 1000.0, lo_open=True,
                      doc="onset threshold, log-likelihood ratio of a touch against none, for one "
                          "pipe reading a second ...")

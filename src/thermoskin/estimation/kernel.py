@@ -115,7 +115,7 @@ HTH = 102      # the onset threshold at the current reading rate
 RUNL = 100     # the release evidence CUSUM (dates the release)
 TFBL = 101     # last time it was zero, s
 CU = 104       # the onset CUSUMs, NCU of them, 4 fields each: statistic, last time it was
-NCU = 4        # zero, and since then the sums of g e / S and g^2 / S (their ratio estimates
+NCU = 6        # zero, and since then the sums of g e / S and g^2 / S (their ratio estimates
 #                the change); designs +D, -D, +D_hi, -D_hi
 WBUF = CU + 4 * NCU  # warm-up buffer: NWB q values
 NWB = 256
@@ -179,7 +179,8 @@ PR_ICW = 51      # 1/C_w, K/J
 PR_NPH = 52      # phase bins of the pump-cycle correction of T_w (0: none)
 PR_APH = 53      # its learning weight per no-touch reading
 PR_TCONF = 54    # a contact released this soon after its detection, never confirmed, is withdrawn, s
-NPARAM = 55
+PR_DLO = 55      # the design of the two CUSUMs that only date and size a weak step, W
+NPARAM = 56
 
 
 # step result bits
@@ -567,7 +568,7 @@ def _detect(st, pr, t, ev):
         quiet = True
         for j in range(NCU):
             o = CU + 4 * j
-            D = pr[PR_D] if j < 2 else pr[PR_DHI]
+            D = pr[PR_D] if j < 2 else (pr[PR_DHI] if j < 4 else pr[PR_DLO])
             sgj = 1.0 if j % 2 == 0 else -1.0
             g = st[o] + sgj * D * sge - 0.5 * D * D * sgg
             if hold_all or (hold_other and sgj != st[LASTSIGN]):
@@ -584,24 +585,30 @@ def _detect(st, pr, t, ev):
                 st[o] = g
                 st[o + 2] += sge
                 st[o + 3] += sgg
+                if j >= 4:  # the weak-step CUSUMs only date and size
+                    continue
                 quiet = False
                 if g > h and g - h > best:
                     best = g - h
                     fire = j
         if fire >= 0:
-            # of the two CUSUMs of its sign, the one whose step (at its last zero, of the size
-            # its evidence points to) explains the readings better, sum(g e/S)²/sum(g²/S): a
-            # large step seen by the smaller design's CUSUM is dated where noise began to
-            # gather before the touch, and sized by that noise too
+            # of the three CUSUMs of its sign (designs D, D_hi, D_lo), the one whose step (at
+            # its last zero, of the size its evidence points to) explains the readings best,
+            # sum(g e/S)²/sum(g²/S): a large step seen by the smaller design's CUSUM is dated
+            # where noise began to gather before the touch, and a weak one, which the
+            # design-D CUSUM lost and found again, dated late
             o = CU + 4 * fire
-            j2 = fire + 2 if fire < 2 else fire - 2
-            o2 = CU + 4 * j2
-            if st[o2] > 0.0 and st[o2 + 3] > 0.0 and st[o + 3] > 0.0 and (
-                    st[o2 + 2] * st[o2 + 2] / st[o2 + 3] > st[o + 2] * st[o + 2] / st[o + 3]):
-                fire = j2
-                o = o2
+            bestl = st[o + 2] * st[o + 2] / st[o + 3] if st[o + 3] > 0.0 else 0.0
+            for k in range(fire % 2, NCU, 2):
+                o2 = CU + 4 * k
+                if k != fire and st[o2] > 0.0 and st[o2 + 3] > 0.0:
+                    l2 = st[o2 + 2] * st[o2 + 2] / st[o2 + 3]
+                    if l2 > bestl:
+                        bestl = l2
+                        fire = k
+            o = CU + 4 * fire
             sg = 1.0 if fire % 2 == 0 else -1.0
-            D = pr[PR_D]
+            D = pr[PR_D] if fire < 2 else (pr[PR_DHI] if fire < 4 else pr[PR_DLO])
             # the change the evidence since the CUSUM left zero points to, sum(g e/S)/sum(g²/S);
             # the whole state takes it as a step at that time would have left it: jump mu (q_i
             # the jump, and the sheet and pipe what the filter has not yet seen of the step;

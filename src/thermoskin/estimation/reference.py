@@ -88,7 +88,8 @@ class ReferenceEstimator:
         self.mode, self.n_seen, self.warm = "warm", 0, []
         self.b = 0.0
         self.cusums = [_Cusum(d.dq_design), _Cusum(-d.dq_design),
-                       _Cusum(d.dq_design_hi), _Cusum(-d.dq_design_hi)]
+                       _Cusum(d.dq_design_hi), _Cusum(-d.dq_design_hi),
+                       _Cusum(d.dq_design_lo), _Cusum(-d.dq_design_lo)]
         self.t_rel, self.last_sign = -1e300, 0.0
         self.t_air, self.air_up, self.air_down = -1e300, 0.0, 0.0
         self.contact = 0
@@ -258,7 +259,7 @@ class ReferenceEstimator:
             rate = self.rate if self.rate > 0 else 1 / self.t_s
             h = d.h_on + d.h_rate * math.log(max(rate, 1.0))  # the kernel caches it per reading
             fire, best, quiet = None, 0.0, True
-            for c in self.cusums:
+            for k, c in enumerate(self.cusums):
                 g = c.g + c.design * ge - 0.5 * c.design**2 * gg
                 if t - self.t_air < self.t_amb_hold or (
                         t - self.t_rel < d.t_refractory and np.sign(c.design) != self.last_sign):
@@ -270,17 +271,20 @@ class ReferenceEstimator:
                         c.g, c.sum_ge, c.sum_gg = 0.0, 0.0, 0.0
                 else:
                     c.g, c.sum_ge, c.sum_gg = g, c.sum_ge + ge, c.sum_gg + gg
+                    if k >= 4:  # the weak-step pair only dates and sizes
+                        continue
                     quiet = False
                     if g > h and g - h > best:
                         fire, best = c, g - h
             if fire is not None:
-                # of the two CUSUMs of its sign, the step that explains the readings better
-                other = self.cusums[(next(k for k, c in enumerate(self.cusums) if c is fire) + 2) % 4]
-                if other.g > 0 and other.sum_gg > 0 and fire.sum_gg > 0 and (
-                        other.sum_ge**2 / other.sum_gg > fire.sum_ge**2 / fire.sum_gg):
-                    fire = other
+                # of the CUSUMs of its sign, the step that explains the readings best
+                fit = fire.sum_ge**2 / fire.sum_gg if fire.sum_gg > 0 else 0.0
+                for c in self.cusums:
+                    if (c is not fire and c.design * fire.design > 0 and c.g > 0 and c.sum_gg > 0
+                            and c.sum_ge**2 / c.sum_gg > fit):
+                        fire, fit = c, c.sum_ge**2 / c.sum_gg
                 sg = 1.0 if fire.design > 0 else -1.0
-                D = d.dq_design
+                D = abs(fire.design)
                 jump = fire.sum_ge / fire.sum_gg if fire.sum_gg > 0 else sg * D
                 if sg * jump < D:
                     jump = sg * D
