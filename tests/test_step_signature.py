@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from thermoskin.estimation import kernel as K
+from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.model import I_Q, I_TP, I_TW
 from thermoskin.estimation.reference import ReferenceEstimator
 from thermoskin.estimator import TouchEstimator
