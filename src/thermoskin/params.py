@@ -196,9 +196,12 @@ class DetectorParams(_Validated):
     h_off: float = _p(0.05, "sigma s", 1e-4, 100.0,
                       doc="release CUSUM threshold")
     t_warmup: float = _p(1.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
-    t_confirm: float = _p(0.2, "s", 0.0, 60.0,
+    t_confirm: float = _p(0.0, "s", 0.0, 60.0,
                           doc="a contact ended this soon after its detection, with no reading since "
-                              "the detection favouring it over no touch, is withdrawn (noise)")
+                              "the detection favouring it over no touch, is withdrawn (noise; no "
+                              "event); 0: never (0.2 s removes the quiet hours' false alarm, but "
+                              "skin_observe's change stream expects every contact to end in an "
+                              "event)")
     t_refractory: float = _p(3.0, "s", 0.0, 60.0,
                              doc="after a release, no onset of the opposite sign for this long")
     t_air: float = _p(1.0, "s", 0.0, 600.0,
