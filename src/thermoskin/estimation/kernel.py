@@ -115,7 +115,7 @@ HTH = 102      # the onset threshold at the current reading rate
 RUNL = 100     # the release evidence CUSUM (dates the release)
 TFBL = 101     # last time it was zero, s
 CU = 104       # the onset CUSUMs, NCU of them, 4 fields each: statistic, last time it was
-NCU = 4        # zero, and since then the sums of g e / S and g^2 / S (their ratio estimates
+NCU = 6        # zero, and since then the sums of g e / S and g^2 / S (their ratio estimates
 #                the change); designs +D, -D, +D_hi, -D_hi
 WBUF = CU + 4 * NCU  # warm-up buffer: NWB q values
 NWB = 256
@@ -124,7 +124,9 @@ PHASE = SCR + 25  # samples since the last pump switch
 PHDIR = SCR + 26  # that switch: 0 to a lower water resistance (more flow), 1 to a higher
 NPH = 64          # most phase bins of the pump-cycle correction, per direction
 TPL = SCR + 27    # the correction: mean no-touch innovation of T_w per (direction, phase), K
-NSTATE = TPL + 2 * NPH
+MU = TPL + 2 * NPH  # per onset CUSUM: mu, what remains in the filter's error of a unit step of
+NMU = 5             # q_i at the CUSUM's last zero (the step's signature, Willsky and Jones)
+NSTATE = MU + NMU * NCU
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -176,7 +178,9 @@ PR_VSW = 50      # pump-switch timing uncertainty (0: switches at the samples, a
 PR_ICW = 51      # 1/C_w, K/J
 PR_NPH = 52      # phase bins of the pump-cycle correction of T_w (0: none)
 PR_APH = 53      # its learning weight per no-touch reading
-NPARAM = 54
+PR_TCONF = 54    # a contact released this soon after its detection, never confirmed, is withdrawn, s
+PR_DLO = 55      # the design of the two CUSUMs that only date and size a weak step, W
+NPARAM = 56
 
 
 # step result bits
@@ -223,6 +227,13 @@ def _update(st, pr, i, y, R):
         else:
             st[KAPPA] = kap * pr[PR_DOWN]
     inv = 1.0 / S
+    # each onset CUSUM's step signature: what remains in the estimate's error of a step of
+    # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu
+    for j in range(NCU):
+        m = MU + NMU * j
+        rho = st[m + i]
+        for a_ in range(5):
+            st[m + a_] -= st[P + 5 * a_ + i] * inv * rho
     for a_ in range(5):
         st[X + a_] += st[P + 5 * a_ + i] * inv * e
     # P <- P - K P[i, :] with K = P[:, i]/S (symmetric): from a copy of row i
@@ -387,6 +398,8 @@ def _init(st, pr, T_w, T_p, T_a):
     st[PA + 3] = R
     st[READY] = 1.0
     st[GAPRUN] = 0.0
+    for j in range(NCU):
+        _mu_reset(st, j)
     _threshold(st, pr)
 
 
@@ -457,6 +470,26 @@ def _threshold(st, pr):
 
 
 @njit(cache=True, inline="always")
+def _mu_reset(st, j):
+    """CUSUM ``j``'s step signature for a step of ``q_i`` now: all of it still to be learnt."""
+    m = MU + NMU * j
+    for a_ in range(NMU):
+        st[m + a_] = 0.0
+    st[m + 2] = 1.0
+
+
+@njit(cache=True, inline="always")
+def _mu_predict(st, F):
+    """The step signatures through the model, ``mu <- Phi mu`` (rows 2 and 4 of ``Phi`` are unit rows)."""
+    for j in range(NCU):
+        m = MU + NMU * j
+        u0, u1, u2, u3, u4 = st[m], st[m + 1], st[m + 2], st[m + 3], st[m + 4]
+        st[m] = F[0, 0] * u0 + F[0, 1] * u1 + F[0, 2] * u2 + F[0, 3] * u3 + F[0, 4] * u4
+        st[m + 1] = F[1, 0] * u0 + F[1, 1] * u1 + F[1, 2] * u2 + F[1, 3] * u3 + F[1, 4] * u4
+        st[m + 3] = F[3, 0] * u0 + F[3, 1] * u1 + F[3, 2] * u2 + F[3, 3] * u3 + F[3, 4] * u4
+
+
+@njit(cache=True, inline="always")
 def _cusums_reset(st, t):
     """Every onset CUSUM back to zero at ``t``."""
     for j in range(NCU):
@@ -465,6 +498,7 @@ def _cusums_reset(st, t):
         st[o + 1] = t
         st[o + 2] = 0.0
         st[o + 3] = 0.0
+        _mu_reset(st, j)
 
 
 @njit(cache=True, inline="always")
@@ -534,7 +568,7 @@ def _detect(st, pr, t, ev):
         quiet = True
         for j in range(NCU):
             o = CU + 4 * j
-            D = pr[PR_D] if j < 2 else pr[PR_DHI]
+            D = pr[PR_D] if j < 2 else (pr[PR_DHI] if j < 4 else pr[PR_DLO])
             sgj = 1.0 if j % 2 == 0 else -1.0
             g = st[o] + sgj * D * sge - 0.5 * D * D * sgg
             if hold_all or (hold_other and sgj != st[LASTSIGN]):
@@ -544,26 +578,51 @@ def _detect(st, pr, t, ev):
                 # evidence fell back to zero
                 if st[o] > 0.0 or st[TLW] == t:
                     st[o + 1] = t
+                    _mu_reset(st, j)
                 st[o] = 0.0
                 st[o + 2] = st[o + 3] = 0.0
             else:
                 st[o] = g
                 st[o + 2] += sge
                 st[o + 3] += sgg
+                if j >= 4:  # the weak-step CUSUMs only date and size
+                    continue
                 quiet = False
                 if g > h and g - h > best:
                     best = g - h
                     fire = j
         if fire >= 0:
+            # of the three CUSUMs of its sign (designs D, D_hi, D_lo), the one whose step (at
+            # its last zero, of the size its evidence points to) explains the readings best,
+            # sum(g e/S)²/sum(g²/S): a large step seen by the smaller design's CUSUM is dated
+            # where noise began to gather before the touch, and a weak one, which the
+            # design-D CUSUM lost and found again, dated late
+            o = CU + 4 * fire
+            bestl = st[o + 2] * st[o + 2] / st[o + 3] if st[o + 3] > 0.0 else 0.0
+            for k in range(fire % 2, NCU, 2):
+                o2 = CU + 4 * k
+                if k != fire and st[o2] > 0.0 and st[o2 + 3] > 0.0:
+                    l2 = st[o2 + 2] * st[o2 + 2] / st[o2 + 3]
+                    if l2 > bestl:
+                        bestl = l2
+                        fire = k
             o = CU + 4 * fire
             sg = 1.0 if fire % 2 == 0 else -1.0
-            D = pr[PR_D]
-            # the change the evidence since the CUSUM left zero points to, sum(g e/S)/sum(g²/S)
+            D = pr[PR_D] if fire < 2 else (pr[PR_DHI] if fire < 4 else pr[PR_DLO])
+            # the change the evidence since the CUSUM left zero points to, sum(g e/S)/sum(g²/S);
+            # the whole state takes it as a step at that time would have left it: jump mu (q_i
+            # the jump, and the sheet and pipe what the filter has not yet seen of the step;
+            # correcting q_i alone left them behind, the filter then drove q_i past the touch
+            # to catch up, and the contact's level, set too high, released a tap early)
+            m = MU + NMU * fire
             jump = st[o + 2] / st[o + 3] if st[o + 3] > 0.0 else sg * D
             if sg * jump < D:
                 jump = sg * D
-            st[X + 2] += jump
-            st[P + 12] += 0.25 * jump * jump
+            for a_ in range(5):
+                ua = jump * st[m + a_]
+                st[X + a_] += ua
+                for b_ in range(5):
+                    st[P + 5 * a_ + b_] += 0.25 * ua * jump * st[m + b_]
             q = st[X + 2]
             st[Q] = q
             st[MODE] = INCONTACT
@@ -631,6 +690,19 @@ def _detect(st, pr, t, ev):
         gl = 0.0
     st[RUNL] = gl
     if g > pr[PR_HOFF]:
+        if st[TFBL] == st[DETECTED] and t - st[DETECTED] < pr[PR_TCONF]:
+            # no reading since the detection favoured the contact's level over the baseline
+            # (the release evidence never fell back to zero) and it ended at once: the onset
+            # was noise, not a touch; withdraw it (no event)
+            st[MODE] = IDLE
+            st[CONTACT] = 0.0
+            st[X + 2] = b
+            st[P + 12] += 0.25 * lvl * lvl
+            st[Q] = b
+            st[DQ] = 0.0
+            st[RUN] = 0.0
+            _cusums_reset(st, t)
+            return 0
         t_rel = _between(st, st[TFBL], t) if st[DETECTED] <= st[TFBL] < st[TFB] else st[TFB]
         _end(st, t_rel, ev)
         # the touch has gone: the estimate goes back to its baseline, free to correct itself
@@ -747,6 +819,7 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     _ambient_predict(st, Phi_a, Q_a)
     Qd = Qc if st[MODE] == INCONTACT else Qi
     _predict(st, Phi[iv], Gam[iv], Qd[iv], st[XA], drive if drive == drive else 0.0)
+    _mu_predict(st, Phi[iv])
     if st[GAPRUN] > pr[PR_MAXGAP]:
         st[READY] = 0.0  # restart from the next valid readings
     return code

@@ -24,18 +24,27 @@ from thermoskin.physics.convection import FlowResistance
 Array = NDArray[np.float64]
 
 
+def _unit_q() -> Array:
+    mu = np.zeros(5)
+    mu[I_Q] = 1.0
+    return mu
+
+
 @dataclass
 class _Cusum:
-    """One onset CUSUM: statistic, last time it was zero, evidence sums since then."""
+    """One onset CUSUM: statistic, last time it was zero, evidence sums since then, and
+    ``mu``: what remains in the filter's error of a unit step of ``q_i`` at that time."""
 
     design: float
     g: float = 0.0
     t_zero: float = 0.0
     sum_ge: float = 0.0
     sum_gg: float = 0.0
+    mu: Array = field(default_factory=_unit_q)
 
     def reset(self, t: float) -> None:
         self.g, self.t_zero, self.sum_ge, self.sum_gg = 0.0, t, 0.0, 0.0
+        self.mu = _unit_q()
 
 
 @dataclass
@@ -79,7 +88,8 @@ class ReferenceEstimator:
         self.mode, self.n_seen, self.warm = "warm", 0, []
         self.b = 0.0
         self.cusums = [_Cusum(d.dq_design), _Cusum(-d.dq_design),
-                       _Cusum(d.dq_design_hi), _Cusum(-d.dq_design_hi)]
+                       _Cusum(d.dq_design_hi), _Cusum(-d.dq_design_hi),
+                       _Cusum(d.dq_design_lo), _Cusum(-d.dq_design_lo)]
         self.t_rel, self.last_sign = -1e300, 0.0
         self.t_air, self.air_up, self.air_down = -1e300, 0.0, 0.0
         self.contact = 0
@@ -102,6 +112,8 @@ class ReferenceEstimator:
             ge, gg = g * e / Se, g * g / Se
             self.kappa *= self.up if abs(e) > 0.6745 * self.kappa * sS else self.down
         K = self.P[:, i] / S
+        for c in self.cusums:  # the step signatures: mu <- (I - K H) mu
+            c.mu = c.mu - K * c.mu[i]
         self.x = self.x + K * e
         self.P = self.P - np.outer(K, self.P[i, :])
         return ge, gg
@@ -207,6 +219,8 @@ class ReferenceEstimator:
         u = np.array([self.xa[0], drive if drive == drive else 0.0])
         self.x = tb.Phi[iv] @ self.x + tb.Gam[iv] @ u
         self.P = tb.Phi[iv] @ self.P @ tb.Phi[iv].T + Q
+        for c in self.cusums:
+            c.mu = tb.Phi[iv] @ c.mu
         if self.gap_run > self.max_gap:
             self.ready = False
         return code
@@ -217,6 +231,8 @@ class ReferenceEstimator:
         self.P = np.diag([R, R, 1.0, R, 1e-4])
         self.xa = np.array([T_a, T_a])
         self.Pa = np.full((2, 2), R)
+        for c in self.cusums:
+            c.mu = _unit_q()
         self.ready = True
         self.gap_run = 0
 
@@ -243,29 +259,38 @@ class ReferenceEstimator:
             rate = self.rate if self.rate > 0 else 1 / self.t_s
             h = d.h_on + d.h_rate * math.log(max(rate, 1.0))  # the kernel caches it per reading
             fire, best, quiet = None, 0.0, True
-            for c in self.cusums:
+            for k, c in enumerate(self.cusums):
                 g = c.g + c.design * ge - 0.5 * c.design**2 * gg
                 if t - self.t_air < self.t_amb_hold or (
                         t - self.t_rel < d.t_refractory and np.sign(c.design) != self.last_sign):
                     g = 0.0
                 if g <= 0:  # the zero is dated at a pipe reading or where the evidence fell
                     if c.g > 0 or self.t_last_w == t:
-                        c.reset(t)
+                        c.reset(t)  # (and the step's signature starts there)
                     else:
                         c.g, c.sum_ge, c.sum_gg = 0.0, 0.0, 0.0
                 else:
                     c.g, c.sum_ge, c.sum_gg = g, c.sum_ge + ge, c.sum_gg + gg
+                    if k >= 4:  # the weak-step pair only dates and sizes
+                        continue
                     quiet = False
                     if g > h and g - h > best:
                         fire, best = c, g - h
             if fire is not None:
+                # of the CUSUMs of its sign, the step that explains the readings best
+                fit = fire.sum_ge**2 / fire.sum_gg if fire.sum_gg > 0 else 0.0
+                for c in self.cusums:
+                    if (c is not fire and c.design * fire.design > 0 and c.g > 0 and c.sum_gg > 0
+                            and c.sum_ge**2 / c.sum_gg > fit):
+                        fire, fit = c, c.sum_ge**2 / c.sum_gg
                 sg = 1.0 if fire.design > 0 else -1.0
-                D = d.dq_design
+                D = abs(fire.design)
                 jump = fire.sum_ge / fire.sum_gg if fire.sum_gg > 0 else sg * D
                 if sg * jump < D:
                     jump = sg * D
-                self.x[I_Q] += jump
-                self.P[I_Q, I_Q] += 0.25 * jump**2
+                # the whole state as the step at t_zero would have left it (not q_i alone)
+                self.x = self.x + jump * fire.mu
+                self.P = self.P + 0.25 * jump**2 * np.outer(fire.mu, fire.mu)
                 q = self.x[I_Q]
                 self.mode, self.contact, self.sign = "contact", 1, sg
                 self.onset, self.detected = self._between(fire.t_zero, t), t
@@ -308,6 +333,14 @@ class ReferenceEstimator:
             gl = 0.0
         self.run_lik = gl
         if g > d.h_off:
+            if self.t_lik == self.detected and t - self.detected < d.t_confirm:
+                # never confirmed by a reading since the detection, and over at once: noise
+                self.mode, self.contact = "idle", 0
+                self.x[I_Q] = b
+                self.P[I_Q, I_Q] += 0.25 * self.level**2
+                self.dq = 0.0
+                self._reset_cusums(t)
+                return 0
             if self.detected <= self.t_lik < self.t_below:
                 t_rel = self._between(self.t_lik, t)
             else:
