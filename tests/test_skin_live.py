@@ -189,8 +189,16 @@ def test_live_estimation_equals_observe_on_the_log(tmp_path: Path) -> None:
     on = {(c.patch, round(c.t, 6)): c.sign for c in changes if c.on}
     for i, e in ended:
         assert on[(i, round(e.detected_at, 6))] == e.sign
-    assert len([c for c in changes if not c.on]) == len(ended)
-    assert any(i == 0 and e.onset < 7.0 and e.release > 5.0 and e.sign == 1 for i, e in live)
+    releases = [c for c in changes if not c.on]
+    assert sorted((c.patch, c.event) for c in releases if c.event is not None) == sorted(ended)
+    t_confirm = skin.cfg.detector.t_confirm
+    for c in releases:  # a release without its event: a contact withdrawn as noise, soon after
+        if c.event is None:
+            t_on = max(x.t for x in changes if x.on and x.patch == c.patch and x.t <= c.t)
+            assert c.t - t_on <= t_confirm + 2e-3, c
+    # the 2 s touch on dorsal1 is one contact that lasts (with the whole-state onset jump of the
+    # single patch, detector.onset_state_jump 1, it was released after 35 ms)
+    assert any(i == 0 and 4.9 < e.onset < 5.3 and abs(e.release - 7.0) < 0.3 and e.sign == 1 for i, e in live)
 
 
 # ----------------------------------------------------------------------------- a real run, live
@@ -204,6 +212,7 @@ def start_skin_run(tmp_path: Path, port: int, *extra: str) -> tuple[subprocess.P
 
 
 DETECTED = re.compile(r"t =\s*([\d.]+) s\s+(\S+)\s+contact detected \(([+-]1)\)")
+WITHDRAWN = re.compile(r"t =\s*([\d.]+) s\s+(\S+)\s+withdrawn")
 
 
 def test_skin_run_live_foxglove_client(tmp_path: Path) -> None:
@@ -269,7 +278,10 @@ def test_skin_run_live_foxglove_client(tmp_path: Path) -> None:
     with ev_csv.open() as f:
         rows = list(csv.DictReader(f))
     closed = {(row["patch"], round(float(row["detected"]), 3), int(row["sign"])) for row in rows}
-    assert closed == {x[1:] for x in printed}
+    withdrawn = {m.group(2) for _, line in err.lines + out.lines if (m := WITHDRAWN.search(line))}
+    kept = {x[1:] for x in printed}
+    # a detection without an event was printed withdrawn (noise, detector.t_confirm)
+    assert closed <= kept and {p for p, _, _ in kept - closed} <= withdrawn
     # replay --live of the recording: the same topics and schemas, the same events, scenes and
     # 100 Hz estimates as the live run sent
     port2 = free_port_pair()

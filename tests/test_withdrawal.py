@@ -31,7 +31,7 @@ def noisy_detector():  # type: ignore[no-untyped-def]
 
 def test_withdrawn_contacts_are_the_unconfirmed_short_ones(noisy_detector) -> None:  # type: ignore[no-untyped-def]
     cfg, log = noisy_detector
-    off = observe(log, cfg)
+    off = observe(log, cfg.replace(detector={"t_confirm": 0.0}))  # never withdrawn
     on = observe(log, cfg.replace(detector={"t_confirm": 0.2}))
     rises = int((np.diff(on.columns["contact"].astype(int)) == 1).sum())
     assert rises == len(off.events) >= 10  # noise trips it, and the contacts are the same

@@ -967,6 +967,9 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
                         bar.console.print(f"  t = {c.t:7.3f} s  {names[c.patch]:<{width}}  released after "
                                           f"{e.duration:.2f} s (onset {e.onset:.3f} s), peak dq "
                                           f"{e.peak_dq * 1e3:.0f} mW")
+                    else:
+                        bar.console.print(f"  t = {c.t:7.3f} s  {names[c.patch]:<{width}}  withdrawn "
+                                          "(over at once, no reading confirmed it: noise, no event)")
                 for sink, msgs in sinks:
                     for topic, tt, msg in msgs.messages(t, cols, b):
                         sink.publish(topic, tt, msg)

@@ -180,6 +180,10 @@ class DetectorParams(_Validated):
     dq_design_lo: float = _p(0.15, "W", 1e-4, 100.0,
                              doc="a third pair of CUSUMs, of this design, never fires: it dates and "
                                  "sizes a step weaker than dq_design")
+    onset_state_jump: float = _p(1.0, "", 0.0, 1.0,
+                                 doc="1: at an onset the whole state takes the step as it would have "
+                                     "left it (its signature); 0: q_i alone takes the jump (a skin "
+                                     "patch, whose pipe node the signature misleads)")
     h_on: float = _p(6.0, "", 0.0, 1000.0, lo_open=True,
                      doc="onset threshold, log-likelihood ratio of a touch against none, for one "
                          "pipe reading a second ...")
@@ -196,12 +200,10 @@ class DetectorParams(_Validated):
     h_off: float = _p(0.05, "sigma s", 1e-4, 100.0,
                       doc="release CUSUM threshold")
     t_warmup: float = _p(1.0, "s", 0.0, 600.0, doc="initial no-touch time to learn noise")
-    t_confirm: float = _p(0.0, "s", 0.0, 60.0,
+    t_confirm: float = _p(0.2, "s", 0.0, 60.0,
                           doc="a contact ended this soon after its detection, with no reading since "
                               "the detection favouring it over no touch, is withdrawn (noise; no "
-                              "event); 0: never (0.2 s removes the quiet hours' false alarm, but "
-                              "skin_observe's change stream expects every contact to end in an "
-                              "event)")
+                              "event); 0: never")
     t_refractory: float = _p(3.0, "s", 0.0, 60.0,
                              doc="after a release, no onset of the opposite sign for this long")
     t_air: float = _p(1.0, "s", 0.0, 600.0,

@@ -71,6 +71,11 @@ misfit is locked to the pump's cycle, which the pump-cycle correction learns (``
 module doc), so the pipe node needs ten times less noise."""
 SKIN_DETECTOR = {"t_warmup": 5.0}
 """Detector settings of a skin patch (the paper's single patch: ``t_warmup`` 1 s)."""
+SKIN_ONSET_STATE_JUMP = 0.0
+"""At an onset a skin patch's ``q_i`` alone takes the jump (``detector.onset_state_jump``): the
+step's signature through its lumped pipe node, fed the lagged inlet, set the pipe and sheet so
+that the estimate fell back to its baseline at once (the forearm's 2 s touch on dorsal1 was
+released after 35 ms)."""
 
 SKIN_EVENT_COLUMNS = ("patch", "onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq",
                       "energy", "position", "position_sd", "heat")
@@ -91,6 +96,7 @@ def patch_config(skin: Skin, i: int) -> Config:
     es = {k: max(v, getattr(cfg.estimator, k))
           for k, v in (TANK_FED_ESTIMATOR if tank_fed else SKIN_ESTIMATOR).items()}
     de = {k: max(v, getattr(cfg.detector, k)) for k, v in SKIN_DETECTOR.items()}
+    de["onset_state_jump"] = SKIN_ONSET_STATE_JUMP
     return dataclasses.replace(cfg, estimator=dataclasses.replace(cfg.estimator, **es),
                                detector=dataclasses.replace(cfg.detector, **de))
 
@@ -185,6 +191,7 @@ class SkinEstimator:
         lag = [lumped_lag(skin, i, c.skin) for i, c in enumerate(cfgs)]
         self.inlet = InletStream(skin, self.t_s, lag=lag)
         self._contact = np.zeros(self.P, dtype=np.int64)
+        self._on_t = np.full(self.P, np.nan)  # when each patch's open contact was detected
         self._patch = np.zeros(0, dtype=np.int64)
 
     @property
@@ -209,31 +216,28 @@ class SkinEstimator:
 
     def _changes(self, t: Array, contact: NDArray[np.generic],
                  ended: list[tuple[int, ContactEvent]]) -> list[Change]:
-        """The block's contact changes; a detection's sign is its contact's: the event of the same
-        contact if it ended in the block, else the patch's detector state (it is still on)."""
+        """The block's contact changes. A release carries the event of its contact: the ended
+        event detected when the contact came on (none if the detector withdrew the contact,
+        ``detector.t_confirm``); a detection's sign is that event's if the contact ended in the
+        block, else the patch's detector state (it is still on)."""
         c = contact.astype(np.int64)
         prev = np.vstack((self._contact[None, :], c[:-1]))
         ks, ps = np.nonzero(c != prev)
         if not len(ks):
             return []
-        ends: dict[int, list[ContactEvent]] = {}
-        for i, ev in ended:
-            ends.setdefault(i, []).append(ev)
+        by_detection = {(i, ev.detected_at): ev for i, ev in ended}
         self._contact = c[-1].copy()
-        # a patch's contacts end in order: at a detection, every earlier contact of the patch
-        # has met its release, so the contact's event is the next one not yet matched
-        pos: dict[int, int] = {}
         out: list[Change] = []
         for k, i in zip(ks.tolist(), ps.tolist(), strict=True):
-            evs = ends.get(i, [])
-            j = pos.get(i, 0)
-            ev = evs[j] if j < len(evs) else None
+            tk = float(t[k])
             if c[k, i]:
+                self._on_t[i] = tk
+                ev = by_detection.get((i, tk))
                 sign = int(ev.sign) if ev is not None else int(self.est.ST[i, K.SIGN])
-                out.append(Change(float(t[k]), i, True, sign))
+                out.append(Change(tk, i, True, sign))
             else:
-                pos[i] = j + 1
-                out.append(Change(float(t[k]), i, False, int(ev.sign) if ev is not None else 0, ev))
+                ev = by_detection.get((i, self._on_t[i]))
+                out.append(Change(tk, i, False, int(ev.sign) if ev is not None else 0, ev))
         return out
 
     def finish(self, t: float) -> None:

@@ -180,7 +180,8 @@ PR_NPH = 52      # phase bins of the pump-cycle correction of T_w (0: none)
 PR_APH = 53      # its learning weight per no-touch reading
 PR_TCONF = 54    # a contact released this soon after its detection, never confirmed, is withdrawn, s
 PR_DLO = 55      # the design of the two CUSUMs that only date and size a weak step, W
-NPARAM = 56
+PR_OSJ = 56      # 1: the whole state jumps at an onset (the step's signature); 0: q_i alone
+NPARAM = 57
 
 
 # step result bits
@@ -618,11 +619,15 @@ def _detect(st, pr, t, ev):
             jump = st[o + 2] / st[o + 3] if st[o + 3] > 0.0 else sg * D
             if sg * jump < D:
                 jump = sg * D
-            for a_ in range(5):
-                ua = jump * st[m + a_]
-                st[X + a_] += ua
-                for b_ in range(5):
-                    st[P + 5 * a_ + b_] += 0.25 * ua * jump * st[m + b_]
+            if pr[PR_OSJ] != 0.0:
+                for a_ in range(5):
+                    ua = jump * st[m + a_]
+                    st[X + a_] += ua
+                    for b_ in range(5):
+                        st[P + 5 * a_ + b_] += 0.25 * ua * jump * st[m + b_]
+            else:
+                st[X + 2] += jump
+                st[P + 12] += 0.25 * jump * jump
             q = st[X + 2]
             st[Q] = q
             st[MODE] = INCONTACT

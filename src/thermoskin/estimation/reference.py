@@ -288,9 +288,13 @@ class ReferenceEstimator:
                 jump = fire.sum_ge / fire.sum_gg if fire.sum_gg > 0 else sg * D
                 if sg * jump < D:
                     jump = sg * D
-                # the whole state as the step at t_zero would have left it (not q_i alone)
-                self.x = self.x + jump * fire.mu
-                self.P = self.P + 0.25 * jump**2 * np.outer(fire.mu, fire.mu)
+                if self.cfg.detector.onset_state_jump:
+                    # the whole state as the step at t_zero would have left it (not q_i alone)
+                    self.x = self.x + jump * fire.mu
+                    self.P = self.P + 0.25 * jump**2 * np.outer(fire.mu, fire.mu)
+                else:  # q_i alone (a skin's patch)
+                    self.x[I_Q] += jump
+                    self.P[I_Q, I_Q] += 0.25 * jump**2
                 q = self.x[I_Q]
                 self.mode, self.contact, self.sign = "contact", 1, sg
                 self.onset, self.detected = self._between(fire.t_zero, t), t

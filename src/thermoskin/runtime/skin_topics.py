@@ -203,6 +203,8 @@ class SkinMessages:
             detail: dict[str, Any] = {"patch": name, "sign": c.sign}
             if not c.on and c.event is not None:
                 detail.update(figures(c.event))
+            elif not c.on:  # withdrawn by the detector (detector.t_confirm): no event
+                detail["withdrawn"] = True
             self.signs[c.patch] = c.sign if c.on else 0
             yield "/events", c.t, {"kind": "contact-on" if c.on else "contact-off", "detail": detail}
             if j + 1 == len(ch) or ch[j + 1].t != c.t:  # one scene per row with changes
