@@ -356,6 +356,21 @@ def test_run_live_foxglove_client(tmp_path: Path) -> None:
     assert first_on["t"] == pytest.approx(t_detect, abs=0.01)
 
 
+def replay_to_client(rec_path: Path, speed: float) -> tuple[FoxgloveClient, Lines]:
+    """`replay REC --live` at ``speed`` with a Foxglove client subscribed from the start; the
+    client (closed, holding what it received) and the command's output, once it has ended."""
+    port = free_port_pair()
+    p = subprocess.Popen([*CMD, "replay", str(rec_path), "--live", str(port), "--speed", str(speed),
+                          "--live-wait", "60"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, env=ENV)
+    out, err = Lines(p.stdout), Lines(p.stderr)
+    client = FoxgloveClient(port)
+    finish(p, out, err, timeout=60)
+    client.closed.wait(5)
+    client.close()
+    return client, out
+
+
 def test_replay_live_delivers_the_recorded_messages(tmp_path: Path) -> None:
     """A recording of 3 s played at 4x: every event and the parameters, the 100 Hz signals
     equal to the recorded messages at those times, in about 0.75 s."""
@@ -367,15 +382,7 @@ def test_replay_live_delivers_the_recorded_messages(tmp_path: Path) -> None:
     rec.event(2.999, "run-end", wall_s=1.0)
     rec.close()
     recorded = read_mcap(rec_path)
-    port = free_port_pair()
-    p = subprocess.Popen([*CMD, "replay", str(rec_path), "--live", str(port), "--speed", "4",
-                          "--live-wait", "60"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, env=ENV)
-    out, err = Lines(p.stdout), Lines(p.stderr)
-    client = FoxgloveClient(port)
-    finish(p, out, err, timeout=60)
-    client.closed.wait(5)
-    client.close()
+    client, out = replay_to_client(rec_path, 4.0)
     got = {topic: client.of(topic) for topic in TOPIC_SCHEMAS}
     assert got["/events"] == json.loads(json.dumps([_nulls(m) for m in recorded["/events"]]))
     assert got["/params"][0]["config"] == json.loads(json.dumps(_nulls(recorded["/params"][0]["config"])))

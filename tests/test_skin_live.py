@@ -27,7 +27,17 @@ import pytest
 
 websocket = pytest.importorskip("websocket", reason="needs websocket-client (the [test] extra)")
 
-from test_live import CHROMIUM, CMD, ENV, Browser, FoxgloveClient, Lines, finish, free_port_pair  # noqa: E402
+from test_live import (  # noqa: E402
+    CHROMIUM,
+    CMD,
+    ENV,
+    Browser,
+    FoxgloveClient,
+    Lines,
+    finish,
+    free_port_pair,
+    replay_to_client,
+)
 
 from thermoskin.runtime.record import read_mcap  # noqa: E402
 from thermoskin.runtime.skin_topics import COLD, IDLE, SCENE_TOPIC, WARM, scene, skin_topics  # noqa: E402
@@ -284,15 +294,7 @@ def test_skin_run_live_foxglove_client(tmp_path: Path) -> None:
     assert closed <= kept and {p for p, _, _ in kept - closed} <= withdrawn
     # replay --live of the recording: the same topics and schemas, the same events, scenes and
     # 100 Hz estimates as the live run sent
-    port2 = free_port_pair()
-    p2 = subprocess.Popen([*CMD, "replay", str(rec), "--live", str(port2), "--speed", "8",
-                           "--live-wait", "60"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                          text=True, env=ENV)
-    out2, err2 = Lines(p2.stdout), Lines(p2.stderr)
-    again = FoxgloveClient(port2)
-    finish(p2, out2, err2, timeout=60)
-    again.closed.wait(5)
-    again.close()
+    again, _ = replay_to_client(rec, 8.0)
     assert {c["topic"]: (c["schemaName"], c["encoding"]) for c in again.channels.values()} == \
         {t: (c["schemaName"], c["encoding"]) for t, c in advertised.items()}
     assert again.of("/events") == client.of("/events")

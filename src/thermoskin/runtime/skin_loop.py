@@ -155,7 +155,19 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
     ns0 = clock()
     wall0 = time.perf_counter()
     stopped = False
-    k = -1
+
+    def flush(m: int) -> None:
+        """The ``m`` buffered samples from ``k0`` on: to the log and ``on_block``."""
+        nonlocal k0
+        cols = _long(names, k0, m, t_s, patch_col, buf, plant.n_tc)
+        np.add(contact_n, cols["contact_true"].reshape(m, P).sum(axis=0), out=contact_n)
+        np.maximum(q_peak, np.abs(cols["q_i"]).reshape(m, P).max(axis=0), out=q_peak)
+        if writer is not None:
+            writer.write(cols)
+        if on_block is not None:
+            on_block(cols)
+        k0 += m
+
     try:
         for k in range(n):
             if stop is not None and stop.is_set():
@@ -179,22 +191,16 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
             plant.apply(drives, vs)
             r = k - k0
             buf[r] = rec  # the readings and truth at t_k, the pump over [t_k, t_k+1)
-            if r + 1 == B or k + 1 == n or (stop is not None and stop.is_set()):
-                m = r + 1
-                cols = _long(names, k0, m, t_s, patch_col, buf, plant.n_tc)
-                contact_n += cols["contact_true"].reshape(m, P).sum(axis=0)
-                np.maximum(q_peak, np.abs(cols["q_i"]).reshape(m, P).max(axis=0), out=q_peak)
-                if writer is not None:
-                    writer.write(cols)
-                if on_block is not None:
-                    on_block(cols)
-                k0 = k + 1
+            if r + 1 == B or k + 1 == n:
+                flush(r + 1)
             if progress is not None and k % every == 0:
                 progress(k / n)
             if step_times is not None:
                 ns1 = clock()
                 step_times[k] = ns1 - ns0
                 ns0 = ns1
+        if stopped and k > k0:  # the samples before the stop
+            flush(k - k0)
     finally:
         if writer is not None:
             writer.close()  # what ran is kept, whatever ended the run
