@@ -120,7 +120,8 @@ class PatchEstimators:
         if n and (p.min() < 0 or p.max() >= self.n):
             raise ValueError(f"patch index out of range 0..{self.n - 1}")
         def f(x, fill):
-            return (np.full(n, fill) if x is None else np.ascontiguousarray(x, dtype=float))
+            # contiguous and writeable (a read-only Arrow column would compile a second kernel)
+            return np.full(n, fill) if x is None else np.require(x, dtype=float, requirements="CW")
         fr = (np.full(n, 7, dtype=np.int64) if fresh is None
               else np.ascontiguousarray(fresh, dtype=np.int64))
         out = np.empty((8, n))

@@ -57,7 +57,7 @@ def discretize(A: Array, B: Array, t_s: float) -> tuple[Array, Array]:
     M[:n, :n] = A
     M[:n, n:] = B2
     E = expm(M * t_s)
-    return E[:n, :n], E[:n, n:]
+    return E[:n, :n].copy(), E[:n, n:].copy()  # contiguous: the compiled kernel takes one layout
 
 
 def steady_state(skin: SkinParams, R_w: float, u: Array, G_c: float = 0.0) -> Array:
