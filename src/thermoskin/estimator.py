@@ -63,6 +63,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_TRETR] = 1.0
     pr[K.PR_TCONF] = d.t_confirm
     pr[K.PR_DLO] = d.dq_design_lo
+    pr[K.PR_HLO] = d.h_lo
     pr[K.PR_OSJ] = d.onset_state_jump
     pr[K.PR_DHI] = d.dq_design_hi
     # a log coarser than the loop holds each pump switch up to one of its intervals late

@@ -181,7 +181,8 @@ PR_APH = 53      # its learning weight per no-touch reading
 PR_TCONF = 54    # a contact released this soon after its detection, never confirmed, is withdrawn, s
 PR_DLO = 55      # the design of the two CUSUMs that only date and size a weak step, W
 PR_OSJ = 56      # 1: the whole state jumps at an onset (the step's signature); 0: q_i alone
-NPARAM = 57
+PR_HLO = 57      # the weak-step CUSUMs fire only this far above the onset threshold
+NPARAM = 58
 
 
 # step result bits
@@ -586,7 +587,11 @@ def _detect(st, pr, t, ev):
                 st[o] = g
                 st[o + 2] += sge
                 st[o + 3] += sgg
-                if j >= 4:  # the weak-step CUSUMs only date and size
+                if j >= 4:  # the weak-step CUSUMs date and size, and fire only further up
+                    hl = h + pr[PR_HLO]
+                    if g > hl and g - hl > best:
+                        best = g - hl
+                        fire = j
                     continue
                 quiet = False
                 if g > h and g - h > best:

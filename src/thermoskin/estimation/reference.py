@@ -271,7 +271,9 @@ class ReferenceEstimator:
                         c.g, c.sum_ge, c.sum_gg = 0.0, 0.0, 0.0
                 else:
                     c.g, c.sum_ge, c.sum_gg = g, c.sum_ge + ge, c.sum_gg + gg
-                    if k >= 4:  # the weak-step pair only dates and sizes
+                    if k >= 4:  # the weak-step pair dates and sizes, and fires only further up
+                        if g > h + d.h_lo and g - h - d.h_lo > best:
+                            fire, best = c, g - h - d.h_lo
                         continue
                     quiet = False
                     if g > h and g - h > best:
