@@ -49,7 +49,7 @@ from thermoskin.skin import Skin
 Array = NDArray[np.float64]
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _run(F, G, iv, cell, x, T_in, T_a, out):  # pragma: no cover - compiled
     """``out[k] = x[cell] - x[-2]`` (spatial thermocouple cell minus lumped pipe node), then
     ``x = F[iv[k]] x + G[iv[k]] [T_in[k], T_a[k]]``, for every sample of the block."""
