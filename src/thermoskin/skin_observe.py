@@ -75,9 +75,10 @@ SKIN_DETECTOR = {"t_warmup": 5.0}
 """Detector settings of a skin patch (the paper's single patch: ``t_warmup`` 1 s)."""
 SKIN_ONSET_STATE_JUMP = 0.0
 """At an onset a skin patch's ``q_i`` alone takes the jump (``detector.onset_state_jump``): the
-step's signature through its lumped pipe node, fed the lagged inlet, set the pipe and sheet so
-that the estimate fell back to its baseline at once (the forearm's 2 s touch on dorsal1 was
-released after 35 ms)."""
+step's signature through its lumped pipe node, fed the lagged inlet it then had, set the pipe and
+sheet so that the estimate fell back to its baseline at once (the forearm's 2 s touch on dorsal1
+was released after 35 ms); with the transport correction the whole-state jump still lost one
+touch of 54 and added a false alarm (docs/skin.md)."""
 
 SKIN_EVENT_COLUMNS = ("patch", "onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq",
                       "energy", "position", "position_sd", "heat")
