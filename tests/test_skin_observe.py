@@ -99,3 +99,16 @@ def test_simultaneous_touches_on_one_loop_each_on_its_patch(runs):
         assert _during(obs, i, 12.0, 15.0), f"{skin.patches[i].name}: its own touch is reported"
     for i in (1, 2):
         assert not _during(obs, i, 12.0, 16.0), f"{skin.patches[i].name}: untouched, reported"
+
+
+def test_no_event_outside_the_touches_while_the_loops_chatter(runs):
+    """No patch reports a contact outside its touch: with the pumps chattering from the start,
+    the inlets of the downstream patches swing 0.1-0.4 K at every switch (the lumped node's
+    misfit to that, ``skin_transport``, gave alarms at 7-10 s before it was corrected)."""
+    for name in ("up", "both"):
+        skin, obs, truth = runs[name]
+        for e in obs.events:
+            c = truth["contact_true"][:, e.patch].astype(bool)
+            t = np.arange(len(c)) * skin.cfg.sampling.t_s
+            span = (t >= e.event.onset - 0.5) & (t <= e.event.release + 0.5)
+            assert c[span].any(), f"{name}: {e.name} reported at {e.event.onset:.2f} s, untouched then"

@@ -75,6 +75,14 @@ class PatchEstimators:
     def index(self, v: Array) -> NDArray[np.int64]:
         """Table rows of the pump velocities ``v`` (-1 for NaN); new velocities get tables."""
         v = np.asarray(v, dtype=float)
+        if v.size > 64:  # a long-format block: each distinct velocity looked up once
+            u, inv = np.unique(v, return_inverse=True)
+            if u.size < v.size:
+                return self._rows(u)[inv.ravel()].reshape(v.shape)
+        return self._rows(v)
+
+    def _rows(self, v: Array) -> NDArray[np.int64]:
+        """:meth:`index`, one velocity at a time."""
         out = np.empty(v.shape, dtype=np.int64)
         for i, x in enumerate(v.ravel().tolist()):
             j = self._iv.get(x)

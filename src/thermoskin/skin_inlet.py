@@ -33,8 +33,6 @@ bit (``x(k)`` is summed in the same order).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -113,14 +111,9 @@ class _PipeState:
 
 
 class InletStream:
-    """:func:`inlet_inputs` block by block (module doc): :meth:`push` the next rows, get their inlets.
+    """:func:`inlet_inputs` block by block (module doc): :meth:`push` the next rows, get their inlets."""
 
-    ``lag`` (m of pumped water per patch, optional): :meth:`push` also computes, in
-    :attr:`lagged`, each patch's inlet as it was ``lag[i]`` of water earlier (the pipe
-    ``lag[i]`` longer; a patch fed straight from the tank is not lagged): the input the lumped
-    model takes (``skin_lag``)."""
-
-    def __init__(self, skin: Skin, t_s: float, lag: Sequence[float] | None = None) -> None:
+    def __init__(self, skin: Skin, t_s: float) -> None:
         self.skin, self.t_s = skin, float(t_s)
         self.k = 0  # samples pushed so far
         L = len(skin.loops)
@@ -131,10 +124,6 @@ class InletStream:
         self._src: list[list[Array]] = [[np.zeros(0)] * len(lp.patches) for lp in skin.loops]
         self._sbit: list[list[Ints]] = [[np.zeros(0, dtype=np.int64)] * len(lp.patches) for lp in skin.loops]
         self._pipe = [[_PipeState() for _ in lp.patches] for lp in skin.loops]
-        self.lag = None if lag is None else [float(x) for x in lag]
-        self._lpipe = [[_PipeState() for _ in lp.patches] for lp in skin.loops]
-        self.lagged: tuple[Array, Ints] | None = None
-        """The last :meth:`push`'s lagged ``(T_in, fresh_in)`` (with ``lag``; else None)."""
 
     def push(self, T_w: list[Array], T_p: Array, v: Array, T_a: Array,
              fresh: Ints | None) -> tuple[Array, Ints]:
@@ -144,8 +133,6 @@ class InletStream:
         k0 = self.k
         T_in = T_p.copy()
         fr = np.full((m, P), 7, dtype=np.int64) if fresh is None else fresh.astype(np.int64).copy()
-        T_lag, fr_lag = T_in.copy(), fr.copy()
-        self.lagged = (T_lag, fr_lag) if self.lag is not None else None
         if m == 0:
             return T_in, fr
         kg = np.arange(k0, k0 + m, dtype=np.int64)
@@ -175,18 +162,14 @@ class InletStream:
                 self._src[li][q], self._sbit[li][q] = sh, bh
                 st = self._pipe[li][q]
                 if k0 == 0:
-                    st.src0 = self._lpipe[li][q].src0 = float(src[0])
+                    st.src0 = float(src[0])
                 if pipe.length <= 0.0 and q == 0:
                     continue  # fed straight from the tank: the tank is the inlet
-                todo = [(pipe.length, st, T_in, fr)]
-                if self.lag is not None:
-                    todo.append((pipe.length + self.lag[i], self._lpipe[li][q], T_lag, fr_lag))
-                for length, ps, T_out, f_out in todo:
-                    val, f = _through(length, pipe.tau_loss, ps, xh, x_new, base, kg, k0, sh, bh, T_a[:, i],
-                                      t_s)
-                    keep_from = min(keep_from, ps.kk_last)
-                    T_out[:, i] = val
-                    f_out[:, i] = (f_out[:, i] & ~FRESH_T_P) | np.where(f, FRESH_T_P, 0)
+                val, f = _through(pipe.length, pipe.tau_loss, st, xh, x_new, base, kg, k0, sh, bh, T_a[:, i],
+                                  t_s)
+                keep_from = min(keep_from, st.kk_last)
+                T_in[:, i] = val
+                fr[:, i] = (fr[:, i] & ~FRESH_T_P) | np.where(f, FRESH_T_P, 0)
             cut = max(keep_from - base, 0)
             self._base[li] = base + cut
             self._x[li] = xh[cut:]

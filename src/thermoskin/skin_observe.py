@@ -8,8 +8,9 @@ one state row per patch, ``kernel.run_rows`` over the long-format rows), each pa
 - **its own inlet water** as the input ``T_p`` (``skin_inlet``): the upstream patch's outlet
   carried through the pipe between them (the tank's water, delayed, for the first patch), so
   that heat a touch upstream put into the water is an input downstream, not a touch there;
-  lagged by the crossing of the patch's own pipe that the lumped node leaves out
-  (``skin_lag``; the ``T_in`` output and the position keep the inlet itself).
+- **its reading corrected for the transport its lumped pipe node leaves out** (a patch fed
+  through a pipe, ``skin_transport``): ``T_w - c``, ``c`` the patch's spatial model minus its
+  lumped network, both driven by that inlet, the air and the pump, no touch.
 
 Events gain ``patch`` (its name), ``position`` and ``position_sd`` (m from the patch's inlet,
 ``skin_position``; NaN where not identifiable) and ``heat`` (W, the position fit's heat into
@@ -19,16 +20,16 @@ the sheet). Events of neighbouring patches are grouped into body contacts (``ski
 node, which tracks its inlet within ``R_w C_w`` (about 26 ms); a patch of a skin is fed water whose
 temperature steps from parcel to parcel (the upstream patch's outlet swings with the pump's
 on/off chatter, the tank's with the supply pipe's delay), and its pipe is many cells. The
-lumped model then errs at every pump switch; :data:`SKIN_ESTIMATOR` lets the pipe node and
-the inlet's rate follow that (``S_w``, ``S_p``) instead of taking it as a touch, and waits
-:data:`SKIN_DETECTOR` ``t_warmup`` for the loops' pumps to settle into their chatter.
+lumped model then errs at every pump switch. Fed through a pipe, the transport correction
+above takes that misfit out (the innovations fall to the thermocouple's noise), and
+:data:`SKIN_ESTIMATOR` keeps a little pipe noise (``S_w``) and lets the inlet's rate follow its
+steps (``S_p``); the detector waits :data:`SKIN_DETECTOR` ``t_warmup`` for its baseline.
 On a patch fed straight from the tank the misfit is the same shape in every cycle of the
 pump's chatter (the water carried along the pipe's cells, not mixed into one node: the
 reading lags the node after a switch to flow, then overtakes it); the estimator's pump-cycle
 correction (``estimator.switch_bins``: the mean no-touch innovation of ``T_w`` per sample
 since the last switch, learned and subtracted) takes it out, so :data:`TANK_FED_ESTIMATOR`
-needs far less pipe noise. Fed through a pipe, the inlet's own steps dominate and the
-correction did not help (docs/skin.md).
+needs less pipe noise (docs/skin.md).
 A key the user's config sets above these is kept.
 
 **Live and offline, one estimator.** :class:`SkinEstimator` takes the rows block by block
@@ -56,15 +57,16 @@ from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
 from thermoskin.skin import NETWORK_KEYS, Skin, tc_fresh_bit
 from thermoskin.skin_inlet import InletStream
-from thermoskin.skin_lag import lumped_lag
 from thermoskin.skin_log import SkinLog
 from thermoskin.skin_position import NAN_POSITION, PatchLocator, Position
+from thermoskin.skin_transport import TransportCorrection
 
 Array = NDArray[np.float64]
 
-SKIN_ESTIMATOR = {"S_w": 3e-3, "S_p": 100.0}
-"""Process noise of a skin patch's model (module doc): K^2/s on the pipe node, K^2/s^3 on the
-inlet's rate (the paper's single patch: 1e-8 and 0.01)."""
+SKIN_ESTIMATOR = {"S_w": 1e-3, "S_p": 100.0}
+"""Process noise of a skin patch fed through a pipe (module doc): K^2/s on the pipe node, K^2/s^3
+on the inlet's rate (the paper's single patch: 1e-8 and 0.01; 3e-3 on the pipe node before the
+transport correction)."""
 TANK_FED_ESTIMATOR = {"S_w": 3e-4, "S_p": 100.0, "switch_bins": 64}
 """The same for a patch fed straight from the tank (first of its loop, no supply pipe): its
 misfit is locked to the pump's cycle, which the pump-cycle correction learns (``switch_bins``,
@@ -73,15 +75,22 @@ SKIN_DETECTOR = {"t_warmup": 5.0}
 """Detector settings of a skin patch (the paper's single patch: ``t_warmup`` 1 s)."""
 SKIN_ONSET_STATE_JUMP = 0.0
 """At an onset a skin patch's ``q_i`` alone takes the jump (``detector.onset_state_jump``): the
-step's signature through its lumped pipe node, fed the lagged inlet, set the pipe and sheet so
-that the estimate fell back to its baseline at once (the forearm's 2 s touch on dorsal1 was
-released after 35 ms)."""
+step's signature through its lumped pipe node, fed the lagged inlet it then had, set the pipe and
+sheet so that the estimate fell back to its baseline at once (the forearm's 2 s touch on dorsal1
+was released after 35 ms); with the transport correction the whole-state jump still lost one
+touch of 54 and added a false alarm (docs/skin.md)."""
 
 SKIN_EVENT_COLUMNS = ("patch", "onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq",
                       "energy", "position", "position_sd", "heat")
 """Columns of a skin's events table: the patch's name, :data:`~thermoskin.events.EVENT_COLUMNS`,
 the position along its pipe and its sd (m from the inlet; empty where not identifiable), the
 heat of the position fit (W)."""
+
+
+def tank_fed(skin: Skin, i: int) -> bool:
+    """Patch ``i`` is fed straight from its tank: the first of its loop, with no supply pipe."""
+    lp = skin.loops[skin.patches[i].loop]
+    return lp.patches[0] == i and lp.pipes[0].length == 0.0
 
 
 def patch_config(skin: Skin, i: int) -> Config:
@@ -91,10 +100,8 @@ def patch_config(skin: Skin, i: int) -> Config:
     lc = skin.loops[p.loop].cfg
     net = {k: getattr(p.skin, k) for k in NETWORK_KEYS}
     cfg = dataclasses.replace(lc, skin=dataclasses.replace(lc.skin, **net))
-    lp = skin.loops[p.loop]
-    tank_fed = lp.patches[0] == i and lp.pipes[0].length == 0.0
     es = {k: max(v, getattr(cfg.estimator, k))
-          for k, v in (TANK_FED_ESTIMATOR if tank_fed else SKIN_ESTIMATOR).items()}
+          for k, v in (TANK_FED_ESTIMATOR if tank_fed(skin, i) else SKIN_ESTIMATOR).items()}
     de = {k: max(v, getattr(cfg.detector, k)) for k, v in SKIN_DETECTOR.items()}
     de["onset_state_jump"] = SKIN_ONSET_STATE_JUMP
     return dataclasses.replace(cfg, estimator=dataclasses.replace(cfg.estimator, **es),
@@ -188,8 +195,9 @@ class SkinEstimator:
         self.P = len(skin.patches)
         cfgs = [patch_config(skin, i) for i in range(self.P)]
         self.est = PatchEstimators(cfgs, t_s=self.t_s, parallel=False)
-        lag = [lumped_lag(skin, i, c.skin) for i, c in enumerate(cfgs)]
-        self.inlet = InletStream(skin, self.t_s, lag=lag)
+        self.inlet = InletStream(skin, self.t_s)
+        self.transport = TransportCorrection(skin, self.t_s, [c.skin for c in cfgs],
+                                             [i for i in range(self.P) if not tank_fed(skin, i)])
         self._contact = np.zeros(self.P, dtype=np.int64)
         self._on_t = np.full(self.P, np.nan)  # when each patch's open contact was detected
         self._patch = np.zeros(0, dtype=np.int64)
@@ -206,11 +214,11 @@ class SkinEstimator:
                                    cols["T_a"], fresh)
         if len(self._patch) < m * P:
             self._patch = np.tile(np.arange(P, dtype=np.int64), m)
-        T_lag, fr_lag = self.inlet.lagged  # type: ignore[misc]
+        T_w = cols["T_w"] - self.transport.push(T_in, cols["T_a"], cols["v"])
         cmd = cols["T_w_cmd"].ravel() if "T_w_cmd" in cols else None
-        out, ended = self.est.run_rows(self._patch[:m * P], np.repeat(t, P), cols["T_w"].ravel(),
-                                       T_lag.ravel(), cols["v"].ravel(), cols["T_a"].ravel(), T_w_cmd=cmd,
-                                       fresh=fr_lag.ravel())
+        out, ended = self.est.run_rows(self._patch[:m * P], np.repeat(t, P), T_w.ravel(),
+                                       T_in.ravel(), cols["v"].ravel(), cols["T_a"].ravel(), T_w_cmd=cmd,
+                                       fresh=fr.ravel())
         res = {k: out[k].reshape(m, P) for k in ("q_i_hat", "dq_i_hat", "contact", "gap")}
         return SkinBlock(res, T_in, fr, self._changes(t, res["contact"], ended))
 
