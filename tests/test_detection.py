@@ -71,6 +71,23 @@ def test_condition(name: str) -> None:
         assert abs(e.duration - tc.duration) <= err_max, (tc.duration, e)
 
 
+def test_touches_fainter_than_the_design_are_found_by_the_weak_step_cusums() -> None:
+    """Touches of 0.18 W (``G`` 0.014 W/K), below ``dq_design`` (0.3 W): the idle filter
+    absorbs them before the design's CUSUM crosses, the weak-step pair (0.15 W, firing
+    ``h_lo`` above the threshold) finds them; without it half are missed."""
+    cond = get_condition("weak", 7700, G=0.014)
+    cfg = cond.config(load_config())
+    log = simulate(cond.scenario, cfg)
+    q = log["q_i"][log["q_i"] > 0.01]
+    assert 0.15 < np.median(q) < 0.3  # between the two designs
+    m = match_events(cond.scenario.touches, observe(log, cfg).events)
+    assert m.misses == 0 and m.false_alarms == 0
+    assert np.median(m.latencies) <= 0.6
+    never = match_events(cond.scenario.touches,
+                         observe(log, cfg.replace(detector={"h_lo": 1000.0})).events)
+    assert never.misses >= len(cond.scenario.touches) // 3
+
+
 def test_a_minute_long_hold_stays_one_contact() -> None:
     sc, _, res = run_condition("holds", SEED + 1, None)
     long = [t for t in sc.touches if t.duration >= 40.0]

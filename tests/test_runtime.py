@@ -129,7 +129,9 @@ def test_fault_ends_in_safe_state_within_delay(emulator: Start, kind: str) -> No
     s = res.summary
     assert res.fault == name, s
     delay_host = s["t_safe"] - t_f
-    assert 0.0 <= delay_host <= limit, (kind, delay_host)
+    # the host's clock is set against the device's at the first sample, whose own transit
+    # (a few ms, more under load) is unknown: the host's delay is known to within it
+    assert -0.01 <= delay_host <= limit, (kind, delay_host)
     if kind != "serial-drop":  # a cut cable carries no SAFE: the device's watchdog takes over
         delay_dev = wait_safe(core) - t_f
         assert 0.0 <= delay_dev <= limit + 0.002, (kind, delay_dev)

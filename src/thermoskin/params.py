@@ -180,7 +180,7 @@ class DetectorParams(_Validated):
     dq_design_lo: float = _p(0.15, "W", 1e-4, 100.0,
                              doc="a third pair of CUSUMs, of this design: it dates and sizes a step "
                                  "weaker than dq_design ...")
-    h_lo: float = _p(1000.0, "", 0.0, 1000.0,
+    h_lo: float = _p(2.0, "", 0.0, 1000.0,
                      doc="... and fires only this far above the onset threshold (1000: never)")
     onset_state_jump: float = _p(1.0, "", 0.0, 1.0,
                                  doc="1: at an onset the whole state takes the step as it would have "

@@ -217,11 +217,11 @@ def _fixed_G(G: float, n_fingers: int) -> TouchMaker:
     return make
 
 
-def weak(seed: int, duration: float = 120.0) -> Condition:
-    """One-finger-like touches of ``G = 0.02`` W/K."""
+def weak(seed: int, duration: float = 120.0, G: float = 0.02) -> Condition:
+    """One-finger-like touches of ``G = 0.02`` W/K (or the ``G`` given)."""
     rng = np.random.default_rng(seed)
-    touches = touch_train(rng, duration, make=_fixed_G(0.02, 1))
-    sc = _scenario("weak", seed, duration, touches, rng, "weak one-finger touches, G = 0.02 W/K")
+    touches = touch_train(rng, duration, make=_fixed_G(G, 1))
+    sc = _scenario("weak", seed, duration, touches, rng, f"weak one-finger touches, G = {G:g} W/K")
     return Condition("weak", seed, sc, _sensor(seed), description=sc.description)
 
 
