@@ -190,9 +190,9 @@ class DetectorParams(_Validated):
                           doc="1: an onset is dated by the generalised likelihood ratio over the "
                               "change time within the firing CUSUM's window; 0: at that CUSUM's "
                               "last zero")
-    onset_glr_pool: float = _p(0.015, "s", 0.0, 10.0,
+    onset_glr_pool: float = _p(0.0125, "s", 0.0, 10.0,
                                doc="its buffer of 256 entries pools the readings less than this "
-                                   "after an entry's first (1 kHz: 15 readings, 3.8 s held; 100 Hz: "
+                                   "after an entry's first (1 kHz: 13 readings, 3.3 s held; 100 Hz: "
                                    "2, 5 s; 10 Hz boards: one cycle of the T_w and T_p boards, 25 s)")
     h_on: float = _p(6.0, "", 0.0, 1000.0, lo_open=True,
                      doc="onset threshold, log-likelihood ratio of a touch against none, for one "
