@@ -14,7 +14,9 @@ coming interval)::
         g = P[i, q] / P[q, q]            the reading's sensitivity to a lasting change of q_i
         l± += ±Δ g e / (κ S) - Δ² g² / (2 κ S)     log-likelihood ratio of q_i + Δ (q_i - Δ)
         x += K e,  P -= K P[i, :],  K = P[:, i] / S
-    detector (armed, idle): G± = max(0, G± + l±); onset when G± > h (Page's CUSUM)
+    detector (armed, idle): G± = max(0, G± + l±); onset when G± > h (Page's CUSUM), dated at
+        argmax_tau (sum_{k>tau} g e/S)² / sum_{k>tau} g²/S within the CUSUM's window (the GLR
+        over the change time; the readings' evidence kept in a ring buffer in the state)
     predict: x_a = Phi_a x_a,  x = Phi x + Gamma [x_a[0], drive],  P = Phi P Phi' + Q
 
 This is Page's test on the Kalman filter's innovations for a step of the touch heat of
