@@ -65,6 +65,8 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_DLO] = d.dq_design_lo
     pr[K.PR_HLO] = d.h_lo
     pr[K.PR_OSJ] = d.onset_state_jump
+    pr[K.PR_GLR] = d.onset_glr
+    pr[K.PR_GPOOL] = d.onset_glr_pool
     pr[K.PR_DHI] = d.dq_design_hi
     # a log coarser than the loop holds each pump switch up to one of its intervals late
     pr[K.PR_VSW] = 0.29 if t_s > 1.5 * cfg.sampling.t_s else 0.0

@@ -186,6 +186,14 @@ class DetectorParams(_Validated):
                                  doc="1: at an onset the whole state takes the step as it would have "
                                      "left it (its signature); 0: q_i alone takes the jump (a skin "
                                      "patch, whose pipe node the signature misleads)")
+    onset_glr: float = _p(1.0, "", 0.0, 1.0,
+                          doc="1: an onset is dated by the generalised likelihood ratio over the "
+                              "change time within the firing CUSUM's window; 0: at that CUSUM's "
+                              "last zero")
+    onset_glr_pool: float = _p(0.0125, "s", 0.0, 10.0,
+                               doc="its buffer of 256 entries pools the readings less than this "
+                                   "after an entry's first (1 kHz: 13 readings, 3.3 s held; 100 Hz: "
+                                   "2, 5 s; 10 Hz boards: one cycle of the T_w and T_p boards, 25 s)")
     h_on: float = _p(6.0, "", 0.0, 1000.0, lo_open=True,
                      doc="onset threshold, log-likelihood ratio of a touch against none, for one "
                          "pipe reading a second ...")

@@ -14,7 +14,9 @@ coming interval)::
         g = P[i, q] / P[q, q]            the reading's sensitivity to a lasting change of q_i
         l± += ±Δ g e / (κ S) - Δ² g² / (2 κ S)     log-likelihood ratio of q_i + Δ (q_i - Δ)
         x += K e,  P -= K P[i, :],  K = P[:, i] / S
-    detector (armed, idle): G± = max(0, G± + l±); onset when G± > h (Page's CUSUM)
+    detector (armed, idle): G± = max(0, G± + l±); onset when G± > h (Page's CUSUM), dated at
+        argmax_tau (sum_{k>tau} g e/S)² / sum_{k>tau} g²/S within the CUSUM's window (the GLR
+        over the change time; the readings' evidence kept in a ring buffer in the state)
     predict: x_a = Phi_a x_a,  x = Phi x + Gamma [x_a[0], drive],  P = Phi P Phi' + Q
 
 This is Page's test on the Kalman filter's innovations for a step of the touch heat of
@@ -126,7 +128,12 @@ NPH = 64          # most phase bins of the pump-cycle correction, per direction
 TPL = SCR + 27    # the correction: mean no-touch innovation of T_w per (direction, phase), K
 MU = TPL + 2 * NPH  # per onset CUSUM: mu, what remains in the filter's error of a unit step of
 NMU = 5             # q_i at the CUSUM's last zero (the step's signature, Willsky and Jones)
-NSTATE = MU + NMU * NCU
+GHEAD = MU + NMU * NCU  # the onset dating's ring buffer (idle, armed): the next entry written
+GCNT = GHEAD + 1        # entries held (at most NGB)
+GT0 = GHEAD + 2         # time of the first reading pooled in the newest entry, s
+GBUF = GHEAD + 3        # NGB entries of 3: time of the last reading pooled, sums of g e/S, g^2/S
+NGB = 256
+NSTATE = GBUF + 3 * NGB
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -182,7 +189,9 @@ PR_TCONF = 54    # a contact released this soon after its detection, never confi
 PR_DLO = 55      # the design of the two CUSUMs that only date and size a weak step, W
 PR_OSJ = 56      # 1: the whole state jumps at an onset (the step's signature); 0: q_i alone
 PR_HLO = 57      # the weak-step CUSUMs fire only this far above the onset threshold
-NPARAM = 58
+PR_GLR = 58      # 1: an onset is dated by the GLR over the change time; 0: at the CUSUM's last zero
+PR_GPOOL = 59    # a buffer entry pools the readings less than this after its first, s
+NPARAM = 60
 
 
 # step result bits
@@ -535,6 +544,59 @@ def _between(st, t_zero, t):
 
 
 @njit(cache=True, inline="always")
+def _glr_push(st, pr, t, sge, sgg):
+    """Keep a pipe reading's time and evidence ``(g e/S, g²/S)`` in the ring buffer: pooled
+    into the newest entry if that began less than ``PR_GPOOL`` ago, else in a new entry (the
+    oldest of ``NGB`` goes)."""
+    k = int(st[GHEAD])
+    if st[GCNT] > 0.0 and t - st[GT0] < pr[PR_GPOOL]:
+        o = GBUF + 3 * (k - 1 if k > 0 else NGB - 1)
+        st[o] = t
+        st[o + 1] += sge
+        st[o + 2] += sgg
+        return
+    o = GBUF + 3 * k
+    st[o] = t
+    st[o + 1] = sge
+    st[o + 2] = sgg
+    st[GT0] = t
+    st[GHEAD] = k + 1 if k + 1 < NGB else 0
+    if st[GCNT] < NGB:
+        st[GCNT] += 1.0
+
+
+@njit(cache=True, inline="always")
+def _glr_time(st, t_zero, sg, sum_ge, sum_gg):
+    """The change time of a step of sign ``sg`` by the generalised likelihood ratio over it
+    (Willsky and Jones 1976; Basseville and Nikiforov 1993, sec. 2.4): the time ``tau`` after
+    which a step of free size explains the readings best, the maximiser of
+    ``LLR(tau) = (sum_{k>tau} g e/S)² / (2 sum_{k>tau} g²/S)`` with ``sg sum g e/S > 0``. The
+    candidates: the CUSUM's last zero ``t_zero`` (with its own sums ``sum_ge, sum_gg``) and the
+    end of each buffer entry since; where the window is longer than the buffer, the part it
+    no longer holds has ``t_zero`` as its only candidate (the CUSUM's dating). Of equal
+    ratios, ``t_zero``, then the latest."""
+    best_t = t_zero
+    best = sum_ge * sum_ge / sum_gg if sg * sum_ge > 0.0 and sum_gg > 0.0 else 0.0
+    a = 0.0
+    b = 0.0
+    k = int(st[GHEAD])
+    for _ in range(int(st[GCNT])):
+        k = k - 1 if k > 0 else NGB - 1
+        o = GBUF + 3 * k
+        tk = st[o]
+        if tk <= t_zero:
+            break
+        if sg * a > 0.0 and b > 0.0:
+            llr = a * a / b
+            if llr > best:
+                best = llr
+                best_t = tk
+        a += st[o + 1]
+        b += st[o + 2]
+    return best_t
+
+
+@njit(cache=True, inline="always")
 def _detect(st, pr, t, ev):
     """The detector's sample; returns the step-result bits."""
     q = st[Q]
@@ -562,6 +624,8 @@ def _detect(st, pr, t, ev):
         # Page's CUSUMs for a change of q_i by +-D and +-D_hi (the design sizes): each sample's
         # log-likelihood ratio D sum(g e/S) - D² sum(g²/S)/2 from the readings' evidence
         sge, sgg = st[SGE], st[SGG]
+        if pr[PR_GLR] != 0.0 and (sgg > 0.0 or st[TLW] == t):
+            _glr_push(st, pr, t, sge, sgg)  # a pipe reading: kept for dating an onset
         hold_other = t - st[TREL] < pr[PR_TREF]  # no onset of the other sign after a release
         hold_all = t - st[TAMB] < pr[PR_TAMBH]  # the air changed: its sensor catches up first
         h = st[HTH]
@@ -638,7 +702,13 @@ def _detect(st, pr, t, ev):
             st[MODE] = INCONTACT
             st[CONTACT] = 1.0
             st[SIGN] = sg
-            st[ONSET] = _between(st, st[o + 1], t)
+            # dated by the GLR over the change time within the CUSUM's window (at its last
+            # zero if off): noise or a slow drift that lifted the CUSUM before the touch and
+            # never let it fall back to zero no longer dates the onset early
+            tau = st[o + 1]
+            if pr[PR_GLR] != 0.0:
+                tau = _glr_time(st, tau, sg, st[o + 2], st[o + 3])
+            st[ONSET] = _between(st, tau, t)
             st[DETECTED] = t
             d = sg * (q - b)
             st[PEAK] = d

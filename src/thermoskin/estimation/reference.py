@@ -10,6 +10,7 @@ small state machine. It is slow (tens of µs a sample) and not used at run time;
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -90,6 +91,9 @@ class ReferenceEstimator:
         self.cusums = [_Cusum(d.dq_design), _Cusum(-d.dq_design),
                        _Cusum(d.dq_design_hi), _Cusum(-d.dq_design_hi),
                        _Cusum(d.dq_design_lo), _Cusum(-d.dq_design_lo)]
+        # the onset dating's buffer: [time of the last reading pooled, sum g e/S, sum g²/S]
+        self.glr: deque[list[float]] = deque(maxlen=256)
+        self.glr_t0 = 0.0  # time of the first reading pooled in the newest entry
         self.t_rel, self.last_sign = -1e300, 0.0
         self.t_air, self.air_up, self.air_down = -1e300, 0.0, 0.0
         self.contact = 0
@@ -258,6 +262,13 @@ class ReferenceEstimator:
         if self.mode == "idle":
             rate = self.rate if self.rate > 0 else 1 / self.t_s
             h = d.h_on + d.h_rate * math.log(max(rate, 1.0))  # the kernel caches it per reading
+            if d.onset_glr and (gg > 0 or self.t_last_w == t):  # a pipe reading, for dating
+                if self.glr and t - self.glr_t0 < d.onset_glr_pool:
+                    e = self.glr[-1]
+                    e[0], e[1], e[2] = t, e[1] + ge, e[2] + gg
+                else:
+                    self.glr.append([t, ge, gg])
+                    self.glr_t0 = t
             fire, best, quiet = None, 0.0, True
             for k, c in enumerate(self.cusums):
                 g = c.g + c.design * ge - 0.5 * c.design**2 * gg
@@ -299,7 +310,8 @@ class ReferenceEstimator:
                     self.P[I_Q, I_Q] += 0.25 * jump**2
                 q = self.x[I_Q]
                 self.mode, self.contact, self.sign = "contact", 1, sg
-                self.onset, self.detected = self._between(fire.t_zero, t), t
+                tau = self._glr_time(fire, sg) if d.onset_glr else fire.t_zero
+                self.onset, self.detected = self._between(tau, t), t
                 dd = sg * (q - self.b)
                 self.peak = self.sum = self.level = self.level_max = dd
                 self.count, self.since = 1, 0
@@ -361,6 +373,23 @@ class ReferenceEstimator:
             self.b = q
             return 4
         return 1
+
+    def _glr_time(self, c: _Cusum, sg: float) -> float:
+        """The change time by the GLR over it (Basseville and Nikiforov 1993, sec. 2.4): of
+        ``c.t_zero`` (the CUSUM's own sums) and the end of each buffer entry since, the one after
+        which a step of free size and sign ``sg`` explains the readings best,
+        ``max (sum g e/S)² / (2 sum g²/S)`` over the readings after it."""
+        cands = [(c.t_zero, c.sum_ge, c.sum_gg)]
+        a = b = 0.0  # the sums over the readings after tk, back from now (plain sums, as the kernel)
+        for tk, ge, gg in reversed([r for r in self.glr if r[0] > c.t_zero]):
+            cands.append((tk, a, b))
+            a, b = a + ge, b + gg
+        best_t, best = c.t_zero, 0.0
+        for tk, a, b in cands:  # of equals, the first
+            llr = a * a / b if sg * a > 0 and b > 0 else 0.0
+            if llr > best:
+                best_t, best = tk, llr
+        return best_t
 
     def _between(self, t_zero: float, t: float) -> float:
         """Half a reading interval after the last reading with no news of the change, not after ``t``."""
