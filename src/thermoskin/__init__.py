@@ -25,6 +25,10 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from thermoskin import _numba_cache
+
+_numba_cache.configure()  # before numba is imported (a cache per version of the compiled code)
+
 __version__ = "0.1.0"
 
 #: Public name -> module that defines it.

@@ -1,0 +1,60 @@
+"""Numba's on-disk cache, kept per version of the compiled sources.
+
+Numba invalidates a cached function only when its own source file changes: a function that
+calls a compiled function of another file (the sweep's batch calls the estimator's ``step``)
+keeps its cached machine code, old state layout included, after that other file changed,
+and then reads and writes the state vectors at the old offsets (a crash, or wrong numbers,
+after a ``git pull`` on an editable install). So the cache goes in a directory named by a
+hash of every source file that holds compiled code; a change to any of them starts a fresh
+one (the others are removed). ``NUMBA_CACHE_DIR`` set by the user is kept; this must run
+before numba is imported (:mod:`thermoskin` imports it first).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+SOURCES = ("estimation/kernel.py", "sweep/kernel.py", "sweep/qp.py", "sim/skin_plant.py",
+           "sim/board_bank.py", "skin_transport.py", "calibrate.py")
+"""Every module with compiled (``@njit``) code, relative to the package (a test keeps it whole)."""
+
+PREFIX = "numba-"
+
+
+def sources_hash() -> str:
+    """A short hash of the compiled sources' contents."""
+    h = hashlib.sha1()
+    for rel in SOURCES:
+        h.update((HERE / rel).read_bytes())
+    return h.hexdigest()[:12]
+
+
+def cache_root() -> Path:
+    """Where the cache directories live: beside the package if it is writable, else the
+    user's cache directory."""
+    local = HERE / "__pycache__"
+    if os.access(HERE, os.W_OK) and (not local.exists() or os.access(local, os.W_OK)):
+        return local
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "thermoskin"
+
+
+def configure() -> None:
+    """Set ``NUMBA_CACHE_DIR`` (module doc), unless the user did; remove stale directories."""
+    if "NUMBA_CACHE_DIR" in os.environ:
+        return
+    try:
+        root = cache_root()
+        target = root / f"{PREFIX}{sources_hash()}"
+        if root.is_dir():
+            for old in root.glob(f"{PREFIX}*"):
+                if old != target and old.is_dir():
+                    shutil.rmtree(old, ignore_errors=True)
+    except OSError:  # an unreadable install: numba's own default
+        return
+    os.environ["NUMBA_CACHE_DIR"] = str(target)

@@ -1,0 +1,51 @@
+"""The compiled code's cache is per version of the compiled sources (thermoskin/_numba_cache.py)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from thermoskin import _numba_cache as nc
+
+
+def test_every_compiled_module_is_hashed() -> None:
+    pkg = nc.HERE
+    compiled = sorted(str(p.relative_to(pkg)) for p in pkg.rglob("*.py")
+                      if "@njit" in p.read_text(encoding="utf-8") and p.name != "_numba_cache.py")
+    assert compiled == sorted(nc.SOURCES)
+
+
+def _cache_dir(env: dict[str, str]) -> str:
+    code = "import thermoskin, os; print(os.environ.get('NUMBA_CACHE_DIR', ''))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env=env)
+    return out.stdout.strip()
+
+
+def test_import_sets_a_directory_named_by_the_sources(tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    got = _cache_dir(env)
+    assert Path(got).name == nc.PREFIX + nc.sources_hash()
+    # a user's choice is kept
+    assert _cache_dir({**env, "NUMBA_CACHE_DIR": str(tmp_path)}) == str(tmp_path)
+
+
+def test_the_hash_follows_the_contents(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    for rel in nc.SOURCES:
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_bytes((nc.HERE / rel).read_bytes())
+    monkeypatch.setattr(nc, "HERE", tmp_path)
+    a = nc.sources_hash()
+    assert a == nc.sources_hash() and len(a) == 12
+    k = tmp_path / "estimation/kernel.py"
+    k.write_bytes(b"# changed\n" + k.read_bytes())
+    assert nc.sources_hash() != a
+    # configure: a stale directory goes, the current one is named by the hash
+    stale = tmp_path / "__pycache__" / "numba-0123456789ab"
+    stale.mkdir(parents=True)
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    nc.configure()
+    assert not stale.exists()
+    assert os.environ["NUMBA_CACHE_DIR"] == str(tmp_path / "__pycache__" / ("numba-" + nc.sources_hash()))
