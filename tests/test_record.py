@@ -269,10 +269,12 @@ def test_signals_never_tear_a_recording(tmp_path: Path) -> None:
         info: dict[str, object] = {}
         data = read_mcap(path, info=info)
         assert info["complete"], (i, info)
-        rows = len(data["/skin/sample"])
+        # (a signal before the first block, under load, leaves a whole file with no sample)
+        samples = data.get("/skin/sample", [])
+        rows = len(samples)
         assert rows % 20 == 0  # whole blocks: a signal waits for the block being written
-        assert [s["t"] for s in data["/skin/sample"]] == [k * 1e-3 for k in range(rows)]
-        assert len(data["/control"]) == len(data["/skin/estimate"]) == rows
+        assert [s["t"] for s in samples] == [k * 1e-3 for k in range(rows)]
+        assert len(data.get("/control", [])) == len(data.get("/skin/estimate", [])) == rows
         assert m == 1 + 3 * rows
 
 
