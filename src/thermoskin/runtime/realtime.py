@@ -21,7 +21,9 @@ for the parent: if the parent falls more than the ring behind, rows are lost and
 
 Pacing. With the simulated skin the deadlines are ``t0 + k t_s``. With a serial device
 the device's own clock paces the samples: the deadline of a sample is ``t0 + t`` with
-``t`` its device time and ``t0`` the host time the first sample arrived, so the
+``t`` its device time since the first sample and ``t0`` the host time of the first sample's
+device time: the earliest arrival less elapsed device time over the samples so far (a first
+sample read late from a backlog would otherwise make every deadline late), so the
 lateness is the time from a sample's nominal arrival to the start of its processing
 (the device's own jitter, transport and host scheduling); the *lag* is the host's part,
 from the later of deadline and arrival to the start of processing. Samples already
@@ -289,6 +291,11 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
                     t_safe_host = mono()
                     break
                 t_last_arrival = s.t_recv
+                # the host time of device time t_first: the earliest any sample allows (the first
+                # may have come late, from a backlog: every later deadline would be late by that)
+                off = s.t_recv - (s.t - t_first)
+                if off < t0:
+                    t0 = off
         except (OSError, DeviceError) as e:
             why = str(e) if isinstance(e, DeviceError) else f"{type(e).__name__}: {e}"
             code = sup.link_error(mono() - t0 + t_first, why)
