@@ -21,9 +21,8 @@ for the parent: if the parent falls more than the ring behind, rows are lost and
 
 Pacing. With the simulated skin the deadlines are ``t0 + k t_s``. With a serial device
 the device's own clock paces the samples: the deadline of a sample is ``t0 + t`` with
-``t`` its device time since the first sample and ``t0`` the host time of the first sample's
-device time: the earliest arrival less elapsed device time over the samples so far (a first
-sample read late from a backlog would otherwise make every deadline late), so the
+``t`` its device time since the first sample and ``t0`` the host time the first sample
+arrived, so the
 lateness is the time from a sample's nominal arrival to the start of its processing
 (the device's own jitter, transport and host scheduling); the *lag* is the host's part,
 from the later of deadline and arrival to the start of processing. Samples already
@@ -204,6 +203,7 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
             return summary
         t_first = s.t
         t0 = mono() if is_sim else s.t_recv  # the host time of device time t_first
+        t0_min = t0
         ctrl.reset(s.T_p if (not is_sim and s.T_p == s.T_p) else sc.T_a)
         cmd = cmd_at(0.0)
         k = 0
@@ -291,11 +291,13 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
                     t_safe_host = mono()
                     break
                 t_last_arrival = s.t_recv
-                # the host time of device time t_first: the earliest any sample allows (the first
-                # may have come late, from a backlog: every later deadline would be late by that)
+                # the host time of device time t_first as the earliest arrival allows (the first
+                # sample may have come late, from a backlog): for the reported safe time only;
+                # pacing keeps t0 (deadlines set by the earliest arrival made the loop wait on
+                # the link instead of sleeping to its deadline: more overruns, measured)
                 off = s.t_recv - (s.t - t_first)
-                if off < t0:
-                    t0 = off
+                if off < t0_min:
+                    t0_min = off
         except (OSError, DeviceError) as e:
             why = str(e) if isinstance(e, DeviceError) else f"{type(e).__name__}: {e}"
             code = sup.link_error(mono() - t0 + t_first, why)
@@ -303,7 +305,7 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
             t_safe_host = mono()
         summary.update(overruns=overruns, rows=k, fault=sup.code, fault_name=sv.FAULTS[sup.code],
                        detail=sup.detail, t_fault=sup.t_fault, fault_value=sup.value,
-                       t_safe=(t_safe_host - t0 + t_first) if t_safe_host == t_safe_host else nan,
+                       t_safe=(t_safe_host - t0_min + t_first) if t_safe_host == t_safe_host else nan,
                        t_end=s.t if s is not None else nan)
         est = ctrl.estimator
         est.finish(summary["t_end"] if math.isfinite(summary["t_end"]) else (k - 1) * t_s)
