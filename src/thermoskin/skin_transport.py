@@ -36,13 +36,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.linalg
 from numba import njit
 from numpy.typing import NDArray
 
 from thermoskin.params import SkinParams
 from thermoskin.physics.convection import FlowResistance
-from thermoskin.physics.network import state_space
+from thermoskin.physics.network import discretize, state_space
 from thermoskin.physics.spatial import spatial_state_space
 from thermoskin.skin import Skin
 
@@ -99,19 +98,15 @@ class TransportCorrection:
         self.patches = [int(i) for i in patches]
         self._x: dict[int, Array] = {}
         self._last: dict[int, tuple[float, float, float]] = {}  # last finite T_in, T_a, v
-        self._mats: dict[int, dict[float, tuple[Array, Array]]] = {i: {} for i in self.patches}
+        self._mats: dict[int, dict[float, tuple[Array, Array, Array, Array]]] = {i: {} for i in self.patches}
         self._cell: dict[int, int] = {}
 
-    def _discrete(self, i: int, v: float) -> tuple[Array, Array]:
+    def _discrete(self, i: int, v: float) -> tuple[Array, Array, Array, Array]:
+        """Patch ``i``'s joint system at ``v``: ``(Phi, Gamma)`` (zero-order hold) and ``(A, B)``."""
         got = self._mats[i].get(v)
         if got is None:
             A, B, self._cell[i] = joint_system(self.skin, i, self.nets[i], v)
-            n = A.shape[0]
-            M = np.zeros((n + 2, n + 2))
-            M[:n, :n] = A
-            M[:n, n:] = B
-            E = scipy.linalg.expm(M * self.t_s)
-            got = (np.ascontiguousarray(E[:n, :n]), np.ascontiguousarray(E[:n, n:]))
+            got = (*discretize(A, B, self.t_s), A, B)
             self._mats[i][v] = got
         return got
 
@@ -138,11 +133,11 @@ class TransportCorrection:
             self._last[i] = (float(ti[-1]), float(ta[-1]), float(vv[-1]))
             vals, iv = np.unique(vv, return_inverse=True)
             mats = [self._discrete(i, float(x)) for x in vals]
-            F = np.stack([a for a, _ in mats])
-            G = np.stack([b for _, b in mats])
+            F = np.stack([m_[0] for m_ in mats])
+            G = np.stack([m_[1] for m_ in mats])
             x = self._x.get(i)
             if x is None:  # the steady state of the first sample's inputs
-                A, B, _ = joint_system(self.skin, i, self.nets[i], float(vv[0]))
+                _, _, A, B = self._discrete(i, float(vv[0]))
                 x = np.linalg.solve(A, -B @ np.array([ti[0], ta[0]]))
                 self._x[i] = x
             col = np.empty(m)
