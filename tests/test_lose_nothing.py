@@ -286,3 +286,43 @@ def test_skin_run_stopped_by_sigterm_keeps_what_ran(tmp_path: Path) -> None:
     assert kinds[0] == "run-start" and kinds[-1] == "run-end", kinds
     t_rec = [m["t"] for m in msgs["/patch/dorsal1/sample"]]
     assert t_rec[-1] == pytest.approx(t[-1])  # the recording reaches the log's last sample
+
+
+def test_killed_run_keeps_the_contacts_that_had_ended(tmp_path: Path) -> None:
+    """SIGKILL of `thermoskin run --realtime --events` after its first contact ended: the events
+    table holds that contact (written as it ended, not at the end of the run), with its kind,
+    and it is the contact `observe` finds on the log the killed run left (offline equals live)."""
+    import csv
+
+    from thermoskin.params import load_config
+    from thermoskin.pipeline import observe
+
+    log, ev = tmp_path / "k.csv", tmp_path / "k_events.csv"
+    host = subprocess.Popen([*CMD, "run", "--realtime", "--scenario", "mixed", "--duration", "30",
+                             "--log", str(log), "--events", str(ev)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=ENV)
+    try:
+        t_end = time.monotonic() + 90
+        while not (ev.exists() and len(ev.read_text().splitlines()) >= 2):
+            assert host.poll() is None, host.communicate()
+            assert time.monotonic() < t_end, "no contact written within 90 s"
+            time.sleep(0.05)
+        # the log is flushed every second, the events at once: kill once the log has the
+        # readings of the release's detection too
+        wait_log(log, float(next(csv.DictReader(ev.open()))["release"]) + 1.0, host)
+        host.kill()
+        host.wait(10)
+    finally:
+        if host.poll() is None:
+            host.kill()
+    rows = list(csv.DictReader(ev.open()))
+    assert len(rows) == 1, rows  # the first touch (15-17 s) ended; the second (21 s) had not
+    r = rows[0]
+    assert r["kind"] == "hold" and r["sign"] == "1" and r["toucher"] == ""
+    assert 14.9 < float(r["onset"]) < 15.3 and 16.8 < float(r["release"]) < 17.3
+    d = read_log(log, live=True)
+    off = observe(d, load_config()).events
+    assert off, "observe found no contact on the killed run's log"
+    for k, a in (("onset", off[0].onset), ("detected", off[0].detected_at), ("release", off[0].release),
+                 ("peak_dq", off[0].peak_dq), ("mean_dq", off[0].mean_dq)):
+        assert abs(float(r[k]) - a) <= 1e-9, (k, r[k], a)

@@ -791,6 +791,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 raise UserError(str(e)) from None
         runlog: RunLog | None = None
         res = None
+        evstream = None
         try:
             if live_addr is not None:
                 from thermoskin.live import Fanout
@@ -803,14 +804,25 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 runlog = RunLog(log_path, names)
             except OSError as e:
                 raise UserError(f"cannot write {log_path}: {e.strerror or e}") from None
+            if events_path is not None:  # each contact as it ends; the whole table at the end
+                from thermoskin.events import EventsStream
+
+                try:
+                    evstream = EventsStream(events_path)
+                except OSError as e:
+                    raise UserError(f"cannot write {events_path}: {e.strerror or e}") from None
 
             def on_block(block: dict[str, Any]) -> None:
                 runlog.write(block)  # type: ignore[union-attr]
                 if recorder is not None:
                     recorder.write_rows(block)
 
+            def on_event(e: ContactEvent) -> None:
+                if evstream is not None:
+                    evstream.add(e)
+
             if serial or realtime:
-                res = _run_fixed_rate(sc, cfg, device, on_block, stop)
+                res = _run_fixed_rate(sc, cfg, device, on_block, stop, on_event)
             else:
                 with _progress_bar("running") as bar:
                     task = bar.add_task("closed loop", total=1.0)
@@ -819,6 +831,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                         bar.console.print(f"  t = {t:7.3f} s  contact detected")
 
                     def ended(e: ContactEvent) -> None:
+                        on_event(e)
                         bar.console.print(f"  t = {e.release:7.3f} s  released after {e.duration:.2f} s, "
                                           f"peak dq {e.peak_dq * 1e3:.1f} mW, mean {e.mean_dq * 1e3:.1f} mW")
 
@@ -828,6 +841,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             if recorder is not None:
                 _record_end(recorder, res)
         finally:
+            if evstream is not None:
+                evstream.close()
             if recorder is not None:
                 recorder.close()
             if runlog is not None:
@@ -1069,7 +1084,7 @@ def _loop_figures(res: Any, n: int) -> None:
 
 
 def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[str, Any]], None],
-                    stop: Any) -> Any:
+                    stop: Any, on_event: Callable[[ContactEvent], None] | None = None) -> Any:
     """The fixed-rate loop process; contacts and faults printed as they come."""
     from thermoskin.runtime.realtime import LoopSpec, run_realtime
 
@@ -1089,7 +1104,7 @@ def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[
         on_block(block)
 
     spec = LoopSpec(cfg, sc, device=device, duration=sc.duration)
-    res = run_realtime(spec, on_rows=on_rows, stop=stop)
+    res = run_realtime(spec, on_rows=on_rows, stop=stop, on_event=on_event)
     err = res.summary.get("error")
     if err:
         if res.summary.get("device_error"):

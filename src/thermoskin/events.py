@@ -101,6 +101,43 @@ def _csv_field(name: str, v: Any) -> str:
     return str(int(x)) if name == "sign" else repr(x)
 
 
+class EventsStream:
+    """The events table (CSV) written as the contacts end, a row each, flushed at once: a run
+    killed at any moment (SIGKILL, a power cut after the flush) keeps every contact that had
+    ended. Their ``kind`` is known then; what touched is said at the end of the run, when
+    :func:`write_events` replaces this file with the whole table. A context manager."""
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        from thermoskin.touchkind import one_patch_kind
+
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._kind = one_patch_kind
+        self._fh = open(self.path, "w", newline="", encoding="utf-8")  # noqa: SIM115 (closed by close())
+        self._w = csv.writer(self._fh, lineterminator="\n")
+        self._w.writerow(EVENT_COLUMNS)
+        self._fh.flush()
+        self.rows = 0
+
+    def add(self, e: ContactEvent) -> None:
+        """One contact that has ended."""
+        r = e.row()
+        if not r["kind"]:
+            r["kind"] = self._kind(e.duration)
+        self._w.writerow([_csv_field(k, r[k]) for k in EVENT_COLUMNS])
+        self._fh.flush()
+        self.rows += 1
+
+    def close(self) -> None:
+        self._fh.close()
+
+    def __enter__(self) -> EventsStream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 def write_events(path: str | os.PathLike[str], events: Sequence[ContactEvent]) -> Path:
     """Write the events table (CSV or Parquet by the extension), one row per contact,
     atomically (a temporary file in the same folder, renamed)."""

@@ -56,6 +56,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.devices.base import DeviceError
+from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.plausible import admit, limits
 from thermoskin.runtime import supervisor as sv
@@ -155,8 +156,10 @@ def _warm_up(cfg: Config, T: float) -> None:
         c.step(k * cfg.sampling.t_s, T, T, T, T)
 
 
-def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
-    """The fixed-rate loop over ``spec.device``; rows into the ring in ``buf``; the summary."""
+def run_loop(spec: LoopSpec, buf: Any, cap: int,
+             on_event: Callable[[ContactEvent], None] | None = None) -> dict[str, Any]:
+    """The fixed-rate loop over ``spec.device``; rows into the ring in ``buf``; the summary.
+    ``on_event``: each contact as it ends (a few times a minute: not the per-sample path)."""
     from thermoskin.runtime.controller import SkinController
 
     cfg, sc = spec.cfg, spec.scenario
@@ -239,6 +242,8 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int) -> dict[str, Any]:
                     ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh)
                     drive, v = sup.gate(ctrl.drive, ctrl.v)
                     est = ctrl.estimator
+                    if est.ended and on_event is not None:
+                        on_event(est.events[-1])
                     q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, ctrl.contact, est.gap
                     T_p_cmd = ctrl.T_p_cmd
                 if truth is not None:
@@ -368,9 +373,13 @@ def _loop_process(spec: LoopSpec, shm_name: str, cap: int, conn: Any) -> None:
         signal.signal(signal.SIGHUP, stop)
     if spec.parent_pid and os.getppid() != spec.parent_pid:
         stop(0, None)
+    def on_event(e: ContactEvent) -> None:  # to the parent, which writes it at once
+        with contextlib.suppress(OSError):
+            conn.send(("event", e))
+
     try:
         try:
-            summary = run_loop(spec, views[0], cap)
+            summary = run_loop(spec, views[0], cap, on_event)
         except Exception as e:  # reported by the parent as one line
             summary = {"error": f"{type(e).__name__}: {e}",
                        "device_error": isinstance(e, DeviceError)}
@@ -416,11 +425,14 @@ class _Columns:
 
 def run_realtime(spec: LoopSpec, *, on_rows: Callable[[dict[str, NDArray[np.float64]]], None] | None = None,
                  ring_rows: int = 1 << 16, poll_s: float = 0.02,
-                 stop: Any = None) -> RealtimeResult:
+                 stop: Any = None, on_event: Callable[[ContactEvent], None] | None = None
+                 ) -> RealtimeResult:
     """Run the fixed-rate loop in a new process; drain its rows; return the log and summary.
 
     ``on_rows(block)`` gets each drained block as columns (for the console and the
-    recorder). Ctrl-C (or ``stop``: anything with ``is_set()``, polled every drain, e.g. a
+    recorder); ``on_event(e)`` each contact as it ends (the loop sends it at once, so a
+    caller that writes it keeps it even if it is killed later). Ctrl-C (or ``stop``:
+    anything with ``is_set()``, polled every drain, e.g. a
     :class:`~thermoskin.runtime.stopping.StopRequest` set by SIGINT, SIGTERM or SIGHUP) asks
     the loop to stop: the device goes to its safe state and the run ends with the rows so
     far (``summary["fault"] == STOPPED``, ``summary["interrupted"]``).
@@ -476,9 +488,15 @@ def run_realtime(spec: LoopSpec, *, on_rows: Callable[[dict[str, NDArray[np.floa
                     hdr[1] = 1
                 if recv.poll(poll_s):
                     try:
-                        summary = recv.recv()
+                        msg = recv.recv()
                     except EOFError:
-                        summary = {"error": "the loop process ended without a summary"}
+                        msg = {"error": "the loop process ended without a summary"}
+                    if isinstance(msg, tuple):  # ("event", a contact that ended)
+                        drain()  # its rows first
+                        if on_event is not None:
+                            on_event(msg[1])
+                        continue
+                    summary = msg
                 drain()
                 if summary is None and not proc.is_alive() and not recv.poll(0):
                     summary = {"error": f"the loop process died (exit code {proc.exitcode})"}
