@@ -1,0 +1,62 @@
+"""Start-up: `thermoskin --help` and `thermoskin observe` on a 2-second log against
+`python -c "import numpy"`, each a process of its own, alternating in one run.
+
+The 2 s log (the simulated skin, 1 kHz) is written first; each command then runs ``--runs``
+times in turn with its peer, so that load on a shared machine falls on all of them alike.
+Prints one JSON line: per command the median and p99 wall time (s) and the ratio of medians
+to the peer's.
+
+    python benchmarks/startup.py [--runs 15] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+CLI = [sys.executable, "-c", "from thermoskin.cli import main; main()"]
+
+
+def wall(cmd: list[str]) -> float:
+    t0 = time.perf_counter()
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=15, help="runs of each command")
+    ap.add_argument("--json", action="store_true", help="only the JSON line")
+    a = ap.parse_args()
+    with tempfile.TemporaryDirectory() as d:
+        log, out = Path(d) / "two.csv", Path(d) / "out.csv"
+        subprocess.run([*CLI, "simulate", "--duration", "2", "-o", str(log)], check=True,
+                       stdout=subprocess.DEVNULL)
+        cmds = {"numpy": [sys.executable, "-c", "import numpy"],
+                "help": [*CLI, "--help"],
+                "observe_2s": [*CLI, "observe", str(log), "-o", str(out)]}
+        for c in cmds.values():  # caches (numba's, the file system's) warm, as a user's second call
+            wall(c)
+        times: dict[str, list[float]] = {k: [] for k in cmds}
+        for _ in range(a.runs):
+            for k, c in cmds.items():
+                times[k].append(wall(c))
+    peer = float(np.median(times["numpy"]))
+    res = {k: {"median_s": round(float(np.median(v)), 3), "p99_s": round(float(np.percentile(v, 99)), 3),
+               "ratio_to_numpy": round(float(np.median(v)) / peer, 2)} for k, v in times.items()}
+    res["runs"] = a.runs
+    if not a.json:
+        for k, v in res.items():
+            print(k, v)
+    print(json.dumps(res))
+
+
+if __name__ == "__main__":
+    main()
