@@ -951,16 +951,23 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
                    events_path: Path | None, groups_path: Path | None, record_path: Path | None,
                    live_addr: str | None, live_rate: float, live_wait: float) -> None:
     """The body of ``run --skin`` (:func:`_run_skin`) under its stop request."""
+    from thermoskin.events import EventsStream
     from thermoskin.runtime.skin_loop import run_skin
     from thermoskin.runtime.skin_topics import figures
     from thermoskin.skin_log import read_skin_log
-    from thermoskin.skin_observe import observe_skin
+    from thermoskin.skin_observe import SKIN_EVENT_COLUMNS, SkinEvent, observe_skin
 
     sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait)
     P = len(skin.patches)
     names = [p.name for p in skin.patches]
     width = max(len(n) for n in names)
+    evstream = None
     try:
+        if events_path is not None:  # each contact as it ends (no position yet); the table at the end
+            try:
+                evstream = EventsStream(events_path, (*SKIN_EVENT_COLUMNS, "kind"), fill_kind=False)
+            except OSError as e:
+                raise UserError(f"cannot write {events_path}: {e.strerror or e}") from None
         for sink, msgs in sinks:
             sink.event(0.0, "run-start", device="sim", scenario=sc.name, skin=skin.name)
             for topic, t, m in msgs.start():
@@ -979,6 +986,8 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
                                           f"({c.sign:+d})")
                     elif c.event is not None:
                         e = c.event
+                        if evstream is not None:
+                            evstream.add_row(SkinEvent(c.patch, names[c.patch], e).row())
                         bar.console.print(f"  t = {c.t:7.3f} s  {names[c.patch]:<{width}}  released after "
                                           f"{e.duration:.2f} s (onset {e.onset:.3f} s), peak dq "
                                           f"{e.peak_dq * 1e3:.0f} mW")
@@ -1001,6 +1010,8 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
                 sink.event(e.onset, "contact", patch=names[i], **figures(e))
             sink.event(t_end, "run-end", wall_s=res.wall_s)
     finally:
+        if evstream is not None:
+            evstream.close()
         for sink, _ in sinks:
             sink.close()
     if res.n < 2:  # stopped before two samples: nothing to estimate from

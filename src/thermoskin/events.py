@@ -102,29 +102,37 @@ def _csv_field(name: str, v: Any) -> str:
 
 
 class EventsStream:
-    """The events table (CSV) written as the contacts end, a row each, flushed at once: a run
+    """An events table (CSV) written as the contacts end, a row each, flushed at once: a run
     killed at any moment (SIGKILL, a power cut after the flush) keeps every contact that had
     ended. Their ``kind`` is known then; what touched is said at the end of the run, when
-    :func:`write_events` replaces this file with the whole table. A context manager."""
+    :func:`write_events` replaces this file with the whole table. ``columns``: the table's
+    (default :data:`EVENT_COLUMNS`; a skin's has its patch and position too); ``fill_kind``: a
+    ``kind`` left empty is the one patch's ``tap`` or ``hold`` (a skin's kind comes from several
+    patches' contacts: at the end). A context manager."""
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
+    def __init__(self, path: str | os.PathLike[str], columns: Sequence[str] = EVENT_COLUMNS,
+                 fill_kind: bool = True) -> None:
         from thermoskin.touchkind import one_patch_kind
 
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._kind = one_patch_kind
+        self.columns = tuple(columns)
+        self._kind = one_patch_kind if fill_kind and "kind" in self.columns else None
         self._fh = open(self.path, "w", newline="", encoding="utf-8")  # noqa: SIM115 (closed by close())
         self._w = csv.writer(self._fh, lineterminator="\n")
-        self._w.writerow(EVENT_COLUMNS)
+        self._w.writerow(self.columns)
         self._fh.flush()
         self.rows = 0
 
     def add(self, e: ContactEvent) -> None:
         """One contact that has ended."""
-        r = e.row()
-        if not r["kind"]:
-            r["kind"] = self._kind(e.duration)
-        self._w.writerow([_csv_field(k, r[k]) for k in EVENT_COLUMNS])
+        self.add_row(e.row())
+
+    def add_row(self, row: dict[str, Any]) -> None:
+        """One contact's row (columns missing from it are left empty)."""
+        if self._kind is not None and not row.get("kind"):
+            row = {**row, "kind": self._kind(float(row.get("duration", math.nan)))}
+        self._w.writerow([_cell(k, row.get(k, "")) for k in self.columns])
         self._fh.flush()
         self.rows += 1
 
@@ -136,6 +144,13 @@ class EventsStream:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _cell(name: str, v: Any) -> str:
+    """A field: text as it is, a number in its shortest round-trip form (NaN empty)."""
+    if isinstance(v, str):
+        return v
+    return _csv_field(name, v)
 
 
 def write_events(path: str | os.PathLike[str], events: Sequence[ContactEvent]) -> Path:
