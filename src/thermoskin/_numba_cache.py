@@ -19,9 +19,15 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 
+COMPILED_ELSEWHERE = ("control/mpc.py", "physics/peltier.py", "sim/skin.py")
+"""Modules of plain functions another module compiles (``njit(f)``: the sweep's batch compiles
+the MPC's interval test, the tank's and the skin's own arithmetic), whose changes must renew
+its cache too (numba would keep the caller's stale copy)."""
+
 SOURCES = ("estimation/kernel.py", "sweep/kernel.py", "sweep/qp.py", "sim/skin_plant.py",
-           "sim/board_bank.py", "skin_transport.py", "calibrate.py")
-"""Every module with compiled (``@njit``) code, relative to the package (a test keeps it whole)."""
+           "sim/board_bank.py", "skin_transport.py", "calibrate.py", *COMPILED_ELSEWHERE)
+"""Every module with compiled (``@njit``) code, relative to the package, and those of
+:data:`COMPILED_ELSEWHERE` (a test keeps it whole)."""
 
 PREFIX = "numba-"
 

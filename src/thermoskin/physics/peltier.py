@@ -59,6 +59,47 @@ def module_heats(i_m: float, T_t: float, T_s: float, p: PeltierParams) -> tuple[
     return Q_t, Q_s, P
 
 
+def tank_linear(n: float, S_m: float, K_m: float, R_m: float, C_tank: float, C_sink: float,
+                g_tank: float, g_sink: float, i_m: float, T_a: float,
+                q_out: float) -> tuple[float, float, float, float, float, float]:
+    """The two nodes' ``dT/dt = A T + b`` for a held module current ``i_m`` (A), ``T_a`` and
+    ``q_out`` (module doc; ``g_tank = 1/R_tank_air``, ``g_sink = 1/R_sink``):
+    ``(a11, a12, a21, a22, b1, b2)``. Plain floats in, plain floats out: the sweep's batch
+    compiles this same function (``sweep.kernel``)."""
+    SI = S_m * i_m
+    joule = 0.5 * (i_m * i_m * R_m)
+    a11 = (n * (SI - K_m) - g_tank) / C_tank
+    a12 = n * K_m / C_tank
+    a21 = n * K_m / C_sink
+    a22 = (n * (-SI - K_m) - g_sink) / C_sink
+    b1 = (n * (SI * KELVIN + joule) + g_tank * T_a - q_out) / C_tank
+    b2 = (n * (-SI * KELVIN + joule) + g_sink * T_a) / C_sink
+    return a11, a12, a21, a22, b1, b2
+
+
+def rk4_pair(x: float, y: float, a11: float, a12: float, a21: float, a22: float, b1: float,
+             b2: float, h: float, n_sub: int) -> tuple[float, float]:
+    """``n_sub`` classical RK4 steps of ``h`` of ``d(x, y)/dt = A (x, y) + b`` (the tank and the
+    sink for a held drive); compiled by the sweep's batch too."""
+    h2 = 0.5 * h
+    h6 = h / 6.0
+    for _ in range(n_sub):
+        k1x = a11 * x + a12 * y + b1
+        k1y = a21 * x + a22 * y + b2
+        x2, y2 = x + h2 * k1x, y + h2 * k1y
+        k2x = a11 * x2 + a12 * y2 + b1
+        k2y = a21 * x2 + a22 * y2 + b2
+        x3, y3 = x + h2 * k2x, y + h2 * k2y
+        k3x = a11 * x3 + a12 * y3 + b1
+        k3y = a21 * x3 + a22 * y3 + b2
+        x4, y4 = x + h * k3x, y + h * k3y
+        k4x = a11 * x4 + a12 * y4 + b1
+        k4y = a21 * x4 + a22 * y4 + b2
+        x += h6 * (k1x + 2.0 * (k2x + k3x) + k4x)
+        y += h6 * (k1y + 2.0 * (k2y + k3y) + k4y)
+    return x, y
+
+
 def cop(i_m: float, T_t: float, T_s: float, p: PeltierParams) -> float:
     """Coefficient of performance of the tank side: heating ``Q_t/P`` (``I > 0``) or cooling ``-Q_t/P``."""
     Q_t, _, P = module_heats(i_m, T_t, T_s, p)
@@ -94,6 +135,7 @@ class PeltierTank:
         self.tau_min = 1.0 / max(r_t, r_s)
         self.n_sub = max(1, math.ceil(self.t_s / (self.tau_min / 50.0)))
         self._h = self.t_s / self.n_sub
+        self._g_tank, self._g_sink = 1.0 / p.R_tank_air, 1.0 / p.R_sink
         self.T_p = math.nan
         self.T_sink = math.nan
         self.i_module = 0.0
@@ -109,20 +151,10 @@ class PeltierTank:
 
     def _linear(self, i_m: float, T_a: float,
                 q_out: float) -> tuple[float, float, float, float, float, float]:
-        """``dT/dt = A T + b`` for a held current: ``(a11, a12, a21, a22, b1, b2)``."""
+        """``dT/dt = A T + b`` for a held current: ``(a11, a12, a21, a22, b1, b2)`` (:func:`tank_linear`)."""
         p = self.params
-        n = p.n_modules
-        SI = p.S_m * i_m
-        joule = 0.5 * i_m * i_m * p.R_m
-        Ct, Cs = p.C_tank, p.C_sink
-        gt, gs = 1.0 / p.R_tank_air, 1.0 / p.R_sink
-        a11 = (n * (SI - p.K_m) - gt) / Ct
-        a12 = n * p.K_m / Ct
-        a21 = n * p.K_m / Cs
-        a22 = (n * (-SI - p.K_m) - gs) / Cs
-        b1 = (n * (SI * KELVIN + joule) + gt * T_a - q_out) / Ct
-        b2 = (n * (-SI * KELVIN + joule) + gs * T_a) / Cs
-        return a11, a12, a21, a22, b1, b2
+        return tank_linear(p.n_modules, p.S_m, p.K_m, p.R_m, p.C_tank, p.C_sink, 1.0 / p.R_tank_air,
+                           1.0 / p.R_sink, i_m, T_a, q_out)
 
     def rhs(self, drive: float, T_a: float, T_p: float, T_sink: float,
             q_out: float = 0.0) -> tuple[float, float]:
@@ -151,42 +183,17 @@ class PeltierTank:
             d = self.drive_min
         i_m = d * p.I_max
         n = p.n_modules
+        a11, a12, a21, a22, b1, b2 = tank_linear(n, p.S_m, p.K_m, p.R_m, p.C_tank, p.C_sink,
+                                                 self._g_tank, self._g_sink, i_m, T_a, q_out)
         SI = p.S_m * i_m
         I2R = i_m * i_m * p.R_m
-        joule = 0.5 * I2R
-        Ct, Cs, K = p.C_tank, p.C_sink, p.K_m
-        gt, gs = 1.0 / p.R_tank_air, 1.0 / p.R_sink
-        a11 = (n * (SI - K) - gt) / Ct
-        a12 = n * K / Ct
-        a21 = n * K / Cs
-        a22 = (n * (-SI - K) - gs) / Cs
-        b1 = (n * (SI * KELVIN + joule) + gt * T_a - q_out) / Ct
-        b2 = (n * (-SI * KELVIN + joule) + gs * T_a) / Cs
         x, y = self.T_p, self.T_sink
         dT = x - y
         self.i_module = i_m
         self.P_elec = n * (SI * dT + I2R)
-        self.Q_tank = n * (SI * (x + KELVIN) + joule - K * dT)
+        self.Q_tank = n * (SI * (x + KELVIN) + 0.5 * I2R - p.K_m * dT)
         self.Q_sink = self.P_elec - self.Q_tank
-        h = self._h
-        h2 = 0.5 * h
-        h6 = h / 6.0
-        for _ in range(self.n_sub):
-            k1x = a11 * x + a12 * y + b1
-            k1y = a21 * x + a22 * y + b2
-            x2, y2 = x + h2 * k1x, y + h2 * k1y
-            k2x = a11 * x2 + a12 * y2 + b1
-            k2y = a21 * x2 + a22 * y2 + b2
-            x3, y3 = x + h2 * k2x, y + h2 * k2y
-            k3x = a11 * x3 + a12 * y3 + b1
-            k3y = a21 * x3 + a22 * y3 + b2
-            x4, y4 = x + h * k3x, y + h * k3y
-            k4x = a11 * x4 + a12 * y4 + b1
-            k4y = a21 * x4 + a22 * y4 + b2
-            x += h6 * (k1x + 2.0 * (k2x + k3x) + k4x)
-            y += h6 * (k1y + 2.0 * (k2y + k3y) + k4y)
-        self.T_p = x
-        self.T_sink = y
+        self.T_p, self.T_sink = rk4_pair(x, y, a11, a12, a21, a22, b1, b2, self._h, self.n_sub)
 
     # -- steady state --------------------------------------------------------------------
     def steady_state(self, drive: float, T_a: float = 20.0, q_out: float = 0.0) -> tuple[float, float]:

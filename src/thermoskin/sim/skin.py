@@ -35,7 +35,7 @@ from thermoskin.physics.finger import T_F_IDLE
 from thermoskin.physics.network import state_space, steady_state
 from thermoskin.sim.sensors import Sensors
 
-__all__ = ["Sensors", "SimulatedSkin", "zoh_2x2", "zoh_coefficients"]
+__all__ = ["Sensors", "SimulatedSkin", "zoh_2x2", "zoh_coefficients", "zoh_scalars"]
 
 Array = NDArray[np.float64]
 Coefficients = tuple[float, float, float, float, float, float, float, float, float, float, float, float]
@@ -44,18 +44,13 @@ CACHE_SIZE = 4096
 """Most ``(v, G_c)`` discretisations kept; beyond that they are computed on each change."""
 
 
-def zoh_coefficients(A: Array, B: Array, t_s: float) -> Coefficients:
-    """Exact ZOH discretisation of a 2x2 ``A`` (real eigenvalues) and 2x4 ``B`` as floats.
-
-    Returns ``(Phi11, Phi12, Phi21, Phi22, Gamma11..Gamma14, Gamma21..Gamma24)``.
-    """
-    a, b = float(A[0, 0]), float(A[0, 1])
-    c, d = float(A[1, 0]), float(A[1, 1])
+def zoh_scalars(a: float, b: float, c: float, d: float,
+                t_s: float) -> tuple[float, float, float, float, float, float, float, float]:
+    """``Phi = e^{A t_s}`` of ``A = [[a, b], [c, d]]`` with real eigenvalues (``b c >= 0``, module
+    doc) and ``M = A^{-1} (Phi - I)`` (so that ``Gamma = M B``): ``(Phi11, Phi12, Phi21, Phi22,
+    M11, M12, M21, M22)``. Plain floats: the sweep's batch compiles this same function."""
     m = 0.5 * (a + d)
-    disc = (0.5 * (a - d)) ** 2 + b * c
-    if disc < 0.0:
-        raise ValueError("zoh_coefficients: complex eigenvalues (b c < 0 is not a thermal network)")
-    delta = math.sqrt(disc)
+    delta = math.sqrt((0.5 * (a - d)) ** 2 + b * c)
     x = delta * t_s
     if x < 20.0:
         e = math.exp(m * t_s)
@@ -77,6 +72,19 @@ def zoh_coefficients(A: Array, B: Array, t_s: float) -> Coefficients:
     m12 = (d * n12 - b * n22) / det
     m21 = (-c * n11 + a * n21) / det
     m22 = (-c * n12 + a * n22) / det
+    return p11, p12, p21, p22, m11, m12, m21, m22
+
+
+def zoh_coefficients(A: Array, B: Array, t_s: float) -> Coefficients:
+    """Exact ZOH discretisation of a 2x2 ``A`` (real eigenvalues) and 2x4 ``B`` as floats
+    (:func:`zoh_scalars`). Returns ``(Phi11, Phi12, Phi21, Phi22, Gamma11..Gamma14,
+    Gamma21..Gamma24)``.
+    """
+    a, b = float(A[0, 0]), float(A[0, 1])
+    c, d = float(A[1, 0]), float(A[1, 1])
+    if (0.5 * (a - d)) ** 2 + b * c < 0.0:
+        raise ValueError("zoh_coefficients: complex eigenvalues (b c < 0 is not a thermal network)")
+    p11, p12, p21, p22, m11, m12, m21, m22 = zoh_scalars(a, b, c, d, t_s)
     g1 = [m11 * float(B[0, j]) + m12 * float(B[1, j]) for j in range(4)]
     g2 = [m21 * float(B[0, j]) + m22 * float(B[1, j]) for j in range(4)]
     return (p11, p12, p21, p22, g1[0], g1[1], g1[2], g1[3], g2[0], g2[1], g2[2], g2[3])

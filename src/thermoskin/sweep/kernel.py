@@ -40,9 +40,14 @@ from numba import njit, prange
 
 from thermoskin.control.mpc import interval_ok
 from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.physics.peltier import rk4_pair, tank_linear
+from thermoskin.sim.skin import zoh_scalars
 from thermoskin.sweep.qp import box_qp
 
-KELVIN = 273.15
+# the plant's own arithmetic, compiled here (one source for the plant and the batch)
+_tank_linear = njit(inline="always")(tank_linear)
+_rk4_pair = njit(inline="always")(rk4_pair)
+_zoh_scalars = njit(inline="always")(zoh_scalars)
 
 # per-row scalar parameters (PS[i, :])
 (S_TS, S_CW, S_CG, S_RG, S_RAW, S_RAG, S_RWON, S_RWOFF, S_VON, S_HALF, S_NDWELL,
@@ -72,29 +77,7 @@ def _zoh(ps, Rw, G, c):
     d = -(1 / Rg + 1 / Rag + G) / Cg
     B10, B11 = 1 / (Rw * Cw), 1 / (Raw * Cw)
     B21, B22, B23 = 1 / (Rag * Cg), 1 / Cg, G / Cg
-    m = 0.5 * (a + d)
-    disc = (0.5 * (a - d)) ** 2 + b * cc
-    delta = math.sqrt(disc)
-    x = delta * t_s
-    if x < 20.0:
-        e = math.exp(m * t_s)
-        ch = e * math.cosh(x)
-        sh = e * (math.sinh(x) / delta if delta > 0.0 else t_s)
-    else:
-        e1 = math.exp((m + delta) * t_s)
-        e2 = math.exp((m - delta) * t_s)
-        ch = 0.5 * (e1 + e2)
-        sh = 0.5 * (e1 - e2) / delta
-    p11 = ch + sh * (a - m)
-    p12 = sh * b
-    p21 = sh * cc
-    p22 = ch + sh * (d - m)
-    det = a * d - b * cc
-    n11, n12, n21, n22 = p11 - 1.0, p12, p21, p22 - 1.0
-    m11 = (d * n11 - b * n21) / det
-    m12 = (d * n12 - b * n22) / det
-    m21 = (-cc * n11 + a * n21) / det
-    m22 = (-cc * n12 + a * n22) / det
+    p11, p12, p21, p22, m11, m12, m21, m22 = _zoh_scalars(a, b, cc, d, t_s)
     # B = [[B10, B11, 0, 0], [0, B21, B22, B23]]
     c[0], c[1], c[2], c[3] = p11, p12, p21, p22
     c[4] = m11 * B10 + m12 * 0.0
@@ -187,8 +170,6 @@ def _row(ps, G_c, T_f, T_a_true, cmd, T_p_presc, cls, NOISE, CONV, pr, Phi, Gam,
     gt, gs = 1.0 / ps[S_RTA], 1.0 / ps[S_RS]
     n_sub = int(ps[S_NSUB])
     h = t_s / n_sub
-    h2 = 0.5 * h
-    h6 = h / 6.0
     sse = 0.0
     ntrack = 0.0
     energy = 0.0
@@ -307,31 +288,11 @@ def _row(ps, G_c, T_f, T_a_true, cmd, T_p_presc, cls, NOISE, CONV, pr, Phi, Gam,
             if d < dmin:
                 d = dmin
             i_m = d * Imax
-            SI = Sm * i_m
-            I2R = i_m * i_m * Rm
-            joule = 0.5 * I2R
-            a11 = (nm * (SI - Km) - gt) / Ct
-            a12 = nm * Km / Ct
-            a21 = nm * Km / Cs
-            a22 = (nm * (-SI - Km) - gs) / Cs
-            b1 = (nm * (SI * KELVIN + joule) + gt * T_a_k - (Tp - Tw) / Rw_v) / Ct
-            b2 = (nm * (-SI * KELVIN + joule) + gs * T_a_k) / Cs
+            a11, a12, a21, a22, b1, b2 = _tank_linear(nm, Sm, Km, Rm, Ct, Cs, gt, gs, i_m, T_a_k,
+                                                      (Tp - Tw) / Rw_v)
             x, y = Tp, Ts
-            energy += nm * (SI * (x - y) + I2R) * t_s
-            for _ in range(n_sub):
-                k1x = a11 * x + a12 * y + b1
-                k1y = a21 * x + a22 * y + b2
-                x2, y2 = x + h2 * k1x, y + h2 * k1y
-                k2x = a11 * x2 + a12 * y2 + b1
-                k2y = a21 * x2 + a22 * y2 + b2
-                x3, y3 = x + h2 * k2x, y + h2 * k2y
-                k3x = a11 * x3 + a12 * y3 + b1
-                k3y = a21 * x3 + a22 * y3 + b2
-                x4, y4 = x + h * k3x, y + h * k3y
-                k4x = a11 * x4 + a12 * y4 + b1
-                k4y = a21 * x4 + a22 * y4 + b2
-                x += h6 * (k1x + 2.0 * (k2x + k3x) + k4x)
-                y += h6 * (k1y + 2.0 * (k2y + k3y) + k4y)
+            energy += nm * (Sm * i_m * (x - y) + i_m * i_m * Rm) * t_s
+            x, y = _rk4_pair(x, y, a11, a12, a21, a22, b1, b2, h, n_sub)
             Tp_old = Tp
             Tp, Ts = x, y
         else:
