@@ -492,33 +492,10 @@ class Toucher:
         return q
 
     def step(self, T_g: float, G: float) -> float:
-        """One sample with the sheet at ``T_g`` (°C) and contact ``G`` (W/K): ``q_i``, W.
-
-        ``begin(G)`` then ``end(T_g)``, written out (the 1 kHz path).
-        """
-        T, c, s, r, b = self.T, self._c, self._s, self._r, self._b
-        n1 = self._n - 1
-        acc = c[n1] * T[n1] + s[n1]
-        b[n1] = acc
-        for i in self._up:
-            acc = c[i] * T[i] + s[i] + r[i] * acc
-            b[i] = acc
-        m0 = self._m0
-        if G > 0.0:
-            t = (acc + G * T_g) / (m0 + G)
-            q = G * m0 / (m0 + G) * (acc / m0 - T_g)
-        else:
-            h = self.H_env
-            t = (acc + h * self.T_env) / (m0 + h)
-            q = 0.0
-        T[0] = t
-        self.T_s = t
-        u, v = self._u, self._v
-        for i in self._down:
-            t = b[i] * u[i] + v[i] * t
-            T[i] = t
-        self.q_i = q
-        return q
+        """One sample with the sheet at ``T_g`` (°C) and contact ``G`` (W/K): ``q_i``, W
+        (``begin(G)`` then ``end(T_g)``; written out, it saved 0.1 of 1.3 µs a sample)."""
+        self.begin(G)
+        return self.end(T_g)
 
 
 def _plies_chain(plies: Sequence[tuple[Material, float, int]], area: float, tau0: float
