@@ -197,6 +197,7 @@ def test_interrupted_recording_is_finished(tmp_path: Path) -> None:
         assert p.returncode == 128 + sig, (name, err)
         lines = err.strip().splitlines()
         assert len(lines) == 1 and "safe state" in lines[0], (name, err)
+        assert lines[0].endswith("log, plot and recording written"), lines[0]  # what was given
         if sig != signal.SIGINT:
             assert f"stopped by {signal.Signals(sig).name}" in lines[0]
         log = read_log(tmp_path / f"{name}.csv")

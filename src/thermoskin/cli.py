@@ -894,8 +894,10 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         sys.exit(3)
     if stopped:
         why = f"stopped by {stop.name}" if stop.signum else "interrupted"
+        outs = ["log", "plot"] + (["events"] if events_path is not None else []) + (
+            ["recording"] if record_path is not None else [])
         click.echo(f"thermoskin: {why} at t = {n * cfg.sampling.t_s:.3f} s; the device is in its "
-                   "safe state; log, plot and recording written", err=True)
+                   f"safe state; {', '.join(outs[:-1])} and {outs[-1]} written", err=True)
         sys.exit(stop.exit_code)
 
 
