@@ -11,7 +11,9 @@ standard deviation ``G_sd`` (W/K), the toucher's surface temperature at the onse
 ``T_f_hat`` and ``T_f_sd`` (°C, K) and its effusivity ``effusivity_hat`` (W s^0.5/(m² K)).
 
 The table is written as CSV (numbers in their shortest round-trip form, an empty field for
-a value not identified) or Parquet (text columns as strings, null for not identified).
+a value not identified) or Parquet (text columns as strings, null for not identified): whole
+(:func:`write_events`, atomically) or, during a run, a row as each contact ends
+(:class:`EventsStream`), so that a killed run keeps the contacts that had ended.
 """
 
 from __future__ import annotations
