@@ -95,7 +95,8 @@ def events_columns(events: Sequence[ContactEvent]) -> dict[str, NDArray[Any]]:
 
 
 def _csv_field(name: str, v: Any) -> str:
-    if name in TEXT_COLUMNS:
+    """A CSV field: text as it is, a number in its shortest round-trip form (NaN empty)."""
+    if name in TEXT_COLUMNS or isinstance(v, str):
         return str(v)
     x = float(v)
     if not math.isfinite(x):
@@ -134,7 +135,7 @@ class EventsStream:
         """One contact's row (columns missing from it are left empty)."""
         if self._kind is not None and not row.get("kind"):
             row = {**row, "kind": self._kind(float(row.get("duration", math.nan)))}
-        self._w.writerow([_cell(k, row.get(k, "")) for k in self.columns])
+        self._w.writerow([_csv_field(k, row.get(k, "")) for k in self.columns])
         self._fh.flush()
         self.rows += 1
 
@@ -146,13 +147,6 @@ class EventsStream:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _cell(name: str, v: Any) -> str:
-    """A field: text as it is, a number in its shortest round-trip form (NaN empty)."""
-    if isinstance(v, str):
-        return v
-    return _csv_field(name, v)
 
 
 def write_events(path: str | os.PathLike[str], events: Sequence[ContactEvent]) -> Path:

@@ -153,8 +153,8 @@ class PeltierTank:
                 q_out: float) -> tuple[float, float, float, float, float, float]:
         """``dT/dt = A T + b`` for a held current: ``(a11, a12, a21, a22, b1, b2)`` (:func:`tank_linear`)."""
         p = self.params
-        return tank_linear(p.n_modules, p.S_m, p.K_m, p.R_m, p.C_tank, p.C_sink, 1.0 / p.R_tank_air,
-                           1.0 / p.R_sink, i_m, T_a, q_out)
+        return tank_linear(p.n_modules, p.S_m, p.K_m, p.R_m, p.C_tank, p.C_sink, self._g_tank,
+                           self._g_sink, i_m, T_a, q_out)
 
     def rhs(self, drive: float, T_a: float, T_p: float, T_sink: float,
             q_out: float = 0.0) -> tuple[float, float]:

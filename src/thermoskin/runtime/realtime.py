@@ -373,6 +373,7 @@ def _loop_process(spec: LoopSpec, shm_name: str, cap: int, conn: Any) -> None:
         signal.signal(signal.SIGHUP, stop)
     if spec.parent_pid and os.getppid() != spec.parent_pid:
         stop(0, None)
+
     def on_event(e: ContactEvent) -> None:  # to the parent, which writes it at once
         with contextlib.suppress(OSError):
             conn.send(("event", e))
