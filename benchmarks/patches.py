@@ -8,12 +8,16 @@ over many ticks after a warm-up) and the largest difference of ``dq_i_hat`` and 
 from stepping the plain-Python one-patch reference (``estimation/reference.py``) on the same
 data, over ``--check`` patches (the reference is slow).
 
-    python benchmarks/patches.py --n 1000 [--ticks 5000] [--check 3] [--json]
+    python benchmarks/patches.py --n 1000 [--ticks 5000] [--check 3] [--skin-detector] [--json]
+
+``--skin-detector``: the detector of a skin's patch (``observe --skin``, ``run --skin``), whose
+onset moves ``q_i`` alone, so the kernel keeps no step signatures.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 
@@ -25,6 +29,7 @@ from thermoskin.params import load_config
 from thermoskin.patches import PatchEstimators
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS
+from thermoskin.skin_observe import SKIN_ONSET_STATE_JUMP
 
 
 def main() -> None:
@@ -34,9 +39,16 @@ def main() -> None:
     ap.add_argument("--check", type=int, default=3, help="patches checked against the reference")
     ap.add_argument("--threads", choices=("auto", "one", "all"), default="auto",
                     help="one core, every core, or every core from 64 patches on (default)")
+    ap.add_argument("--skin-detector", action="store_true",
+                    help="also a skin patch's detector (q_i alone jumps at an onset, no step signatures "
+                         "kept), stepped in turn with the single patch's on the same ticks")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
     cfg = load_config()
+    cfgs = {"single": cfg}
+    if a.skin_detector:
+        de = dataclasses.replace(cfg.detector, onset_state_jump=SKIN_ONSET_STATE_JUMP)
+        cfgs["skin"] = dataclasses.replace(cfg, detector=de)
     warm = 2000
     n_s = warm + a.ticks
     log = simulate(SCENARIOS["one-finger"].with_duration(n_s * cfg.sampling.t_s + 1.0), cfg)
@@ -46,32 +58,42 @@ def main() -> None:
     T_p = np.repeat(log["T_p"][:n_s, None], a.n, axis=1)
     T_a = np.repeat(log["T_a"][:n_s, None], a.n, axis=1)
     v = np.repeat(log["v"][:n_s, None], a.n, axis=1)
-    est = PatchEstimators(cfg, n=a.n, parallel=None if a.threads == "auto" else a.threads == "all")
-    refs = [ReferenceEstimator(cfg, cfg.sampling.t_s) for _ in range(min(a.check, a.n))]
-    times = np.empty(n_s)
-    worst = 0.0
+    par = None if a.threads == "auto" else a.threads == "all"
+    ests = {k: PatchEstimators(c, n=a.n, parallel=par) for k, c in cfgs.items()}
+    refs = {k: [ReferenceEstimator(c, c.sampling.t_s) for _ in range(min(a.check, a.n))]
+            for k, c in cfgs.items()}
+    times = {k: np.empty(n_s) for k in cfgs}
+    worst = dict.fromkeys(cfgs, 0.0)
     t_s = cfg.sampling.t_s
-    iv = est.index(v[0])
+    iv = ests["single"].index(v[0])
     for k in range(n_s):
         if k and not np.array_equal(v[k], v[k - 1]):
-            iv = est.index(v[k])
+            iv = ests["single"].index(v[k])  # the same tables' rows for both detectors
         t = k * t_s
-        t0 = time.perf_counter_ns()
-        est._step_many(est.ST, est.PR, est.mid, *est._tabs, t, T_w[k], T_p[k], T_a[k], est_cmd(a.n),
-                       iv, est_drive(a.n), est_fresh(a.n), est.codes, est.EV)
-        times[k] = (time.perf_counter_ns() - t0) * 1e-3
-        for i, r in enumerate(refs):
-            r.step(t, T_w[k, i], T_p[k, i], v[k, i], T_a[k, i])
-            for a_, b_ in ((est.ST[i, K.DQ], r.dq), (est.ST[i, K.QIH], r.q_i_hat)):
-                if a_ == a_ and b_ == b_:
-                    worst = max(worst, abs(a_ - b_))
-    tt = times[warm:]
-    out = {"n": a.n, "p50_us": round(float(np.percentile(tt, 50)), 2),
-           "p99_us": round(float(np.percentile(tt, 99)), 2), "max_us": round(float(tt.max()), 1),
-           "max_abs_diff_W": worst, "checked_patches": len(refs), "ticks": len(tt),
-           "ns_per_patch_p50": round(float(np.percentile(tt, 50)) * 1e3 / a.n, 1),
-           "contacts": int(len(est.events) + (est.codes & 1).sum()),
-           "parallel": est._step_many is K.step_many_parallel}
+        for name, est in ests.items():  # in turn on the same tick: load falls on both alike
+            t0 = time.perf_counter_ns()
+            est._step_many(est.ST, est.PR, est.mid, *est._tabs, t, T_w[k], T_p[k], T_a[k], est_cmd(a.n),
+                           iv, est_drive(a.n), est_fresh(a.n), est.codes, est.EV)
+            times[name][k] = (time.perf_counter_ns() - t0) * 1e-3
+            for i, r in enumerate(refs[name]):
+                r.step(t, T_w[k, i], T_p[k, i], v[k, i], T_a[k, i])
+                for a_, b_ in ((est.ST[i, K.DQ], r.dq), (est.ST[i, K.QIH], r.q_i_hat)):
+                    if a_ == a_ and b_ == b_:
+                        worst[name] = max(worst[name], abs(a_ - b_))
+
+    def summary(name: str) -> dict[str, float | int | bool]:
+        tt = times[name][warm:]
+        est = ests[name]
+        return {"p50_us": round(float(np.percentile(tt, 50)), 2),
+                "p99_us": round(float(np.percentile(tt, 99)), 2), "max_us": round(float(tt.max()), 1),
+                "max_abs_diff_W": worst[name], "checked_patches": len(refs[name]), "ticks": len(tt),
+                "ns_per_patch_p50": round(float(np.percentile(tt, 50)) * 1e3 / a.n, 1),
+                "contacts": int(len(est.events) + (est.codes & 1).sum()),
+                "parallel": est._step_many is K.step_many_parallel}
+
+    out: dict[str, object] = {"n": a.n, **summary("single")}
+    if a.skin_detector:
+        out["skin_detector"] = summary("skin")
     if not a.json:
         print(out)
     print(json.dumps(out))

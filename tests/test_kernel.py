@@ -24,6 +24,10 @@ def logs():  # type: ignore[no-untyped-def]
     es = dataclasses.replace(cfg.estimator, switch_bins=16, switch_learn=0.05)
     sc = dataclasses.replace(cfg, estimator=es)
     yield "pump-cycle correction", sc, one
+    # a skin patch's onset: q_i alone jumps (the kernel then keeps no step signatures; the
+    # reference still carries them, unread)
+    de = dataclasses.replace(cfg.detector, onset_state_jump=0.0)
+    yield "q_i alone jumps at an onset", dataclasses.replace(cfg, detector=de), one
     for name in ("boards-10hz", "ambient-step", "cold", "setpoints"):
         cond = get_condition(name, 4242)
         c = cond.config(cfg)

@@ -188,6 +188,7 @@ PR_APH = 53      # its learning weight per no-touch reading
 PR_TCONF = 54    # a contact released this soon after its detection, never confirmed, is withdrawn, s
 PR_DLO = 55      # the design of the two CUSUMs that only date and size a weak step, W
 PR_OSJ = 56      # 1: the whole state jumps at an onset (the step's signature); 0: q_i alone
+                 # (the signatures are then not kept)
 PR_HLO = 57      # the weak-step CUSUMs fire only this far above the onset threshold
 PR_GLR = 58      # 1: an onset is dated by the GLR over the change time; 0: at the CUSUM's last zero
 PR_GPOOL = 59    # a buffer entry pools the readings less than this after its first, s
@@ -239,8 +240,9 @@ def _update(st, pr, i, y, R):
             st[KAPPA] = kap * pr[PR_DOWN]
     inv = 1.0 / S
     # each onset CUSUM's step signature: what remains in the estimate's error of a step of
-    # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu
-    for j in range(NCU):
+    # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu; read only by an
+    # onset's whole-state jump, so not kept without it (a skin's patches: a fifth of a sample)
+    for j in range(NCU if pr[PR_OSJ] != 0.0 else 0):
         m = MU + NMU * j
         rho = st[m + i]
         for a_ in range(5):
@@ -899,7 +901,8 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     _ambient_predict(st, Phi_a, Q_a)
     Qd = Qc if st[MODE] == INCONTACT else Qi
     _predict(st, Phi[iv], Gam[iv], Qd[iv], st[XA], drive if drive == drive else 0.0)
-    _mu_predict(st, Phi[iv])
+    if pr[PR_OSJ] != 0.0:  # the step signatures, for the onset's whole-state jump
+        _mu_predict(st, Phi[iv])
     if st[GAPRUN] > pr[PR_MAXGAP]:
         st[READY] = 0.0  # restart from the next valid readings
     return code
