@@ -26,7 +26,7 @@ from thermoskin.sim.scenarios import SCENARIOS
 def noisy_detector():  # type: ignore[no-untyped-def]
     base = load_config()
     log = simulate(SCENARIOS["none"].with_duration(30.0), base.replace(sensor={"seed": 1}))
-    return base.replace(detector={"h_on": 5.0, "h_rate": 0.0}), log
+    return base.replace(detector={"h_on": 5.0, "h_rate": 0.0, "h_min": 0.0}), log
 
 
 def test_withdrawn_contacts_are_the_unconfirmed_short_ones(noisy_detector) -> None:  # type: ignore[no-untyped-def]

@@ -55,6 +55,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_WSTRIDE] = max(1, math.ceil(n_warm / K.NWB))
     pr[K.PR_S0] = d.z_scale
     pr[K.PR_HSLOPE] = d.h_rate
+    pr[K.PR_HMIN] = d.h_min
     pr[K.PR_ARATE] = 0.05
     pr[K.PR_TCMD] = 2.0
     pr[K.PR_AJUMP] = 1.0

@@ -200,6 +200,11 @@ class DetectorParams(_Validated):
     h_rate: float = _p(1.52, "", 0.0, 100.0,
                        doc="... plus this times ln(readings per second): more readings, more "
                            "chances of a false alarm (10 Hz boards: 9.5, 100 Hz: 13.0, 1 kHz: 16.5)")
+    h_min: float = _p(11.9, "", 0.0, 1000.0,
+                      doc="... and never below this: a CUSUM alarms on noise about once in e^h "
+                          "readings (Lorden), so at a few readings a second each carries much "
+                          "evidence; 11.9 is once in 4 h at 10 readings a second (10 Hz boards: "
+                          "11.9 rather than 9.5, which alarmed about once in 22 min)")
     k_off: float = _p(1.0, "sigma", 0.0, 100.0, doc="release threshold in noise standard deviations")
     f_off: float = _p(0.35, "", 0.0, 1.0,
                       doc="release threshold as a fraction of the contact's smoothed level")

@@ -192,7 +192,8 @@ PR_OSJ = 56      # 1: the whole state jumps at an onset (the step's signature); 
 PR_HLO = 57      # the weak-step CUSUMs fire only this far above the onset threshold
 PR_GLR = 58      # 1: an onset is dated by the GLR over the change time; 0: at the CUSUM's last zero
 PR_GPOOL = 59    # a buffer entry pools the readings less than this after its first, s
-NPARAM = 60
+PR_HMIN = 60     # the onset threshold's floor
+NPARAM = 61
 
 
 # step result bits
@@ -476,10 +477,12 @@ def _eq8(st, pr, Rw, T_w, T_p, T_a, iv):
 @njit(cache=True, inline="always")
 def _threshold(st, pr):
     """The onset threshold for the current reading rate: more readings a second are more
-    chances of a false alarm, ``h = h_on + h_rate ln(readings/s)`` (no reading yet: one a
-    sample)."""
+    chances of a false alarm, ``h = max(h_on + h_rate ln(readings/s), h_min)`` (no reading
+    yet: one a sample); the floor because a CUSUM alarms on noise about once in ``e^h``
+    readings (Lorden 1971), and a few readings a second each carry much evidence."""
     rate = st[RATE] if st[RATE] > 0.0 else 1.0 / pr[PR_TS]
-    st[HTH] = pr[PR_H] + pr[PR_HSLOPE] * math.log(rate if rate > 1.0 else 1.0)
+    h = pr[PR_H] + pr[PR_HSLOPE] * math.log(rate if rate > 1.0 else 1.0)
+    st[HTH] = h if h > pr[PR_HMIN] else pr[PR_HMIN]
 
 
 @njit(cache=True, inline="always")

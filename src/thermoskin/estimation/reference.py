@@ -261,7 +261,7 @@ class ReferenceEstimator:
             return 0
         if self.mode == "idle":
             rate = self.rate if self.rate > 0 else 1 / self.t_s
-            h = d.h_on + d.h_rate * math.log(max(rate, 1.0))  # the kernel caches it per reading
+            h = max(d.h_on + d.h_rate * math.log(max(rate, 1.0)), d.h_min)  # the kernel caches it per reading
             if d.onset_glr and (gg > 0 or self.t_last_w == t):  # a pipe reading, for dating
                 if self.glr and t - self.glr_t0 < d.onset_glr_pool:
                     e = self.glr[-1]
