@@ -30,21 +30,21 @@ FAULT_LIMITS = {"tc-open": ("tc-open", 0.010), "nan-burst": ("nan", 0.200),
                 "overtemp": ("overtemp", 0.010), "serial-drop": ("link", 0.100),
                 "tc-stuck": ("stuck", 1.0)}
 
-Start = Callable[..., tuple[DeviceCore, Path]]
+Start = Callable[..., tuple[DeviceCore, Path, PtyEmulator]]
 
 
 @pytest.fixture
 def emulator(tmp_path: Path) -> Iterator[Start]:
     running: list[tuple[PtyEmulator, threading.Thread]] = []
 
-    def start(faults: tuple[str, ...] = ()) -> tuple[DeviceCore, Path]:
+    def start(faults: tuple[str, ...] = ()) -> tuple[DeviceCore, Path, PtyEmulator]:
         core = DeviceCore(Config(), SCENARIOS["fingers"], [FaultSpec.parse(f) for f in faults])
         emu = PtyEmulator(tmp_path / "skin", core)
         th = threading.Thread(target=emu.run, daemon=True)
         th.start()
         assert emu.ready.wait(5.0)
         running.append((emu, th))
-        return core, emu.link
+        return core, emu.link, emu
 
     yield start
     for emu, th in running:
@@ -58,6 +58,17 @@ def wait_safe(core: DeviceCore, timeout: float = 2.0) -> float:
     while core.t_safe != core.t_safe and time.monotonic() < t_end:
         time.sleep(0.01)
     return core.t_safe
+
+
+def emulator_stall(emu: PtyEmulator, t_until: float) -> float:
+    """The emulator's longest lateness (s) over its samples up to device time ``t_until``
+    (waiting, up to 5 s, for a stalled emulator to wake and measure its stall)."""
+    n = min(int(t_until / emu.core.t_s) + 2, emu.lateness.size)
+    t_end = time.monotonic() + 5.0
+    while emu.n_late < n and time.monotonic() < t_end:
+        time.sleep(0.01)
+    n = min(n, emu.n_late)
+    return float(emu.lateness[:n].max()) if n else 0.0
 
 
 def test_realtime_sim_same_columns_and_paced() -> None:
@@ -99,7 +110,7 @@ def test_unknown_device_reported() -> None:
 
 @needs_pty
 def test_serial_loop_over_emulator(emulator: Start) -> None:
-    core, link = emulator()
+    core, link, emu = emulator()
     res = run_realtime(LoopSpec(TOLERANT, SCENARIOS["fingers"], device=f"serial://{link}", duration=2.0))
     assert res.fault is None, res.summary
     c = res.columns
@@ -113,7 +124,10 @@ def test_serial_loop_over_emulator(emulator: Start) -> None:
     seg = c["T_w"][fresh[1]:fresh[2]]
     assert np.all(seg == seg[0])
     assert res.summary["link"]["corrupted"] == 0
-    assert wait_safe(core) == pytest.approx(2.0, abs=0.05)  # close() sends SAFE at the end
+    # close() sends SAFE at the end; it takes effect at the emulator's next sample, later by
+    # as much as the emulator's thread stalled (measured by the emulator on this loaded machine)
+    t_safe = wait_safe(core)
+    assert 1.95 <= t_safe <= 2.05 + emulator_stall(emu, t_safe), t_safe
 
 
 @needs_pty
@@ -121,12 +135,21 @@ def test_serial_loop_over_emulator(emulator: Start) -> None:
 def test_fault_ends_in_safe_state_within_delay(emulator: Start, kind: str) -> None:
     t_f = 1.2
     name, limit = FAULT_LIMITS[kind]
-    core, link = emulator((f"{kind}@{t_f}",))
     # The link fault under test keeps the default 50 ms timeout; the others get a tolerant
     # one, so that a scheduling stall of this shared machine is not taken for a cut cable.
     cfg = Config() if kind == "serial-drop" else TOLERANT
-    res = run_realtime(LoopSpec(cfg, SCENARIOS["fingers"], device=f"serial://{link}", duration=5.0))
-    s = res.summary
+    for _attempt in range(3):
+        core, link, emu = emulator((f"{kind}@{t_f}",))
+        res = run_realtime(LoopSpec(cfg, SCENARIOS["fingers"], device=f"serial://{link}",
+                                    duration=5.0))
+        s = res.summary
+        if not (kind == "serial-drop" and s["t_safe"] < t_f - 0.01):
+            break
+        # The link went silent before the drop: only a stall of the emulator's thread (this
+        # test's process, on a loaded two-core machine) longer than the timeout may explain
+        # it; the emulator measured its own lateness, sample by sample, before the drop.
+        stall = emulator_stall(emu, s["t_safe"])
+        assert stall > cfg.safety.link_timeout_s - 0.01, ("link lost with no stall", s, stall)
     assert res.fault == name, s
     delay_host = s["t_safe"] - t_f
     # the host's clock is set against the device's at the first sample, whose own transit
