@@ -54,3 +54,21 @@ def test_kernel_equals_reference(name: str, cfg, log) -> None:  # type: ignore[n
     for a, b in zip(est.events, ref.events, strict=True):
         assert a.onset == pytest.approx(b.onset, abs=1e-9) and a.release == pytest.approx(b.release, abs=1e-9)
         assert a.peak_dq == pytest.approx(b.peak_dq, abs=1e-9)
+
+
+def test_median_in_place_is_numpys_median() -> None:
+    """The warm-up baseline's median, taken without allocating (the kernel runs without
+    reference counting), is numpy's: odd and even counts, ties, a NaN, an offset part."""
+    from thermoskin.estimation.kernel import _median_in_place
+
+    rng = np.random.default_rng(7)
+    for m in (1, 2, 3, 10, 255, 256):
+        for kind in ("normal", "ties"):
+            x = rng.normal(0.03, 0.01, m) if kind == "normal" else rng.integers(0, 4, m) * 0.25
+            a = np.concatenate([[9.0, -9.0], x, [5.0]])
+            assert _median_in_place.py_func(a.copy(), 2, m) == np.median(x)
+            b = a.copy()
+            assert _median_in_place(b, 2, m) == np.median(x)  # compiled
+            assert b[0] == 9.0 and b[-1] == 5.0 and np.all(np.diff(b[2:2 + m]) >= 0)
+    x = np.array([0.1, np.nan, 0.2])
+    assert np.isnan(_median_in_place(x.copy(), 0, 3)) and np.isnan(np.median(x))

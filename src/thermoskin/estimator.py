@@ -249,7 +249,8 @@ class TouchEstimator:
         iv = self.rows_of(v)
         out = np.empty((8, n))
         events = np.empty((max(16, n // 50), K.NEV))
-        ne = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out, events)
+        ne = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out, events,
+                   self._ev)
         new = [ContactEvent.from_kernel(events[i]) for i in range(min(ne, len(events)))]
         self.events.extend(new)
         self.contact = int(self.st[K.CONTACT])

@@ -138,7 +138,7 @@ class PatchEstimators:
         ne = K.run_rows(self.ST, self.PR, self.mid, *self._tabs, p,
                         np.ascontiguousarray(t, dtype=float), f(T_w, math.nan), f(T_p, math.nan),
                         f(T_a, math.nan), f(T_w_cmd, math.nan), self.index(v), f(drive, math.nan), fr,
-                        out, events, ev_patch)
+                        out, events, ev_patch, np.empty(K.NEV))
         new = [(int(ev_patch[i]), ContactEvent.from_kernel(events[i])) for i in range(min(ne, len(events)))]
         self.events.extend(new)
         cols = {"q_i_hat": out[0], "dq_i_hat": out[1], "sd": out[3], "contact": out[4].astype(np.int8),

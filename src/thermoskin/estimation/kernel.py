@@ -199,6 +199,13 @@ NPARAM = 61
 # step result bits
 C_CONTACT, C_STARTED, C_ENDED = 1, 2, 4
 
+#: The entry points are compiled without numba's reference counting (``_nrt=False``): the
+#: sample step allocates nothing, and the counts numba otherwise keeps on each array view it
+#: takes (``Phi[iv]``, a patch's row ``ST[i]``; about a hundred atomic updates a sample that
+#: its pruning leaves in this branchy code) cost more than the step itself: 1000 patches on
+#: one core 615 -> 172 µs a tick, measured (``benchmarks/patches.py``).
+_FAST = {"cache": True, "_nrt": False}
+
 
 @njit(cache=True)
 def new_state() -> np.ndarray:
@@ -602,6 +609,25 @@ def _glr_time(st, t_zero, sg, sum_ge, sum_gg):
 
 
 @njit(cache=True, inline="always")
+def _median_in_place(a, lo, m):
+    """The median of ``a[lo:lo + m]``, as ``np.median`` gives it (NaN if any is NaN), sorting
+    that part of ``a`` in place (insertion sort: ``m`` is at most :data:`NWB`, once a patch);
+    allocates nothing, so that the kernel needs no reference counting."""
+    for k in range(lo, lo + m):
+        if a[k] != a[k]:
+            return np.nan
+    for k in range(lo + 1, lo + m):
+        v = a[k]
+        j = k - 1
+        while j >= lo and a[j] > v:
+            a[j + 1] = a[j]
+            j -= 1
+        a[j + 1] = v
+    h = lo + m // 2
+    return a[h] if m % 2 == 1 else (a[h - 1] + a[h]) / 2.0
+
+
+@njit(cache=True, inline="always")
 def _detect(st, pr, t, ev):
     """The detector's sample; returns the step-result bits."""
     q = st[Q]
@@ -619,7 +645,7 @@ def _detect(st, pr, t, ev):
         st[B] += (q - st[B]) / n
         if n >= int(pr[PR_NWARM]):
             m = min((n - 1) // stride + 1, NWB)
-            st[B] = np.median(st[WBUF:WBUF + m])
+            st[B] = _median_in_place(st, WBUF, m)
             st[MODE] = IDLE
             _cusums_reset(st, t)
         st[DQ] = q - st[B]
@@ -911,22 +937,22 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     return code
 
 
-@njit(cache=True)
+@njit(**_FAST)
 def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh, ev):
     """One sample of one patch (:func:`_step_one`); returns the step-result bits."""
     return _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
                      fresh, ev)
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True, **_FAST)
 def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
-        out, events):
+        out, events, ev):
     """:func:`step` over arrays; fills ``out`` (rows: q_i_hat, dq_i_hat, q estimate, its sd,
-    contact, gap, the sheet's estimated temperature T_g, their covariance) and ``events``;
-    returns the event count. Calls :func:`step`, compiled once: inlining the sample step here
-    too was 3-8 % faster a sample but another 20 s of numba's compile on a cold cache."""
+    contact, gap, the sheet's estimated temperature T_g, their covariance) and ``events``
+    (``ev``: a scratch event row); returns the event count. Calls :func:`step`, compiled
+    once: inlining the sample step here too was 3-8 % faster a sample but another 20 s of
+    numba's compile on a cold cache."""
     n = t.shape[0]
-    ev = np.empty(NEV)
     ne = 0
     cap = events.shape[0]
     for k in range(n):
@@ -935,7 +961,8 @@ def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
         _outputs(st, out, k)
         if c & C_ENDED:
             if ne < cap:
-                events[ne, :] = ev
+                for j in range(NEV):
+                    events[ne, j] = ev[j]
             ne += 1
     return ne
 
@@ -956,7 +983,7 @@ def _outputs(st, out, k):
 # ST[i] is patch i's state; its model (parameters and tables) is row mid[i] of PR and of the
 # tables Phi[m, v], Gam[m, v], ..., Rw[m, v] (patches with the same parameters share one).
 
-@njit(cache=True)
+@njit(**_FAST)
 def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
               fresh, codes, EV):
     """One sample of every patch: the readings are arrays over patches; ``codes[i]`` its bits,
@@ -969,7 +996,7 @@ def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T
                         T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
 
 
-@njit(cache=True, parallel=True)
+@njit(parallel=True, **_FAST)
 def step_many_parallel(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
                        drive, fresh, codes, EV):
     """:func:`step_many` with the patches shared out over the cores (the patches are
@@ -980,15 +1007,15 @@ def step_many_parallel(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_
                              T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True, **_FAST)
 def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd, iv,
-             drive, fresh, out, events, ev_patch):
+             drive, fresh, out, events, ev_patch, ev):
     """A long-format log (one row per sample and patch, in time order): each row steps its
     patch's state; fills ``out`` per row (as :func:`run`), ``events`` and ``ev_patch`` (the
-    patch of each); returns the event count. Calls :func:`step` (compiled once, not inlined
-    again: the cost is a call per row, and a shorter first compile)."""
+    patch of each; ``ev`` a scratch event row); returns the event count. Calls :func:`step`
+    (compiled once, not inlined again: the cost is a call per row, and a shorter first
+    compile)."""
     n = t.shape[0]
-    ev = np.empty(NEV)
     ne = 0
     cap = events.shape[0]
     for k in range(n):
@@ -1000,13 +1027,14 @@ def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, 
         _outputs(st, out, k)
         if c & C_ENDED:
             if ne < cap:
-                events[ne, :] = ev
+                for j in range(NEV):
+                    events[ne, j] = ev[j]
                 ev_patch[ne] = i
             ne += 1
     return ne
 
 
-@njit(cache=True)
+@njit(**_FAST)
 def finish(st, t, ev):
     """End a contact still open at ``t`` (the end of a log); True if one was."""
     if st[MODE] == INCONTACT:
