@@ -377,6 +377,16 @@ def _ambient(st, pr, t, y, fresh, R, idx):
         st[PA + 3] -= k1 * r1
 
 
+_TINY = float(np.finfo(np.float64).tiny)
+"""The smallest normal float64; below it (subnormal numbers) arithmetic is many times slower."""
+
+
+@njit(cache=True, inline="always")
+def _ftz(x):
+    """``x``, or 0 where it is subnormal (``0 < |x| < tiny``); NaN stays NaN."""
+    return 0.0 if 0.0 < abs(x) < _TINY else x
+
+
 @njit(cache=True, inline="always")
 def _ambient_predict(st, Fa, Qa):
     a0, a1 = st[XA], st[XA + 1]
@@ -389,8 +399,12 @@ def _ambient_predict(st, Fa, Qa):
     m10 = f10 * p00 + f11 * p10
     m11 = f10 * p01 + f11 * p11
     st[PA] = m00 * f00 + m01 * f01 + Qa[0, 0]
-    st[PA + 1] = m00 * f10 + m01 * f11 + Qa[0, 1]
-    st[PA + 2] = m10 * f00 + m11 * f01 + Qa[1, 0]
+    # the cross terms decay towards zero where the air's two states are not coupled, and
+    # settle on a subnormal number (5e-323), on which every product is a slow microcode
+    # assist: flushed to zero (the estimates do not change: measured bit for bit), one
+    # sample costs 190 ns instead of 540 ns from then on
+    st[PA + 1] = _ftz(m00 * f10 + m01 * f11 + Qa[0, 1])
+    st[PA + 2] = _ftz(m10 * f00 + m11 * f01 + Qa[1, 0])
     st[PA + 3] = m10 * f10 + m11 * f11 + Qa[1, 1]
 
 
