@@ -250,13 +250,26 @@ def _update(st, pr, i, y, R):
     # each onset CUSUM's step signature: what remains in the estimate's error of a step of
     # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu; read only by an
     # onset's whole-state jump, so not kept without it (a skin's patches: a fifth of a sample)
+    # the gain's column, read once (the stores below go to the same array: the compiler would
+    # read it again after each)
+    k0 = st[P + i] * inv
+    k1 = st[P + 5 + i] * inv
+    k2 = st[P + 10 + i] * inv
+    k3 = st[P + 15 + i] * inv
+    k4 = st[P + 20 + i] * inv
     for j in range(NCU if pr[PR_OSJ] != 0.0 else 0):
         m = MU + NMU * j
         rho = st[m + i]
-        for a_ in range(5):
-            st[m + a_] -= st[P + 5 * a_ + i] * inv * rho
-    for a_ in range(5):
-        st[X + a_] += st[P + 5 * a_ + i] * inv * e
+        st[m] -= k0 * rho
+        st[m + 1] -= k1 * rho
+        st[m + 2] -= k2 * rho
+        st[m + 3] -= k3 * rho
+        st[m + 4] -= k4 * rho
+    st[X] += k0 * e
+    st[X + 1] += k1 * e
+    st[X + 2] += k2 * e
+    st[X + 3] += k3 * e
+    st[X + 4] += k4 * e
     # P <- P - K P[i, :] with K = P[:, i]/S (symmetric): from a copy of row i
     r0 = st[P + 5 * i]
     r1 = st[P + 5 * i + 1]
@@ -264,7 +277,7 @@ def _update(st, pr, i, y, R):
     r3 = st[P + 5 * i + 3]
     r4 = st[P + 5 * i + 4]
     for a_ in range(5):
-        ka = st[P + 5 * a_ + i] * inv
+        ka = k0 if a_ == 0 else (k1 if a_ == 1 else (k2 if a_ == 2 else (k3 if a_ == 3 else k4)))
         base = P + 5 * a_
         st[base] -= ka * r0
         st[base + 1] -= ka * r1
@@ -518,12 +531,17 @@ def _mu_reset(st, j):
 @njit(cache=True, inline="always")
 def _mu_predict(st, F):
     """The step signatures through the model, ``mu <- Phi mu`` (rows 2 and 4 of ``Phi`` are unit rows)."""
+    # Phi's rows read once (the stores below could be to the same memory, for all the compiler
+    # knows: it would read them again for every signature)
+    a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
+    b0, b1, b2, b3, b4 = F[1, 0], F[1, 1], F[1, 2], F[1, 3], F[1, 4]
+    c0, c1, c2, c3, c4 = F[3, 0], F[3, 1], F[3, 2], F[3, 3], F[3, 4]
     for j in range(NCU):
         m = MU + NMU * j
         u0, u1, u2, u3, u4 = st[m], st[m + 1], st[m + 2], st[m + 3], st[m + 4]
-        st[m] = F[0, 0] * u0 + F[0, 1] * u1 + F[0, 2] * u2 + F[0, 3] * u3 + F[0, 4] * u4
-        st[m + 1] = F[1, 0] * u0 + F[1, 1] * u1 + F[1, 2] * u2 + F[1, 3] * u3 + F[1, 4] * u4
-        st[m + 3] = F[3, 0] * u0 + F[3, 1] * u1 + F[3, 2] * u2 + F[3, 3] * u3 + F[3, 4] * u4
+        st[m] = a0 * u0 + a1 * u1 + a2 * u2 + a3 * u3 + a4 * u4
+        st[m + 1] = b0 * u0 + b1 * u1 + b2 * u2 + b3 * u3 + b4 * u4
+        st[m + 3] = c0 * u0 + c1 * u1 + c2 * u2 + c3 * u3 + c4 * u4
 
 
 @njit(cache=True, inline="always")
