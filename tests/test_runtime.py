@@ -79,7 +79,7 @@ def test_realtime_sim_same_columns_and_paced() -> None:
     cols = res.columns
     assert set(COLUMNS) <= set(cols) and len(cols["t"]) == 1500
     assert np.all(np.diff(cols["t"]) == pytest.approx(1e-3))
-    assert 1.4 < res.wall_s < 4.0  # wall-clock speed, plus the process start
+    assert 1.4 < res.wall_s < 6.0  # wall-clock speed, plus the process start (1-3 s under load)
     tm = res.timing()
     assert tm["late_p50_us"] < 500 and tm["lost_rows"] == 0
     # the same blocks and the same plant as the in-process loop: the same log
