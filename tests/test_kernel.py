@@ -93,3 +93,14 @@ def test_no_subnormal_state() -> None:
             assert sub.size == 0, (t[k], sub)
     assert kernel._ftz(5e-323) == 0.0 and kernel._ftz(-1e-310) == 0.0 and kernel._ftz(tiny) == tiny
     assert kernel._ftz(0.0) == 0.0 and np.isnan(kernel._ftz(np.nan)) and kernel._ftz(-2.5) == -2.5
+
+
+def test_entry_points_without_reference_counting() -> None:
+    """The installed numba takes ``_nrt=False`` (a private option; without it the kernel falls
+    back to reference counting, about three times slower a patch on one core): this says so."""
+    from thermoskin.estimation import kernel
+
+    assert kernel._FAST.get("_nrt") is False
+    for f in (kernel.step, kernel.run, kernel.step_many, kernel.step_many_parallel, kernel.run_rows,
+              kernel.finish):
+        assert f.targetoptions.get("_nrt") is False, f

@@ -7,6 +7,7 @@ import math
 import os
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -60,15 +61,16 @@ def wait_safe(core: DeviceCore, timeout: float = 2.0) -> float:
     return core.t_safe
 
 
-def emulator_stall(emu: PtyEmulator, t_until: float) -> float:
-    """The emulator's longest lateness (s) over its samples up to device time ``t_until``
-    (waiting, up to 5 s, for a stalled emulator to wake and measure its stall)."""
+def emulator_stall(emu: PtyEmulator, t_from: float, t_until: float) -> float:
+    """The emulator's longest lateness (s) over its samples due in device time
+    ``[t_from, t_until]`` (waiting, up to 5 s, for a stalled emulator to wake and measure it)."""
+    k0 = max(int(t_from / emu.core.t_s), 0)
     n = min(int(t_until / emu.core.t_s) + 2, emu.lateness.size)
     t_end = time.monotonic() + 5.0
     while emu.n_late < n and time.monotonic() < t_end:
         time.sleep(0.01)
     n = min(n, emu.n_late)
-    return float(emu.lateness[:n].max()) if n else 0.0
+    return float(emu.lateness[k0:n].max()) if n > k0 else 0.0
 
 
 def test_realtime_sim_same_columns_and_paced() -> None:
@@ -127,7 +129,7 @@ def test_serial_loop_over_emulator(emulator: Start) -> None:
     # close() sends SAFE at the end; it takes effect at the emulator's next sample, later by
     # as much as the emulator's thread stalled (measured by the emulator on this loaded machine)
     t_safe = wait_safe(core)
-    assert 1.95 <= t_safe <= 2.05 + emulator_stall(emu, t_safe), t_safe
+    assert 1.95 <= t_safe <= 2.05 + emulator_stall(emu, 1.9, t_safe), t_safe
 
 
 @needs_pty
@@ -146,10 +148,14 @@ def test_fault_ends_in_safe_state_within_delay(emulator: Start, kind: str) -> No
         if not (kind == "serial-drop" and s["t_safe"] < t_f - 0.01):
             break
         # The link went silent before the drop: only a stall of the emulator's thread (this
-        # test's process, on a loaded two-core machine) longer than the timeout may explain
-        # it; the emulator measured its own lateness, sample by sample, before the drop.
-        stall = emulator_stall(emu, s["t_safe"])
-        assert stall > cfg.safety.link_timeout_s - 0.01, ("link lost with no stall", s, stall)
+        # test's process, on a loaded two-core machine) longer than the timeout, just before
+        # the host gave up, may explain it; the emulator measured its own lateness per sample.
+        timeout = cfg.safety.link_timeout_s
+        stall = emulator_stall(emu, s["t_safe"] - timeout - 0.02, s["t_safe"])
+        assert stall > timeout - 0.01, ("link lost with no stall of the emulator", s, stall)
+        warnings.warn(f"serial-drop: the emulator stalled {stall * 1e3:.0f} ms at "
+                      f"{s['t_safe']:.2f} s, before the drop; run again", stacklevel=1)
+        emu.stop()  # not left running beside the next attempt's emulator
     assert res.fault == name, s
     delay_host = s["t_safe"] - t_f
     # the host's clock is set against the device's at the first sample, whose own transit

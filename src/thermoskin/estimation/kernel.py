@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 
+import numba.core.options
 import numpy as np
 from numba import njit, prange
 
@@ -203,8 +204,12 @@ C_CONTACT, C_STARTED, C_ENDED = 1, 2, 4
 #: sample step allocates nothing, and the counts numba otherwise keeps on each array view it
 #: takes (``Phi[iv]``, a patch's row ``ST[i]``; about a hundred atomic updates a sample that
 #: its pruning leaves in this branchy code) cost more than the step itself: 1000 patches on
-#: one core 615 -> 172 µs a tick, measured (``benchmarks/patches.py``).
-_FAST = {"cache": True, "_nrt": False}
+#: one core 625 -> 207-213 µs a tick (``benchmarks/patches.py --threads one``). ``_nrt`` is
+#: numba's own option but not a documented one: a numba without it compiles the same code
+#: with the counts (slower, the same results).
+_FAST: dict[str, bool] = {"cache": True}
+if hasattr(numba.core.options.DefaultOptions, "_nrt"):
+    _FAST["_nrt"] = False
 
 
 @njit(cache=True)
@@ -257,6 +262,7 @@ def _update(st, pr, i, y, R):
     k2 = st[P + 10 + i] * inv
     k3 = st[P + 15 + i] * inv
     k4 = st[P + 20 + i] * inv
+    # (PR_OSJ is fixed for a patch's life: its signatures are never read where it is 0)
     for j in range(NCU if pr[PR_OSJ] != 0.0 else 0):
         m = MU + NMU * j
         rho = st[m + i]
