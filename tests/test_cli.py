@@ -234,3 +234,25 @@ def test_export_replay_bad_recording_one_line(tmp_path: Path, command: str) -> N
     for path, needle in ((tmp_path / "dir.mcap", "is a directory"), (tmp_path / "no.mcap", "does not exist")):
         code, _, err = invoke(command, str(path), "-o", str(tmp_path / "o.csv"))
         assert code == 2 and needle in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_events_table_keeps_numbers_whole_in_80_columns() -> None:
+    """In an 80-column terminal every number of the table is printed whole (they were cut to
+    "15.0…" once the what-touched column came); only the text column wraps."""
+    from rich.console import Console
+
+    from thermoskin.cli import events_table
+    from thermoskin.events import ContactEvent
+
+    ev = [ContactEvent(1115.042, 1115.14, 1116.982, 1.94, 1, 1.002, 0.66, 1.28, "hold", "object",
+                       "glass-ceramic", T_f_hat=55.3),
+          ContactEvent(24.061, 24.127, 26.47, 2.41, -1, -0.143, -0.078, -0.632, "tap", "human", "human")]
+    for width in (80, 120):
+        c = Console(width=width, highlight=False, record=True)
+        c.print(events_table(ev), soft_wrap=False)
+        text = c.export_text()
+        assert max(len(line) for line in text.splitlines()) <= width
+        for s in ("1115.042", "1115.140", "1116.982", "1.94", "1.002", "0.660", "1.280", "24.061",
+                  "24.127", "26.470", "2.41", "-0.143", "-0.078", "-0.632"):
+            assert s in text, (width, s)
+        assert "…" not in text

@@ -132,17 +132,28 @@ def events_table(events: list[ContactEvent], title: str = "Detected contacts") -
         shown = list(enumerate(events[:half], 1)) + list(enumerate(events[-half:], len(events) - half + 1))
     else:
         shown = list(enumerate(events, 1))
-    table = Table(title=title)
+    from rich import box
+
     what = any(e.kind for e in events)  # characterised (thermoskin.characterise)
-    for name in ("#", "onset s", "detected s", "release s", "duration s", "sign", "peak dq W",
-                 "mean dq W", "energy J", *(("what",) if what else ())):
-        table.add_column(name, justify="right")
+    rows = []
     for i, e in shown:
         extra = ((f"{e.kind} {e.toucher or '?'} {e.material or '?'}"
                   + (f" {e.T_f_hat:.1f}C" if math.isfinite(e.T_f_hat) else ""),) if what else ())
-        table.add_row(str(i), f"{e.onset:.3f}", f"{e.detected_at:.3f}", f"{e.release:.3f}",
-                      f"{e.duration:.2f}", "+" if e.sign > 0 else "-", f"{e.peak_dq:.3f}",
-                      f"{e.mean_dq:.3f}", f"{e.energy:.3f}", *extra)
+        rows.append((str(i), f"{e.onset:.3f}", f"{e.detected_at:.3f}", f"{e.release:.3f}",
+                     f"{e.duration:.2f}", "+" if e.sign > 0 else "-", f"{e.peak_dq:.3f}",
+                     f"{e.mean_dq:.3f}", f"{e.energy:.3f}", *extra))
+    # no rules between the columns, and no number cut short in a narrow terminal (80 columns):
+    # the header wraps at its spaces, the numbers keep their width, "what" wraps
+    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
+    names = ("#", "onset s", "detected s", "release s", "duration s", "sign", "peak dq W", "mean dq W",
+             "energy J")
+    for c, name in enumerate(names):
+        width = max([len(r[c]) for r in rows] + [len(w) for w in name.split()])
+        table.add_column(name, justify="right", min_width=width)
+    if what:
+        table.add_column("what", justify="left", overflow="fold")
+    for r in rows:
+        table.add_row(*r)
     return table
 
 
@@ -232,7 +243,7 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
                           "estimator is made for 50 Hz to 1 kHz: the pump switches faster than this "
                           "log can show, expect late or missed contacts")
     rates = ", ".join(f"{ch} every {res.periods[ch] * t_s * 1e3:.0f} ms" for ch in CHANNELS)
-    console.print(events_table(res.events))
+    console.print(events_table(res.events), soft_wrap=False)
     console.print(f"{res.rows} samples at {1 / t_s:.0f} Hz ({rates}), {len(res.events)} contacts, "
                   f"{res.gaps} NaN samples held over; wrote {output_csv}"
                   + (f" and {events_path}" if events_path else ""))
@@ -864,7 +875,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             events = characterise_events(events, out, cfg)  # what touched
         _write_events(events_path, events)
         if events:
-            console.print(events_table(events))
+            console.print(events_table(events), soft_wrap=False)
         stopped = bool(summary.get("interrupted"))
         if n > 1 and not res.fault:
             if serial:
@@ -1322,7 +1333,7 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
     except OSError as e:
         raise UserError(f"cannot write {output}: {e.strerror or e}") from None
     if cmp["events"]:
-        console.print(events_table(cmp["events"], title="Replayed contacts"))
+        console.print(events_table(cmp["events"], title="Replayed contacts"), soft_wrap=False)
     same = "identical to" if cmp["exact"] else "DIFFERENT from"
     console.print(f"replayed {cmp['samples']} samples: q_i_hat and contact {same} the live run "
                   f"(max |q_i_hat difference| {cmp['q_i_hat_max_abs_diff']:.3g} W, "
