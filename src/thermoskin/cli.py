@@ -132,8 +132,6 @@ def events_table(events: list[ContactEvent], title: str = "Detected contacts") -
         shown = list(enumerate(events[:half], 1)) + list(enumerate(events[-half:], len(events) - half + 1))
     else:
         shown = list(enumerate(events, 1))
-    from rich import box
-
     what = any(e.kind for e in events)  # characterised (thermoskin.characterise)
     rows = []
     for i, e in shown:
@@ -142,16 +140,26 @@ def events_table(events: list[ContactEvent], title: str = "Detected contacts") -
         rows.append((str(i), f"{e.onset:.3f}", f"{e.detected_at:.3f}", f"{e.release:.3f}",
                      f"{e.duration:.2f}", "+" if e.sign > 0 else "-", f"{e.peak_dq:.3f}",
                      f"{e.mean_dq:.3f}", f"{e.energy:.3f}", *extra))
-    # no rules between the columns, and no number cut short in a narrow terminal (80 columns):
-    # the header wraps at its spaces, the numbers keep their width, "what" wraps
-    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
     names = ("#", "onset s", "detected s", "release s", "duration s", "sign", "peak dq W", "mean dq W",
-             "energy J")
+             "energy J", *(("what",) if what else ()))
+    return narrow_table(title, names, rows, text=("what",))
+
+
+def narrow_table(title: str, names: tuple[str, ...], rows: list[tuple[str, ...]],
+                 text: tuple[str, ...] = ()) -> Table:
+    """A rich table that keeps its numbers whole in a narrow terminal (80 columns): no rules
+    between the columns, each column but those named in ``text`` as wide as its widest cell
+    (its header wraps at its spaces), the ``text`` columns wrapping in what is left. Print it
+    with ``soft_wrap=False``."""
+    from rich import box
+
+    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
     for c, name in enumerate(names):
-        width = max([len(r[c]) for r in rows] + [len(w) for w in name.split()])
-        table.add_column(name, justify="right", min_width=width)
-    if what:
-        table.add_column("what", justify="left", overflow="fold")
+        if name in text:
+            table.add_column(name, justify="left", overflow="fold")
+        else:
+            width = max([len(r[c]) for r in rows] + [len(w) for w in name.split()])
+            table.add_column(name, justify="right", min_width=width)
     for r in rows:
         table.add_row(*r)
     return table
@@ -287,8 +295,6 @@ def _skin_report(skin: Any, events: list[Any], picture: Path, events_path: Path 
     """Print a skin's contacts and body contacts; write the events, groups and the layout picture."""
     import math as _m
 
-    from rich.table import Table
-
     from thermoskin.skin_groups import group_events, groups_columns, touch_kinds
     from thermoskin.skin_log import write_table
     from thermoskin.skin_observe import events_columns
@@ -296,23 +302,21 @@ def _skin_report(skin: Any, events: list[Any], picture: Path, events_path: Path 
 
     groups = group_events(skin, events)
     kinds = touch_kinds(skin, events)
-    tab = Table(title="Detected contacts per patch")
-    for name in ("patch", "onset s", "detected s", "release s", "sign", "peak dq W", "position mm", "sd mm",
-                 "kind"):
-        tab.add_column(name, justify="right")
+    rows = []
     for e, kind in list(zip(events, kinds, strict=True))[:TABLE_ROWS]:
         ev, pos = e.event, e.position
-        tab.add_row(e.name, f"{ev.onset:.3f}", f"{ev.detected_at:.3f}", f"{ev.release:.3f}", f"{ev.sign:+d}",
-                    f"{ev.peak_dq:.3f}", "" if _m.isnan(pos.mean) else f"{pos.mean * 1e3:.1f}",
-                    "" if _m.isnan(pos.sd) else f"{pos.sd * 1e3:.1f}", kind)
-    console.print(tab)
-    gt = Table(title="Body contacts (events on neighbouring patches overlapping in time)")
-    for name in ("#", "link", "onset s", "release s", "patches", "x mm", "y mm", "heat W"):
-        gt.add_column(name, justify="right")
-    for k, g in enumerate(groups[:TABLE_ROWS], 1):
-        gt.add_row(str(k), g.link, f"{g.onset:.3f}", f"{g.release:.3f}", "+".join(g.patches),
-                   f"{g.centre[0] * 1e3:.0f}", f"{g.centre[1] * 1e3:.0f}", f"{g.heat:.3f}")
-    console.print(gt)
+        rows.append((e.name, f"{ev.onset:.3f}", f"{ev.detected_at:.3f}", f"{ev.release:.3f}", f"{ev.sign:+d}",
+                     f"{ev.peak_dq:.3f}", "" if _m.isnan(pos.mean) else f"{pos.mean * 1e3:.1f}",
+                     "" if _m.isnan(pos.sd) else f"{pos.sd * 1e3:.1f}", kind))
+    console.print(narrow_table("Detected contacts per patch",
+                               ("patch", "onset s", "detected s", "release s", "sign", "peak dq W",
+                                "position mm", "sd mm", "kind"), rows, text=("kind",)), soft_wrap=False)
+    rows = [(str(k), g.link, f"{g.onset:.3f}", f"{g.release:.3f}", "+".join(g.patches),
+             f"{g.centre[0] * 1e3:.0f}", f"{g.centre[1] * 1e3:.0f}", f"{g.heat:.3f}")
+            for k, g in enumerate(groups[:TABLE_ROWS], 1)]
+    console.print(narrow_table("Body contacts (events on neighbouring patches overlapping in time)",
+                               ("#", "link", "onset s", "release s", "patches", "x mm", "y mm", "heat W"),
+                               rows, text=("link", "patches")), soft_wrap=False)
     try:
         if events_path is not None:
             write_table(events_path, {**events_columns(events), "kind": np.array(kinds, dtype=object)})
