@@ -252,9 +252,6 @@ def _update(st, pr, i, y, R):
         else:
             st[KAPPA] = kap * pr[PR_DOWN]
     inv = 1.0 / S
-    # each onset CUSUM's step signature: what remains in the estimate's error of a step of
-    # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu; read only by an
-    # onset's whole-state jump, so not kept without it (a skin's patches: a fifth of a sample)
     # the gain's column, read once (the stores below go to the same array: the compiler would
     # read it again after each)
     k0 = st[P + i] * inv
@@ -262,7 +259,10 @@ def _update(st, pr, i, y, R):
     k2 = st[P + 10 + i] * inv
     k3 = st[P + 15 + i] * inv
     k4 = st[P + 20 + i] * inv
-    # (PR_OSJ is fixed for a patch's life: its signatures are never read where it is 0)
+    # each onset CUSUM's step signature: what remains in the estimate's error of a step of
+    # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu; read only by an
+    # onset's whole-state jump, so not kept without it (a skin's patches: a fifth of a sample;
+    # PR_OSJ is fixed for a patch's life)
     for j in range(NCU if pr[PR_OSJ] != 0.0 else 0):
         m = MU + NMU * j
         rho = st[m + i]
