@@ -256,3 +256,15 @@ def test_events_table_keeps_numbers_whole_in_80_columns() -> None:
                   "24.127", "26.470", "2.41", "-0.143", "-0.078", "-0.632"):
             assert s in text, (width, s)
         assert "…" not in text
+
+
+def test_observe_says_when_it_compiles(sim_log: Path, tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A cold cache (the first run after an install) is announced on stderr, once; a warm one
+    is not."""
+    from thermoskin import _numba_cache
+
+    code, _, err = invoke("observe", str(sim_log), "-o", str(tmp_path / "a.csv"))
+    assert code == 0 and "compiling" not in err
+    monkeypatch.setattr(_numba_cache, "has_compiled", lambda stem: False)
+    code, _, err = invoke("observe", str(sim_log), "-o", str(tmp_path / "b.csv"))
+    assert code == 0 and err.count("compiling the estimator") == 1

@@ -57,3 +57,13 @@ def test_the_hash_follows_the_contents(tmp_path: Path, monkeypatch) -> None:  # 
     nc.configure()
     assert not stale.exists()
     assert os.environ["NUMBA_CACHE_DIR"] == str(tmp_path / "__pycache__" / ("numba-" + nc.sources_hash()))
+
+
+def test_has_compiled_looks_in_the_cache(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    assert not nc.has_compiled("kernel.step")  # a cold cache: the command says it compiles
+    (tmp_path / "estimation_0123").mkdir()
+    (tmp_path / "estimation_0123" / "kernel.run-985.py311.nbi").write_bytes(b"")
+    assert nc.has_compiled("kernel.run") and not nc.has_compiled("kernel.step")
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    assert nc.has_compiled("kernel.step")  # not our cache: nothing to say

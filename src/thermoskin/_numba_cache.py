@@ -64,3 +64,16 @@ def configure() -> None:
     except OSError:  # an unreadable install: numba's own default
         return
     os.environ["NUMBA_CACHE_DIR"] = str(target)
+
+
+def has_compiled(stem: str) -> bool:
+    """Whether the cache holds compiled code of ``stem`` (``module.function``, e.g.
+    ``kernel.step``), so that a command can say it is about to compile for a while; True where
+    the cache is not where :func:`configure` put it (nothing to say then)."""
+    d = os.environ.get("NUMBA_CACHE_DIR")
+    if not d:
+        return True
+    try:
+        return any(Path(d).glob(f"*/{stem}-*.nbi"))
+    except OSError:
+        return True

@@ -123,6 +123,16 @@ def _check_duration(duration: float, t_s: float, option: str = "--duration") -> 
                         f"at most about {most:.3g} s here")
 
 
+def _note_compile(stem: str) -> None:
+    """Say so when the compiled estimator is not in numba's cache yet (the first run after an
+    install or an update): compiling it takes a while, with nothing else to show meanwhile."""
+    from thermoskin._numba_cache import has_compiled
+
+    if not has_compiled(stem):
+        err_console.print("thermoskin: compiling the estimator (once after an install or an update: "
+                          "20-60 s; cached for the next runs)")
+
+
 def events_table(events: list[ContactEvent], title: str = "Detected contacts") -> Table:
     """The events as a rich table (heat flows signed: negative for heat out, a cold object);
     a long list shows its first and last rows."""
@@ -237,6 +247,7 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     if partial_last_line(input_csv):
         click.echo(f"thermoskin: warning: {input_csv}: the last line is cut (its writer was stopped "
                    "while writing it): left out", err=True)
+    _note_compile("kernel.run")
     with _progress_bar("observing") as bar:
         task = bar.add_task(f"observing {input_csv.name}", total=None)
         res = observe_file(input_csv, output_csv, cfg,  # what touched: for the events file
@@ -839,6 +850,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             if serial or realtime:
                 res = _run_fixed_rate(sc, cfg, device, on_block, stop, on_event)
             else:
+                _note_compile("kernel.step")
                 with _progress_bar("running") as bar:
                     task = bar.add_task("closed loop", total=1.0)
 
