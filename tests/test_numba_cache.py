@@ -61,9 +61,11 @@ def test_the_hash_follows_the_contents(tmp_path: Path, monkeypatch) -> None:  # 
 
 def test_has_compiled_looks_in_the_cache(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
-    assert not nc.has_compiled("kernel.step")  # a cold cache: the command says it compiles
+    assert not nc.has_compiled("estimation/kernel.step")  # a cold cache: the command says so
     (tmp_path / "estimation_0123").mkdir()
-    (tmp_path / "estimation_0123" / "kernel.run-985.py311.nbi").write_bytes(b"")
-    assert nc.has_compiled("kernel.run") and not nc.has_compiled("kernel.step")
+    (tmp_path / "estimation_0123" / "kernel.run_rows-985.py311.nbi").write_bytes(b"")
+    assert nc.has_compiled("estimation/kernel.run_rows")
+    assert not nc.has_compiled("estimation/kernel.step")
+    assert not nc.has_compiled("sweep/kernel.run_rows")  # another package's module of that name
     monkeypatch.delenv("NUMBA_CACHE_DIR")
-    assert nc.has_compiled("kernel.step")  # not our cache: nothing to say
+    assert nc.has_compiled("estimation/kernel.step")  # not our cache: nothing to say

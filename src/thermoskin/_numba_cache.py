@@ -66,14 +66,15 @@ def configure() -> None:
     os.environ["NUMBA_CACHE_DIR"] = str(target)
 
 
-def has_compiled(stem: str) -> bool:
-    """Whether the cache holds compiled code of ``stem`` (``module.function``, e.g.
-    ``kernel.step``), so that a command can say it is about to compile for a while; True where
-    the cache is not where :func:`configure` put it (nothing to say then)."""
+def has_compiled(where: str) -> bool:
+    """Whether the cache holds compiled code of ``where``: ``package/module.function`` (e.g.
+    ``estimation/kernel.step``), so that a command can say it is about to compile for a
+    while; True where the cache is not where :func:`configure` put it (nothing to say then)."""
     d = os.environ.get("NUMBA_CACHE_DIR")
     if not d:
         return True
-    try:
-        return any(Path(d).glob(f"*/{stem}-*.nbi"))
+    folder, stem = where.split("/")
+    try:  # numba's layout: <cache>/<package>_<hash of its path>/<module>.<function>-<line>...nbi
+        return any(Path(d).glob(f"{folder}_*/{stem}-*.nbi"))
     except OSError:
         return True

@@ -123,14 +123,15 @@ def _check_duration(duration: float, t_s: float, option: str = "--duration") -> 
                         f"at most about {most:.3g} s here")
 
 
-def _note_compile(stem: str) -> None:
-    """Say so when the compiled estimator is not in numba's cache yet (the first run after an
-    install or an update): compiling it takes a while, with nothing else to show meanwhile."""
+def _note_compile(where: str, what: str = "the estimator", how_long: str = "20-60 s") -> None:
+    """Say so when compiled code (``package/module.function``) is not in numba's cache yet (the
+    first run after an install or an update): compiling takes a while, with nothing else to
+    show meanwhile."""
     from thermoskin._numba_cache import has_compiled
 
-    if not has_compiled(stem):
-        err_console.print("thermoskin: compiling the estimator (once after an install or an update: "
-                          "20-60 s; cached for the next runs)")
+    if not has_compiled(where):
+        err_console.print(f"thermoskin: compiling {what} (once after an install or an update: "
+                          f"{how_long}; cached for the next runs)")
 
 
 def events_table(events: list[ContactEvent], title: str = "Detected contacts") -> Table:
@@ -247,7 +248,7 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     if partial_last_line(input_csv):
         click.echo(f"thermoskin: warning: {input_csv}: the last line is cut (its writer was stopped "
                    "while writing it): left out", err=True)
-    _note_compile("kernel.run")
+    _note_compile("estimation/kernel.run")
     with _progress_bar("observing") as bar:
         task = bar.add_task(f"observing {input_csv.name}", total=None)
         res = observe_file(input_csv, output_csv, cfg,  # what touched: for the events file
@@ -850,7 +851,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             if serial or realtime:
                 res = _run_fixed_rate(sc, cfg, device, on_block, stop, on_event)
             else:
-                _note_compile("kernel.step")
+                _note_compile("estimation/kernel.step")
                 with _progress_bar("running") as bar:
                     task = bar.add_task("closed loop", total=1.0)
 
@@ -963,6 +964,7 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
                   f"({len(sc.contacts)} contacts), {sc.duration:g} s; every patch estimated as it goes")
     from thermoskin.runtime.stopping import StopRequest
 
+    _note_compile("sim/skin_plant._advance", "the skin's plant and the estimator", "about a minute")
     est = SkinEstimator(skin, cfg.sampling.t_s)
     stop = StopRequest().install()
     try:
@@ -1433,6 +1435,7 @@ def sweep(sweep_toml: Path, output: Path, dask_address: str | None) -> None:
     if dask_address is not None and not dask_address.strip():
         raise UserError("--dask: give a scheduler address (tcp://host:8786) or 'local'")
     sw = load_sweep(sweep_toml)
+    _note_compile("sweep/kernel.run_rows", "the sweep's batched simulation", "about a minute")
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     with Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("points, left"),
