@@ -156,12 +156,17 @@ def events_table(events: list[ContactEvent], title: str = "Detected contacts") -
     return narrow_table(title, names, rows, text=("what",))
 
 
+def show_table(table: Table) -> None:
+    """Print a table within the terminal's width (the console soft-wraps long lines otherwise)."""
+    console.print(table, soft_wrap=False)
+
+
 def narrow_table(title: str, names: tuple[str, ...], rows: list[tuple[str, ...]],
                  text: tuple[str, ...] = ()) -> Table:
     """A rich table that keeps its numbers whole in a narrow terminal (80 columns): no rules
     between the columns, each column but those named in ``text`` as wide as its widest cell
     (its header wraps at its spaces), the ``text`` columns wrapping in what is left. Print it
-    with ``soft_wrap=False``."""
+    with :func:`show_table`."""
     from rich import box
 
     table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
@@ -263,7 +268,7 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
                           "estimator is made for 50 Hz to 1 kHz: the pump switches faster than this "
                           "log can show, expect late or missed contacts")
     rates = ", ".join(f"{ch} every {res.periods[ch] * t_s * 1e3:.0f} ms" for ch in CHANNELS)
-    console.print(events_table(res.events), soft_wrap=False)
+    show_table(events_table(res.events))
     console.print(f"{res.rows} samples at {1 / t_s:.0f} Hz ({rates}), {len(res.events)} contacts, "
                   f"{res.gaps} NaN samples held over; wrote {output_csv}"
                   + (f" and {events_path}" if events_path else ""))
@@ -320,15 +325,15 @@ def _skin_report(skin: Any, events: list[Any], picture: Path, events_path: Path 
         rows.append((e.name, f"{ev.onset:.3f}", f"{ev.detected_at:.3f}", f"{ev.release:.3f}", f"{ev.sign:+d}",
                      f"{ev.peak_dq:.3f}", "" if _m.isnan(pos.mean) else f"{pos.mean * 1e3:.1f}",
                      "" if _m.isnan(pos.sd) else f"{pos.sd * 1e3:.1f}", kind))
-    console.print(narrow_table("Detected contacts per patch",
-                               ("patch", "onset s", "detected s", "release s", "sign", "peak dq W",
-                                "position mm", "sd mm", "kind"), rows, text=("kind",)), soft_wrap=False)
+    show_table(narrow_table("Detected contacts per patch",
+                            ("patch", "onset s", "detected s", "release s", "sign", "peak dq W",
+                             "position mm", "sd mm", "kind"), rows, text=("kind",)))
     rows = [(str(k), g.link, f"{g.onset:.3f}", f"{g.release:.3f}", "+".join(g.patches),
              f"{g.centre[0] * 1e3:.0f}", f"{g.centre[1] * 1e3:.0f}", f"{g.heat:.3f}")
             for k, g in enumerate(groups[:TABLE_ROWS], 1)]
-    console.print(narrow_table("Body contacts (events on neighbouring patches overlapping in time)",
-                               ("#", "link", "onset s", "release s", "patches", "x mm", "y mm", "heat W"),
-                               rows, text=("link", "patches")), soft_wrap=False)
+    show_table(narrow_table("Body contacts (events on neighbouring patches overlapping in time)",
+                            ("#", "link", "onset s", "release s", "patches", "x mm", "y mm", "heat W"),
+                            rows, text=("link", "patches")))
     try:
         if events_path is not None:
             write_table(events_path, {**events_columns(events), "kind": np.array(kinds, dtype=object)})
@@ -892,7 +897,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             events = characterise_events(events, out, cfg)  # what touched
         _write_events(events_path, events)
         if events:
-            console.print(events_table(events), soft_wrap=False)
+            show_table(events_table(events))
         stopped = bool(summary.get("interrupted"))
         if n > 1 and not res.fault:
             if serial:
@@ -1351,7 +1356,7 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
     except OSError as e:
         raise UserError(f"cannot write {output}: {e.strerror or e}") from None
     if cmp["events"]:
-        console.print(events_table(cmp["events"], title="Replayed contacts"), soft_wrap=False)
+        show_table(events_table(cmp["events"], title="Replayed contacts"))
     same = "identical to" if cmp["exact"] else "DIFFERENT from"
     console.print(f"replayed {cmp['samples']} samples: q_i_hat and contact {same} the live run "
                   f"(max |q_i_hat difference| {cmp['q_i_hat_max_abs_diff']:.3g} W, "
