@@ -38,7 +38,8 @@ def check_default_population(sc: Scenario) -> None:
 
 def test_registry_has_every_condition() -> None:
     assert set(NAMES) == {"ambient-step", "ambient-ramp", "holds", "taps", "tap-burst", "weak", "palm",
-                          "cold", "noisy", "boards-10hz", "log-100hz", "setpoints", "quiet-hour"}
+                          "cold", "noisy", "boards-10hz", "log-100hz", "log-50hz", "setpoints",
+                          "quiet-hour"}
     with pytest.raises(KeyError, match=r"unknown condition 'x'.*ambient-step"):
         get_condition("x", 0)
 
@@ -66,12 +67,13 @@ def test_same_seed_same_log(name: str) -> None:
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_default_population(seed: int) -> None:
-    for name in ("noisy", "boards-10hz", "log-100hz"):
+    for name in ("noisy", "boards-10hz", "log-100hz", "log-50hz"):
         check_default_population(CONDITIONS[name](seed).scenario)
     assert CONDITIONS["noisy"](seed).config().sensor.noise_T == 0.05
     s = CONDITIONS["boards-10hz"](seed).config().sensor
     assert (s.period_T_w, s.period_T_p, s.period_T_a, s.jitter) == (0.1, 0.1, 0.1, 0.003)
     assert CONDITIONS["log-100hz"](seed).decimate == 10
+    assert CONDITIONS["log-50hz"](seed).decimate == 20
 
 
 @pytest.mark.parametrize("seed", SEEDS)

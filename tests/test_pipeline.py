@@ -76,3 +76,42 @@ def test_streaming_equals_vectorised() -> None:
     assert len(a.events) == len(b.events) >= 2
     for ea, eb in zip(a.events, b.events, strict=True):
         assert ea == eb
+
+
+def test_switch_rows_counts_changes_of_v() -> None:
+    from thermoskin.pipeline import switch_rows
+
+    v = np.array([0.0, 0.0, 0.14, 0.14, np.nan, 0.0, 0.14])
+    assert switch_rows(v) == 2  # 0 -> 0.14 at row 2, 0 -> 0.14 at row 6; NaN pairs unknown
+    assert switch_rows(v, v_before=0.14) == 3  # the previous chunk ended running
+    assert switch_rows(np.zeros(0)) == 0
+
+
+def test_a_log_coarser_than_the_loop_with_a_switching_pump_is_warned_about(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """A 1 kHz run logged at 50 Hz: the pump (held >= 50 ms) switches within about a third of
+    the rows, counted independently from the 1 kHz log's switches; the same log at the loop's
+    rate, or without a switch, gets no warning, and the streamed path says the same."""
+    from thermoskin.logio import LogWriter
+    from thermoskin.pipeline import coarse_log_warnings, observe_file
+    from thermoskin.sim.conditions import decimate
+
+    full = simulate(SCENARIOS["one-finger"].with_duration(20.0), CFG)
+    slow = decimate(full, 20)
+    # every 1 kHz switch shows in the 50 Hz log in the row after it (dwell 50 ms > 20 ms)
+    k = np.flatnonzero(np.diff(full["v"])) + 1
+    rows = np.unique((k + 19) // 20)
+    expect = int(np.sum(rows < len(slow["t"])))  # a switch after the last row is not in the log
+    assert expect == np.count_nonzero(np.diff(slow["v"])) > 0.2 * len(slow["t"])
+    warn: list[str] = []
+    observe(slow, CFG, warnings=warn)
+    assert len(warn) == 1 and "sampled at 50 Hz, coarser than the loop (1000 Hz)" in warn[0]
+    assert f"within {100 * expect / len(slow['t']):.0f} % of its rows" in warn[0]
+    quiet: list[str] = []
+    observe(full, CFG, warnings=quiet)
+    assert quiet == []
+    assert coarse_log_warnings(0.02, CFG, 1000, 49) == []  # under 5 % of rows: nothing said
+    path = tmp_path / "slow.csv"
+    with LogWriter(path, list(slow)) as w:
+        w.write(slow)
+    res = observe_file(path, tmp_path / "out.csv", CFG, characterise=False)
+    assert res.warnings == warn

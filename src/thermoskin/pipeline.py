@@ -32,8 +32,8 @@ from thermoskin.plausible import Cleaned, clean_log
 
 INPUT_COLUMNS = ("t", "T_w", "T_p", "v", "T_a")
 
-__all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "StreamResult", "observe", "observe_file",
-           "sample_interval"]
+__all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "StreamResult", "coarse_log_warnings", "observe",
+           "observe_file", "sample_interval", "switch_rows"]
 
 #: The estimator's columns written by :func:`observe_file` (a log that had them keeps its own
 #: as ``*_live``).
@@ -74,15 +74,40 @@ def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None 
     check_interval(t_s)
     fresh, _ = infer_fresh(log)
     clean = clean_log(log, cfg)
+    log = clean.columns
     if warnings is not None:
         warnings.extend(clean.warnings(cfg))
-    log = clean.columns
+        warnings.extend(coarse_log_warnings(t_s, cfg, len(t), switch_rows(log["v"])))
     est = TouchEstimator(cfg, t_s=t_s)
     res = est.run(t, log["T_w"], log["T_p"], log["v"], log["T_a"],
                   T_w_cmd=log.get("T_w_cmd"), fresh=fresh, drive=log.get("drive"))
     if clean.rejected.any():
         res.columns["gap"] = (res.columns["gap"] | clean.rejected).astype(np.int8)
     return res
+
+
+def coarse_log_warnings(t_s: float, cfg: Config, rows: int, switch_rows: int) -> list[str]:
+    """A line if the log is coarser than the loop (``t_s`` over 1.5 ``sampling.t_s``) and the
+    pump switched within at least 5 % of its ``rows`` (``switch_rows``: rows whose ``v``
+    differs from the row before): when in such a row the pump switched is not in the log, so
+    the reading after it tells little about a touch (``docs/model.md``, Logs coarser than the
+    loop)."""
+    if t_s <= 1.5 * cfg.sampling.t_s or rows <= 0 or switch_rows < 0.05 * rows:
+        return []
+    return [f"the log is sampled at {1.0 / t_s:.4g} Hz, coarser than the loop "
+            f"({1.0 / cfg.sampling.t_s:.4g} Hz), and the pump switched within "
+            f"{100.0 * switch_rows / rows:.0f} % of its rows: when in a row it switched is not "
+            "logged, so those rows tell little about a touch; a light touch (one fingertip) may "
+            "be found late or missed (log at the loop's rate to keep them)"]
+
+
+def switch_rows(v: NDArray[np.float64], v_before: float = math.nan) -> int:
+    """Rows whose pump velocity differs from the row before (NaNs skipped as unknown);
+    ``v_before``: the velocity of the row before the first (a previous chunk's last)."""
+    v = np.asarray(v, dtype=float)
+    prev = np.concatenate([[v_before], v[:-1]])
+    with np.errstate(invalid="ignore"):
+        return int(np.sum((v != prev) & ~np.isnan(v) & ~np.isnan(prev)))
 
 
 def _loop_t_s(t_s: float, cfg: Config) -> float:
@@ -129,6 +154,8 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
         q_diff = 0.0
         t_last = 0.0
         t_s = math.nan
+        n_switch = 0
+        v_last = math.nan
         counts: dict[str, int] = {}
         first: dict[str, float] = {}
         valid: dict[str, bool] = {}
@@ -151,6 +178,8 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
                 for k in ("T_w", "T_p", "T_a", "v"):
                     valid[k] = valid.get(k, False) or k not in clean.no_valid
                 c = clean.columns
+                n_switch += switch_rows(c["v"], v_last)
+                v_last = float(c["v"][-1])
                 cols, new = est.feed(c["t"], c["T_w"], c["T_p"], c["v"], c["T_a"],
                                      T_w_cmd=c.get("T_w_cmd"), fresh=fresh, drive=c.get("drive"))
                 if ch is not None:
@@ -189,4 +218,5 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
                         live_contact_mismatches=mism if "contact" in live else None,
                         duration_s=rows * t_s,
                         warnings=Cleaned(columns={}, rejected=np.zeros(0, bool), counts=counts, first=first,
-                                         no_valid=[k for k, ok in valid.items() if not ok]).warnings(cfg))
+                                         no_valid=[k for k, ok in valid.items() if not ok]).warnings(cfg)
+                        + coarse_log_warnings(t_s, cfg, rows, n_switch))

@@ -30,6 +30,7 @@ cold          objects at ``U(12, 18)`` °C, ``G = U(0.05, 0.3)`` W/K, ``U(1, 5)`
 noisy         thermocouple noise 0.05 K
 boards-10hz   the three channels on 10 Hz boards with 3 ms of jitter
 log-100hz     a 1 kHz simulation whose log is decimated to 100 Hz (:func:`decimate`)
+log-50hz      the same decimated to 50 Hz, the slowest log rate ``observe`` is made for
 setpoints     commands from 24 °C changing 3 times (``U(22, 28)`` °C in 0.5 K steps,
               1-4 K apart) every ``U(60, 90)`` s; no touch within 10 s after a change
 quiet-hour    an hour with no touch, the pump switching, the air drifting by up to
@@ -263,6 +264,7 @@ noisy = _default("noisy", "thermocouple noise 0.05 K", {"noise_T": 0.05})
 boards_10hz = _default("boards-10hz", "all three channels on 10 Hz boards with 3 ms of jitter",
                        {"period_T_w": 0.1, "period_T_p": 0.1, "period_T_a": 0.1, "jitter": 0.003})
 log_100hz = _default("log-100hz", "a 1 kHz simulation, its log decimated to 100 Hz", factor=10)
+log_50hz = _default("log-50hz", "a 1 kHz simulation, its log decimated to 50 Hz", factor=20)
 
 
 def setpoints(seed: int, duration: float = 300.0) -> Condition:
@@ -312,6 +314,7 @@ CONDITIONS: dict[str, Callable[[int], Condition]] = {
     "noisy": noisy,
     "boards-10hz": boards_10hz,
     "log-100hz": log_100hz,
+    "log-50hz": log_50hz,
     "setpoints": setpoints,
     "quiet-hour": quiet_hour,
 }
