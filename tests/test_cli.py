@@ -268,3 +268,72 @@ def test_observe_says_when_it_compiles(sim_log: Path, tmp_path: Path, monkeypatc
     monkeypatch.setattr(_numba_cache, "has_compiled", lambda stem: False)
     code, _, err = invoke("observe", str(sim_log), "-o", str(tmp_path / "b.csv"))
     assert code == 0 and err.count("compiling the estimator") == 1
+
+
+@pytest.mark.parametrize("device", ["sim", "realtime", "serial"])
+def test_run_says_when_it_compiles_on_every_device(tmp_path: Path, monkeypatch, device: str) -> None:  # type: ignore[no-untyped-def]
+    """`run` in this process, `--realtime` and `--device serial://` compile the same estimator
+    kernel (the last two in the fixed-rate loop process): each asks the cache for it and, on a
+    cold cache only, says so once, before the loop starts; a warm cache prints nothing more."""
+    from thermoskin import _numba_cache, cli
+    from thermoskin.runtime import closed_loop
+
+    def loop(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise cli.UserError("the loop would start here")
+
+    monkeypatch.setattr(cli, "_run_fixed_rate", loop)
+    monkeypatch.setattr(closed_loop, "run_closed_loop", loop)
+    args = {"sim": [], "realtime": ["--realtime"],
+            "serial": ["--device", f"serial://{tmp_path / 'tty'}"]}[device]
+    for cached in (True, False):
+        asked: list[str] = []
+        monkeypatch.setattr(_numba_cache, "has_compiled", lambda w, c=cached, a=asked: a.append(w) or c)
+        code, _, err = invoke("run", "--duration", "1", "--log", str(tmp_path / "run.csv"), *args)
+        lines = err.strip().splitlines()
+        assert code == 2 and asked == ["estimation/kernel.step"], (asked, err)
+        assert lines[-1] == "thermoskin: error: the loop would start here"
+        if cached:
+            assert "compiling" not in err
+        else:
+            assert len(lines) == 2 and lines[0].startswith("thermoskin: compiling the estimator (once")
+
+
+def test_note_compile_notes_once_if_any_is_missing(monkeypatch, capsys) -> None:  # type: ignore[no-untyped-def]
+    from thermoskin import _numba_cache
+    from thermoskin.cli import _note_compile
+
+    names = ("a/b.c", "d/e.f", "g/h.i")
+    for missing, expected in ((set(), 0), ({"d/e.f"}, 1), ({"g/h.i"}, 1), (set(names), 1)):
+        monkeypatch.setattr(_numba_cache, "has_compiled", lambda w, m=missing: w not in m)
+        _note_compile(names, "the thing", "a while")
+        err = capsys.readouterr().err
+        assert err.count("thermoskin: compiling the thing (once") == expected, (missing, err)
+    monkeypatch.setattr(_numba_cache, "has_compiled", lambda w: w != "a/b.c")
+    _note_compile("a/b.c")  # one name, as before
+    assert capsys.readouterr().err.count("compiling the estimator") == 1
+
+
+def test_run_skin_asks_for_every_kernel_it_compiles(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """`run --skin` compiles the skin's plant, its boards, the patches' estimators
+    (``kernel.run_rows``, ...) and, with piped patches, the transport correction: the cache is
+    asked for each, and any one missing (not only the plant's, as before) is said once."""
+    from thermoskin import _numba_cache, cli
+    from thermoskin.skin import load_skin
+
+    monkeypatch.setattr(cli, "_run_skin_loop", lambda *args, **kwargs: None)  # no loop: only the notice
+    forearm = Path(__file__).parents[1] / "examples" / "forearm.toml"
+    expected = [*cli.SKIN_KERNELS, cli.PIPE_KERNEL]
+    assert cli.skin_kernels(load_skin(forearm, load_config())) == tuple(expected)  # forearm has pipes
+    single = forearm.with_name("single.toml")  # one patch fed straight from its tank: no transport
+    assert cli.skin_kernels(load_skin(single, load_config())) == cli.SKIN_KERNELS
+    assert {"sim/skin_plant._advance", "estimation/kernel.run_rows"} <= set(expected)
+    for missing in (None, *expected):
+        asked: list[str] = []
+        monkeypatch.setattr(_numba_cache, "has_compiled",
+                            lambda w, m=missing, a=asked: a.append(w) or w != m)
+        code, _, err = invoke("run", "--skin", str(forearm), "--duration", "1",
+                              "--log", str(tmp_path / "skin.csv"))
+        assert code == 0, err
+        assert err.count("thermoskin: compiling the skin's plant and the estimator") == (missing is not None)
+        if missing is None:
+            assert sorted(asked) == sorted(expected) and "compiling" not in err

@@ -69,3 +69,27 @@ def test_has_compiled_looks_in_the_cache(tmp_path: Path, monkeypatch) -> None:  
     assert not nc.has_compiled("sweep/kernel.run_rows")  # another package's module of that name
     monkeypatch.delenv("NUMBA_CACHE_DIR")
     assert nc.has_compiled("estimation/kernel.step")  # not our cache: nothing to say
+
+
+def test_the_cli_looks_up_real_cached_functions() -> None:
+    """Every ``package/module.function`` the command line looks up (``_note_compile``) names a
+    compiled function cached on disk: a misspelt name would never be found, and the command
+    would say it is compiling on every run."""
+    import importlib
+    import re
+
+    from numba.core.caching import FunctionCache
+
+    from thermoskin import cli
+
+    text = (nc.HERE / "cli.py").read_text(encoding="utf-8")
+    names = set(re.findall(r'"([a-z_]+/[a-z_]+\.[A-Za-z_]+)"', text))
+    assert {cli.ESTIMATOR_KERNEL, cli.PIPE_KERNEL, *cli.SKIN_KERNELS} <= names
+    assert {"estimation/kernel.run", "sweep/kernel.run_rows"} <= names
+    for name in sorted(names):
+        folder, stem = name.split("/")
+        module, function = stem.split(".")
+        path = f"thermoskin.{module}" if folder == "thermoskin" else f"thermoskin.{folder}.{module}"
+        f = getattr(importlib.import_module(path), function)
+        assert isinstance(getattr(f, "_cache", None), FunctionCache), name
+        assert "/".join(path.split(".")[1:]) + ".py" in nc.SOURCES, name  # its cache is renewed

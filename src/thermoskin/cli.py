@@ -123,13 +123,14 @@ def _check_duration(duration: float, t_s: float, option: str = "--duration") -> 
                         f"at most about {most:.3g} s here")
 
 
-def _note_compile(where: str, what: str = "the estimator", how_long: str = "20-60 s") -> None:
-    """Say so when compiled code (``package/module.function``) is not in numba's cache yet (the
-    first run after an install or an update): compiling takes a while, with nothing else to
-    show meanwhile."""
+def _note_compile(where: str | tuple[str, ...], what: str = "the estimator",
+                  how_long: str = "20-60 s") -> None:
+    """Say so, once, when compiled code (``package/module.function``, or several: any of them)
+    is not in numba's cache yet (the first run after an install or an update): compiling takes
+    a while, with nothing else to show meanwhile."""
     from thermoskin._numba_cache import has_compiled
 
-    if not has_compiled(where):
+    if not all(has_compiled(w) for w in ((where,) if isinstance(where, str) else where)):
         err_console.print(f"thermoskin: compiling {what} (once after an install or an update: "
                           f"{how_long}; cached for the next runs)")
 
@@ -690,6 +691,31 @@ def _start_live(addr: str, rate: float, wait: float, cfg: Any,
     return live
 
 
+#: The compiled code a single patch's `run` waits for (in this process, or in the fixed-rate loop
+#: process): the estimator's sample step.
+ESTIMATOR_KERNEL = "estimation/kernel.step"
+
+#: The compiled functions `run --skin` calls (``package/module.function``), each with its own
+#: entry in numba's cache: the plant's (``_advance`` compiles its ``_push`` and ``_out`` with
+#: it), the boards', the estimators' (``run_rows`` compiles ``step`` with it).
+SKIN_KERNELS = ("sim/skin_plant._advance", "sim/skin_plant._gather", "sim/skin_plant._scatter",
+                "sim/board_bank._read", "estimation/kernel.new_state", "estimation/kernel.run_rows",
+                "estimation/kernel.finish")
+
+#: What `run --skin` compiles besides when a patch is fed through a pipe (its transport correction).
+PIPE_KERNEL = "thermoskin/skin_transport._run"
+
+
+def skin_kernels(skin: Any) -> tuple[str, ...]:
+    """The compiled code `run --skin` on ``skin`` compiles (:data:`SKIN_KERNELS`, and
+    :data:`PIPE_KERNEL` unless every patch is fed straight from its tank): a skin whose run
+    never compiles the transport correction must not wait for it in the cache."""
+    from thermoskin.skin_observe import tank_fed
+
+    piped = any(not tank_fed(skin, i) for i in range(len(skin.patches)))
+    return SKIN_KERNELS + ((PIPE_KERNEL,) if piped else ())
+
+
 #: Seconds the closed loop gets to bring the skin from ambient to its command before the
 #: scenario's touches begin.
 SETTLE_S = 10.0
@@ -853,10 +879,12 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 if evstream is not None:
                     evstream.add(e)
 
+            # the same kernel either way: the fixed-rate loop process compiles it as it starts
+            # (before it opens the device)
+            _note_compile(ESTIMATOR_KERNEL)
             if serial or realtime:
                 res = _run_fixed_rate(sc, cfg, device, on_block, stop, on_event)
             else:
-                _note_compile("estimation/kernel.step")
                 with _progress_bar("running") as bar:
                     task = bar.add_task("closed loop", total=1.0)
 
@@ -969,7 +997,7 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
                   f"({len(sc.contacts)} contacts), {sc.duration:g} s; every patch estimated as it goes")
     from thermoskin.runtime.stopping import StopRequest
 
-    _note_compile("sim/skin_plant._advance", "the skin's plant and the estimator", "about a minute")
+    _note_compile(skin_kernels(skin), "the skin's plant and the estimator", "about a minute")
     est = SkinEstimator(skin, cfg.sampling.t_s)
     stop = StopRequest().install()
     try:

@@ -49,6 +49,7 @@ class PatchEstimators:
         par = self.n >= PARALLEL_FROM if parallel is None else parallel
         self._step_many = K.step_many_parallel if par else K.step_many
         self._models = [TouchEstimator(c, t_s=self.t_s) for c in models]
+        self._ev = np.zeros(K.NEV)  # the kernels' scratch event row (as TouchEstimator's)
         self._stack()
         self.reset()
 
@@ -138,7 +139,7 @@ class PatchEstimators:
         ne = K.run_rows(self.ST, self.PR, self.mid, *self._tabs, p,
                         np.ascontiguousarray(t, dtype=float), f(T_w, math.nan), f(T_p, math.nan),
                         f(T_a, math.nan), f(T_w_cmd, math.nan), self.index(v), f(drive, math.nan), fr,
-                        out, events, ev_patch, np.empty(K.NEV))
+                        out, events, ev_patch, self._ev)
         new = [(int(ev_patch[i]), ContactEvent.from_kernel(events[i])) for i in range(min(ne, len(events)))]
         self.events.extend(new)
         cols = {"q_i_hat": out[0], "dq_i_hat": out[1], "sd": out[3], "contact": out[4].astype(np.int8),
@@ -147,7 +148,6 @@ class PatchEstimators:
 
     def finish(self, t: float) -> None:
         """End every contact still open at ``t``."""
-        ev = np.zeros(K.NEV)
         for i in range(self.n):
-            if K.finish(self.ST[i], t, ev):
-                self.events.append((i, ContactEvent.from_kernel(ev)))
+            if K.finish(self.ST[i], t, self._ev):
+                self.events.append((i, ContactEvent.from_kernel(self._ev)))
