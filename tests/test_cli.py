@@ -283,6 +283,7 @@ def test_run_says_when_it_compiles_on_every_device(tmp_path: Path, monkeypatch, 
 
     monkeypatch.setattr(cli, "_run_fixed_rate", loop)
     monkeypatch.setattr(closed_loop, "run_closed_loop", loop)
+    (tmp_path / "tty").touch()  # a port that exists (a missing one is refused before any of this)
     args = {"sim": [], "realtime": ["--realtime"],
             "serial": ["--device", f"serial://{tmp_path / 'tty'}"]}[device]
     for cached in (True, False):

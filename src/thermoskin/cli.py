@@ -797,6 +797,10 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         raise UserError(f"--device {device!r}: must be sim or serial://PATH")
     if serial and len(device) <= len("serial://"):
         raise UserError("--device serial://PATH: the path is missing")
+    port = device[len("serial://"):]
+    if serial and "://" not in port and not os.path.exists(port):
+        # at once, not after the loop process has compiled the estimator (20-60 s on a cold cache)
+        raise UserError(f"cannot open {port}: no such device or file")
     if plot_path is None:
         plot_path = log_path.with_suffix(".png")
     _outputs(("--log", log_path, LOG_SUFFIXES, "log"), ("--plot", plot_path, FORMATS, "plot"),
