@@ -338,3 +338,26 @@ def test_run_skin_asks_for_every_kernel_it_compiles(tmp_path: Path, monkeypatch)
         assert err.count("thermoskin: compiling the skin's plant and the estimator") == (missing is not None)
         if missing is None:
             assert sorted(asked) == sorted(expected) and "compiling" not in err
+
+
+def test_observe_skin_asks_for_the_estimators_only(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """`observe --skin` compiles the patches' estimators (and the transport correction for
+    piped patches), not the plant: the notice is about those, once, and only when one of them
+    is missing from the cache."""
+    from thermoskin import _numba_cache, cli
+    from thermoskin.skin import load_skin
+
+    forearm = Path(__file__).parents[1] / "examples" / "forearm.toml"
+    names = cli.skin_kernels(load_skin(forearm, load_config()), plant=False)
+    assert not set(names) & set(cli.SKIN_PLANT_KERNELS) and cli.PIPE_KERNEL in names
+    log = tmp_path / "skin.csv"
+    code, _, err = invoke("simulate", "--skin", str(forearm), "--duration", "0.5", "-o", str(log))
+    assert code == 0, err
+    for missing in (None, "estimation/kernel.run_rows"):
+        asked: list[str] = []
+        monkeypatch.setattr(_numba_cache, "has_compiled", lambda w, m=missing, a=asked: a.append(w) or w != m)
+        code, _, err = invoke("observe", "--skin", str(forearm), str(log), "-o", str(tmp_path / "o.csv"))
+        assert code == 0, err
+        if missing is None:  # (with one missing, the lookup stops there)
+            assert sorted(asked) == sorted(names)
+        assert err.count("thermoskin: compiling the patches' estimators") == (missing is not None)

@@ -290,6 +290,7 @@ def _observe_skin(input_path: Path, output: Path, events_path: Path | None, grou
     from thermoskin.skin_log import read_skin_log
 
     skin = load_skin(skin_path, cfg)
+    _note_compile(skin_kernels(skin, plant=False), "the patches' estimators", "about 30 s")
     with _progress_bar("observing") as bar:
         bar.add_task(f"observing {input_path.name} on {skin.name}", total=None)
         log = read_skin_log(input_path, skin)
@@ -695,25 +696,37 @@ def _start_live(addr: str, rate: float, wait: float, cfg: Any,
 #: process): the estimator's sample step.
 ESTIMATOR_KERNEL = "estimation/kernel.step"
 
-#: The compiled functions `run --skin` calls (``package/module.function``), each with its own
-#: entry in numba's cache: the plant's (``_advance`` compiles its ``_push`` and ``_out`` with
-#: it), the boards', the estimators' (``run_rows`` compiles ``step`` with it).
-SKIN_KERNELS = ("sim/skin_plant._advance", "sim/skin_plant._gather", "sim/skin_plant._scatter",
-                "sim/board_bank._read", "estimation/kernel.new_state", "estimation/kernel.run_rows",
-                "estimation/kernel.finish")
+#: The compiled functions the skin's plant calls (``package/module.function``), each with its own
+#: entry in numba's cache (``_advance`` compiles its ``_push`` and ``_out`` with it). Alone
+#: (`simulate --skin`) they compile in about 2 s: nothing to say.
+SKIN_PLANT_KERNELS = ("sim/skin_plant._advance", "sim/skin_plant._gather", "sim/skin_plant._scatter",
+                      "sim/board_bank._read")
 
-#: What `run --skin` compiles besides when a patch is fed through a pipe (its transport correction).
+#: The patches' estimators' (``run_rows`` compiles ``step`` with it): what `observe --skin`
+#: compiles (about 25 s on a cold cache).
+SKIN_ESTIMATOR_KERNELS = ("estimation/kernel.new_state", "estimation/kernel.run_rows",
+                          "estimation/kernel.finish")
+
+#: What `run --skin` compiles: the plant and the estimators.
+SKIN_KERNELS = SKIN_PLANT_KERNELS + SKIN_ESTIMATOR_KERNELS
+
+#: What the estimators compile besides when a patch is fed through a pipe (its transport correction).
 PIPE_KERNEL = "thermoskin/skin_transport._run"
 
 
-def skin_kernels(skin: Any) -> tuple[str, ...]:
-    """The compiled code `run --skin` on ``skin`` compiles (:data:`SKIN_KERNELS`, and
-    :data:`PIPE_KERNEL` unless every patch is fed straight from its tank): a skin whose run
-    never compiles the transport correction must not wait for it in the cache."""
+def skin_kernels(skin: Any, plant: bool = True, estimators: bool = True) -> tuple[str, ...]:
+    """The compiled code a command on ``skin`` compiles: the plant's
+    (:data:`SKIN_PLANT_KERNELS`), the estimators' (:data:`SKIN_ESTIMATOR_KERNELS`, and
+    :data:`PIPE_KERNEL` unless every patch is fed straight from its tank), or both (`run
+    --skin`): a skin whose run never compiles the transport correction must not wait for it in
+    the cache. (Measured by running each command on an empty ``NUMBA_CACHE_DIR`` and listing it.)"""
     from thermoskin.skin_observe import tank_fed
 
-    piped = any(not tank_fed(skin, i) for i in range(len(skin.patches)))
-    return SKIN_KERNELS + ((PIPE_KERNEL,) if piped else ())
+    out = SKIN_PLANT_KERNELS if plant else ()
+    if estimators:
+        piped = any(not tank_fed(skin, i) for i in range(len(skin.patches)))
+        out += SKIN_ESTIMATOR_KERNELS + ((PIPE_KERNEL,) if piped else ())
+    return out
 
 
 #: Seconds the closed loop gets to bring the skin from ambient to its command before the
