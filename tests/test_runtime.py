@@ -163,7 +163,11 @@ def test_fault_ends_in_safe_state_within_delay(emulator: Start, kind: str) -> No
     assert -0.01 <= delay_host <= limit, (kind, delay_host)
     if kind != "serial-drop":  # a cut cable carries no SAFE: the device's watchdog takes over
         delay_dev = wait_safe(core) - t_f
-        assert 0.0 <= delay_dev <= limit + 0.002, (kind, delay_dev)
+        # the host's SAFE takes effect at the emulator's next sample after it reads it: an
+        # emulator thread that stalled meanwhile catches up on its samples first (device time
+        # goes on), so its measured lateness is allowed (as for the SAFE at close above)
+        stall = emulator_stall(emu, t_f, t_f + delay_dev)
+        assert 0.0 <= delay_dev <= limit + 0.002 + stall, (kind, delay_dev, stall)
         assert core.safe_latched
     c = res.columns
     if kind == "serial-drop":  # no sample, no row: the fault is in the summary
