@@ -9,6 +9,12 @@ reading equal to the last one is then common, about one in ten with 0.02 K of no
 1/128 K steps); otherwise a sample is fresh where the value changed. A fresh reading that
 happens to equal the previous one is then taken as stale: the estimator just predicts one
 interval longer, with no bias.
+
+A ``fresh`` column is trusted where it sets a bit; where it does not but the value changed,
+the sample is fresh too: a held reading never changes, and a log kept at every n-th row of
+the loop's (a slower logger, a downsampled file) has lost the bits of the readings that came
+between its rows, while their values show. On a log as the loop wrote it this adds nothing
+(its values change only where its bits are set), so ``observe`` still equals the live run.
 """
 
 from __future__ import annotations
@@ -43,12 +49,30 @@ def channel_fresh(x: NDArray[np.float64]) -> tuple[NDArray[np.bool_], float]:
     return changed, period
 
 
+def _changed(x: NDArray[np.float64], before: float) -> NDArray[np.bool_]:
+    """Samples whose value differs from the one before (``before``: the sample before the
+    first; NaN after NaN is no change)."""
+    x = np.asarray(x, dtype=float)
+    prev = np.concatenate([[before], x[:-1]])
+    return (x != prev) & ~(np.isnan(x) & np.isnan(prev))
+
+
+def _column_and_changes(log: Mapping[str, NDArray[np.float64]], last: Mapping[str, float]
+                        ) -> NDArray[np.int64]:
+    """The log's ``fresh`` column, with each channel's bit set where its value changed too."""
+    f = np.nan_to_num(np.asarray(log["fresh"], dtype=float), nan=0.0).astype(np.int64)
+    for ch in CHANNELS:
+        if ch in log:
+            f |= np.where(_changed(log[ch], last.get(ch, np.nan)), BITS[ch], 0)
+    return f
+
+
 def infer_fresh(log: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.int64], dict[str, float]]:
-    """The ``fresh`` bitmask per sample (the log's own column if it has one) and each channel's
-    update period in samples (1 = every sample)."""
+    """The ``fresh`` bitmask per sample (the log's own column if it has one, with a bit set too
+    where the value changed) and each channel's update period in samples (1 = every sample)."""
     n = len(log["t"])
     if "fresh" in log:
-        f = np.nan_to_num(np.asarray(log["fresh"], dtype=float), nan=0.0).astype(np.int64)
+        f = _column_and_changes(log, {})
         periods = {}
         for ch in CHANNELS:
             idx = np.flatnonzero(f & BITS[ch])
@@ -76,7 +100,10 @@ class FreshInference:
     def feed(self, chunk: Mapping[str, NDArray[np.float64]]) -> NDArray[np.int64]:
         n = len(chunk["t"])
         if "fresh" in chunk:
-            f = np.nan_to_num(np.asarray(chunk["fresh"], dtype=float), nan=0.0).astype(np.int64)
+            f = _column_and_changes(chunk, self._last)
+            for ch in CHANNELS:
+                if n and ch in chunk:
+                    self._last[ch] = float(chunk[ch][-1])
             if not self.periods:
                 for ch in CHANNELS:
                     idx = np.flatnonzero(f & BITS[ch])
@@ -91,11 +118,7 @@ class FreshInference:
         out = np.zeros(n, dtype=np.int64)
         for ch in CHANNELS:
             x = np.asarray(chunk[ch], dtype=float)
-            if self._every[ch]:
-                changed = np.ones(n, dtype=bool)
-            else:
-                prev = np.concatenate([[self._last.get(ch, np.nan)], x[:-1]])
-                changed = (x != prev) & ~(np.isnan(x) & np.isnan(prev))
+            changed = np.ones(n, dtype=bool) if self._every[ch] else _changed(x, self._last.get(ch, np.nan))
             out |= np.where(changed, BITS[ch], 0)
             if n:
                 self._last[ch] = float(x[-1])

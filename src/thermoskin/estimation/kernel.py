@@ -624,7 +624,9 @@ def _glr_time(st, t_zero, sg, sum_ge, sum_gg):
     candidates: the CUSUM's last zero ``t_zero`` (with its own sums ``sum_ge, sum_gg``) and the
     end of each buffer entry since; where the window is longer than the buffer, the part it
     no longer holds has ``t_zero`` as its only candidate (the CUSUM's dating). Of equal
-    ratios, ``t_zero``, then the latest."""
+    ratios, ``t_zero``, then the latest; equal within 1e-12 (relative), so that the rounding
+    of the sums (summed in another order by the reference) does not choose between a
+    candidate and one an entry of no evidence (g = 0) away."""
     best_t = t_zero
     best = sum_ge * sum_ge / sum_gg if sg * sum_ge > 0.0 and sum_gg > 0.0 else 0.0
     a = 0.0
@@ -638,7 +640,7 @@ def _glr_time(st, t_zero, sg, sum_ge, sum_gg):
             break
         if sg * a > 0.0 and b > 0.0:
             llr = a * a / b
-            if llr > best:
+            if llr > best * (1.0 + 1e-12):
                 best = llr
                 best_t = tk
         a += st[o + 1]
@@ -868,6 +870,16 @@ def _detect(st, pr, t, ev):
 
 
 @njit(cache=True, inline="always")
+def _switch_correction(st, pr, Rw, iv_old, iv):
+    """A log coarser than the loop: the pump switched (table row ``iv_old`` to ``iv``) somewhere
+    in the last interval, not at its end; the water brought (T_p - T_w)(1/R_w,new - 1/R_w,old)
+    t_s / C_w times a uniform fraction of it more: half of it, and its sd (0.29) as variance."""
+    dT = (st[X + 3] - st[X]) * (1.0 / Rw[iv] - 1.0 / Rw[iv_old]) * pr[PR_TS] * pr[PR_ICW]
+    st[X] += 0.5 * dT
+    st[P] += (pr[PR_VSW] * dT) ** 2
+
+
+@njit(cache=True, inline="always")
 def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
               ev):
     """One sample of one patch; returns the step-result bits (contact, started, ended).
@@ -878,15 +890,17 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     """
     R = pr[PR_RT]
     _eq8(st, pr, Rw, T_w, T_p, T_a, iv)
+    iv_old = -1  # the pump's row before a switch whose correction waits for this row's reading
     if iv >= 0:
         if iv != int(st[IVP]) and pr[PR_VSW] > 0.0 and st[READY] != 0.0:
-            # a log coarser than the loop: the pump switched somewhere in the last interval,
-            # not at its end; the water brought (T_p - T_w)(1/R_w,new - 1/R_w,old) t_s / C_w
-            # times a uniform fraction of it more: half of it, and its sd (0.29) as variance
-            dT = ((st[X + 3] - st[X]) * (1.0 / Rw[iv] - 1.0 / Rw[int(st[IVP])])
-                  * pr[PR_TS] * pr[PR_ICW])
-            st[X] += 0.5 * dT
-            st[P] += (pr[PR_VSW] * dT) ** 2
+            if ((fresh & 1) != 0 and math.isfinite(T_w) and st[RATE] > 0.0
+                    and st[RATE] * pr[PR_TS] < 0.5):
+                # a slow board's reading, new in the same row as the switch: the controller
+                # switched on that reading, so it was taken before the switch: it updates the
+                # state as it stood, and the switch's correction comes after it
+                iv_old = int(st[IVP])
+            else:
+                _switch_correction(st, pr, Rw, int(st[IVP]), iv)
         if iv != int(st[IVP]):
             st[PHASE] = 0.0
             st[PHDIR] = 0.0 if Rw[iv] < Rw[int(st[IVP])] else 1.0
@@ -936,6 +950,8 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
             st[GAPRUN] += 1.0
         if (fresh & 2) != 0 and math.isfinite(T_p):
             _update(st, pr, 3, T_p, R)
+    if iv_old >= 0:
+        _switch_correction(st, pr, Rw, iv_old, iv)
     st[Q] = st[X + 2]
     pq = st[P + 12]
     st[SQ] = math.sqrt(pq) if pq > 0.0 else 1e-12

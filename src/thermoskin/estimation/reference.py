@@ -143,14 +143,14 @@ class ReferenceEstimator:
              T_w_cmd: float = math.nan, fresh: int = 7, drive: float = math.nan) -> int:
         self.q_i_hat = self.eq8.step(T_w, T_p, v, T_a)
         tb = self.tables
+        iv_old = None  # a switch whose correction waits for this sample's pipe reading
         if v == v:
             iv = tb.index(v)
             if iv != self.iv_prev and self.vsw > 0 and self.ready:
-                dT = ((self.x[I_TP] - self.x[I_TW]) * (1 / self.R_w(tb.v_values[iv])
-                                                      - 1 / self.R_w(tb.v_values[self.iv_prev]))
-                      * self.t_s / self.cfg.skin.C_w)
-                self.x[I_TW] += 0.5 * dT
-                self.P[I_TW, I_TW] += (self.vsw * dT) ** 2
+                if fresh & 1 and math.isfinite(T_w) and 0 < self.rate * self.t_s < 0.5:
+                    iv_old = self.iv_prev  # a slow board's reading, taken before the switch
+                else:
+                    self._switch_correction(self.iv_prev, iv)
             if iv != self.iv_prev:
                 self.phase = 0
                 self.ph_dir = 0 if (self.R_w(tb.v_values[iv]) < self.R_w(tb.v_values[self.iv_prev])) else 1
@@ -195,6 +195,8 @@ class ReferenceEstimator:
             if fresh & 2 and math.isfinite(T_p):
                 a, c = self._update(I_TP, T_p)
                 ge, gg = ge + a, gg + c
+        if iv_old is not None:
+            self._switch_correction(iv_old, iv)
         self.sd = math.sqrt(self.P[I_Q, I_Q]) if self.ready else math.nan
         if T_w_cmd == T_w_cmd:
             if self.cmd == self.cmd and abs(T_w_cmd - self.cmd) > 1e-9:
@@ -228,6 +230,14 @@ class ReferenceEstimator:
         if self.gap_run > self.max_gap:
             self.ready = False
         return code
+
+    def _switch_correction(self, iv_old: int, iv: int) -> None:
+        """The pump switched within the last interval of a coarse log (kernel: ``_switch_correction``)."""
+        vs = self.tables.v_values
+        dT = ((self.x[I_TP] - self.x[I_TW]) * (1 / self.R_w(vs[iv]) - 1 / self.R_w(vs[iv_old]))
+              * self.t_s / self.cfg.skin.C_w)
+        self.x[I_TW] += 0.5 * dT
+        self.P[I_TW, I_TW] += (self.vsw * dT) ** 2
 
     def _init(self, T_w: float, T_p: float, T_a: float) -> None:
         Rg, Rag, R = self.cfg.skin.R_g, self.cfg.skin.R_ag, self.R
@@ -385,9 +395,9 @@ class ReferenceEstimator:
             cands.append((tk, a, b))
             a, b = a + ge, b + gg
         best_t, best = c.t_zero, 0.0
-        for tk, a, b in cands:  # of equals, the first
+        for tk, a, b in cands:  # of equals (within 1e-12, relative), the first
             llr = a * a / b if sg * a > 0 and b > 0 else 0.0
-            if llr > best:
+            if llr > best * (1.0 + 1e-12):
                 best_t, best = tk, llr
         return best_t
 
