@@ -10,7 +10,10 @@ references at 50 readings a second that each keep one thing the 50 Hz log lost:
 - ``loop-50hz-vsw``: the 50 Hz loop estimated as if it were a coarse log, the pump-switch
   timing uncertainty (``kernel.PR_VSW``) added at every switch although there is none;
 
-and ``log-50hz-novsw``, the 50 Hz log estimated without that uncertainty.
+and ``log-50hz-novsw``, the 50 Hz log estimated without that uncertainty. Then the same
+touches on 10 Hz boards (3 ms jitter, ``boards-10hz``) logged at 1000, 100 and 50 Hz, the
+log's ``fresh`` column kept (``boards-log-*``) or dropped (``boards-log-*-nofresh``: the
+readings are then found where the values change).
 
 Touches, misses, false alarms and latency (median, p90), per population (one fingertip, and
 1-3 fingers), on seeds never used in tuning (9000 and up). One JSON object, last line::
@@ -29,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation.freshness import infer_fresh
 from thermoskin.estimator import TouchEstimator
 from thermoskin.evaluation import match_events
 from thermoskin.params import load_config
@@ -37,6 +41,7 @@ from thermoskin.sim.run import simulate
 
 SEED0 = 9000
 FACTORS = {"log-1000hz": 1, "log-500hz": 2, "log-200hz": 5, "log-100hz": 10, "log-50hz": 20}
+BOARD_FACTORS = {"boards-log-1000hz": 1, "boards-log-100hz": 10, "boards-log-50hz": 20}
 BOARDS_50HZ = {"period_T_w": 0.02, "period_T_p": 0.02, "period_T_a": 0.02, "jitter": 0.003}
 
 
@@ -46,6 +51,12 @@ def score(case: str, seed: int) -> dict[str, Any]:
     vsw = None
     if case in FACTORS:
         log = decimate(simulate(cond.scenario, cfg), FACTORS[case])
+    elif case.startswith("boards-log-"):
+        cond = get_condition("boards-10hz", seed)
+        cfg = cond.config(load_config())
+        log = decimate(simulate(cond.scenario, cfg), BOARD_FACTORS[case.removesuffix("-nofresh")])
+        if case.endswith("-nofresh"):
+            del log["fresh"]
     elif case == "log-50hz-novsw":
         log = decimate(simulate(cond.scenario, cfg), 20)
         vsw = 0.0
@@ -57,11 +68,12 @@ def score(case: str, seed: int) -> dict[str, Any]:
         log = simulate(cond.scenario, cfg)
         vsw = 0.29 if case.endswith("vsw") else None
     t = log["t"]
-    est = TouchEstimator(cfg, t_s=float(np.median(np.diff(t))))
+    t_s = float(np.median(np.diff(t)))
+    est = TouchEstimator(cfg, t_s=cfg.sampling.t_s if abs(t_s - cfg.sampling.t_s) <= 1e-6 else t_s)
     if vsw is not None:
         est.pr[K.PR_VSW] = vsw
     res = est.run(t, log["T_w"], log["T_p"], log["v"], log["T_a"], T_w_cmd=log["T_w_cmd"],
-                  fresh=log.get("fresh"))
+                  fresh=infer_fresh(log)[0])  # as observe finds them
     m = match_events(cond.scenario.touches, res.events)
     one = [tc.n_fingers == 1 for tc in cond.scenario.touches]
     hit = [p is not None for p in m.pairs]
@@ -96,7 +108,8 @@ def main() -> None:
     a = ap.parse_args()
     t0 = time.perf_counter()
     out: dict[str, Any] = {}
-    for case in (*FACTORS, "log-50hz-novsw", "loop-50hz", "boards-50hz", "loop-50hz-vsw"):
+    for case in (*FACTORS, "log-50hz-novsw", "loop-50hz", "boards-50hz", "loop-50hz-vsw", *BOARD_FACTORS,
+                 *(f"{b}-nofresh" for b in list(BOARD_FACTORS)[1:])):
         out[case] = summary([score(case, SEED0 + k) for k in range(a.seeds)])
         print(case, json.dumps(out[case]), file=sys.stderr, flush=True)
     out["wall_s"] = round(time.perf_counter() - t0, 1)

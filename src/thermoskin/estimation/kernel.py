@@ -893,11 +893,10 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     iv_old = -1  # the pump's row before a switch whose correction waits for this row's reading
     if iv >= 0:
         if iv != int(st[IVP]) and pr[PR_VSW] > 0.0 and st[READY] != 0.0:
-            if ((fresh & 1) != 0 and math.isfinite(T_w) and st[RATE] > 0.0
-                    and st[RATE] * pr[PR_TS] < 0.5):
-                # a slow board's reading, new in the same row as the switch: the controller
-                # switched on that reading, so it was taken before the switch: it updates the
-                # state as it stood, and the switch's correction comes after it
+            if (fresh & 1) != 0 and math.isfinite(T_w) and 1.5 * pr[PR_TS] < t - st[TLW] < 1e299:
+                # a slow board's reading (the last came rows ago), new in the same row as the
+                # switch: the controller switched on that reading, so it was taken before the
+                # switch: it updates the state as it stood, and the switch's correction comes after
                 iv_old = int(st[IVP])
             else:
                 _switch_correction(st, pr, Rw, int(st[IVP]), iv)

@@ -147,8 +147,8 @@ class ReferenceEstimator:
         if v == v:
             iv = tb.index(v)
             if iv != self.iv_prev and self.vsw > 0 and self.ready:
-                if fresh & 1 and math.isfinite(T_w) and 0 < self.rate * self.t_s < 0.5:
-                    iv_old = self.iv_prev  # a slow board's reading, taken before the switch
+                if fresh & 1 and math.isfinite(T_w) and 1.5 * self.t_s < t - self.t_last_w < 1e299:
+                    iv_old = self.iv_prev  # a slow board's reading (the last rows ago), before the switch
                 else:
                     self._switch_correction(self.iv_prev, iv)
             if iv != self.iv_prev:
