@@ -115,6 +115,7 @@ TAMB = 97      # time of the last sudden change of the air, s
 AGP = 98       # CUSUMs of the air sensor's innovations, up and down
 AGM = 99
 HTH = 102      # the onset threshold at the current reading rate
+TFW = 103      # time of the last pipe reading flagged fresh (finite or not), s
 RUNL = 100     # the release evidence CUSUM (dates the release)
 TFBL = 101     # last time it was zero, s
 CU = 104       # the onset CUSUMs, NCU of them, 4 fields each: statistic, last time it was
@@ -220,6 +221,7 @@ def new_state() -> np.ndarray:
     st[KAPPA] = 1.0
     st[RATE] = 0.0
     st[TLW] = -1e300
+    st[TFW] = -1e300
     st[TAMB] = -1e300
     st[CMD] = np.nan
     st[QIH] = np.nan
@@ -893,10 +895,10 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     iv_old = -1  # the pump's row before a switch whose correction waits for this row's reading
     if iv >= 0:
         if iv != int(st[IVP]) and pr[PR_VSW] > 0.0 and st[READY] != 0.0:
-            if (fresh & 1) != 0 and math.isfinite(T_w) and 1.5 * pr[PR_TS] < t - st[TLW] < 1e299:
-                # a slow board's reading (the last came rows ago), new in the same row as the
-                # switch: the controller switched on that reading, so it was taken before the
-                # switch: it updates the state as it stood, and the switch's correction comes after
+            if (fresh & 1) != 0 and math.isfinite(T_w) and 1.5 * pr[PR_TS] < t - st[TFW] < 1e299:
+                # a slow board's reading (the last, NaN or not, came rows ago), new in the same
+                # row as the switch: the controller switched on that reading, so it was taken
+                # before the switch: it updates the state as it stood, the correction after it
                 iv_old = int(st[IVP])
             else:
                 _switch_correction(st, pr, Rw, int(st[IVP]), iv)
@@ -909,6 +911,8 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     else:
         iv = int(st[IVP])
         st[PHASE] += 1.0
+    if (fresh & 1) != 0:
+        st[TFW] = t
     gap = st[E8GAP] > 0.0
     st[GAP] = 1.0 if gap else 0.0
     st[SGE] = st[SGG] = 0.0

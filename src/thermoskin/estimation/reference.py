@@ -80,6 +80,7 @@ class ReferenceEstimator:
         self.xa = np.zeros(2)
         self.Pa = np.zeros((2, 2))
         self.kappa, self.rate, self.t_last_w = 1.0, 0.0, -1e300
+        self.t_fresh_w = -1e300  # the last pipe reading flagged fresh, NaN or not
         self.gap_run = 0
         self.iv_prev = 0
         self.phase, self.ph_dir = 0, 0
@@ -147,7 +148,7 @@ class ReferenceEstimator:
         if v == v:
             iv = tb.index(v)
             if iv != self.iv_prev and self.vsw > 0 and self.ready:
-                if fresh & 1 and math.isfinite(T_w) and 1.5 * self.t_s < t - self.t_last_w < 1e299:
+                if fresh & 1 and math.isfinite(T_w) and 1.5 * self.t_s < t - self.t_fresh_w < 1e299:
                     iv_old = self.iv_prev  # a slow board's reading (the last rows ago), before the switch
                 else:
                     self._switch_correction(self.iv_prev, iv)
@@ -160,6 +161,8 @@ class ReferenceEstimator:
         else:
             iv = self.iv_prev
             self.phase += 1
+        if fresh & 1:
+            self.t_fresh_w = t
         self.gap = not (math.isfinite(T_w) and math.isfinite(T_p) and math.isfinite(T_a) and v == v)
         ge = gg = 0.0
         self.q_prior = self.x[I_Q]
