@@ -63,3 +63,28 @@ def test_boards_logged_at_100_hz_find_every_touch(keep_fresh: bool) -> None:
         lat += m.latencies.tolist()
     assert n >= 20 and misses == 0 and fas == 0, (n, misses, fas)
     assert np.median(lat) <= 0.45
+
+
+def test_a_skin_logs_changed_values_are_fresh_too() -> None:
+    """The skin's path (``observe --skin``, ``run --skin``) sets a thermocouple's bit where its
+    value changed, per patch, block by block as on the whole log."""
+    from types import SimpleNamespace
+
+    from thermoskin.skin import tc_fresh_bit
+    from thermoskin.skin_observe import fresh_with_changes
+
+    skin = SimpleNamespace(n_thermocouples=2)
+    T_w = np.array([[20.0, 21.0], [20.0, 21.5], [20.5, 21.5], [20.5, 21.5]])
+    T_w2 = np.array([[22.0, 23.0], [22.0, 23.0], [22.0, 23.0], [22.25, 23.0]])
+    T_p = np.full((4, 2), 24.0)
+    T_a = np.full((4, 2), 19.0)
+    fresh = np.zeros((4, 2), dtype=np.int64)
+    fresh[1, 0] = 2  # a tank reading the column kept
+    cols = {"T_w": T_w, "T_w2": T_w2, "T_p": T_p, "T_a": T_a}
+    b2 = tc_fresh_bit(1)
+    expect = np.array([[7 | b2, 7 | b2], [2, 1], [1, 0], [b2, 0]])  # row 0: no row before it
+    np.testing.assert_array_equal(fresh_with_changes(cols, skin, fresh), expect)  # type: ignore[arg-type]
+    last: dict[str, np.ndarray] = {}
+    parts = [fresh_with_changes({k: v[a:b] for k, v in cols.items()}, skin, fresh[a:b], last)  # type: ignore[arg-type]
+             for a, b in ((0, 1), (1, 4))]
+    np.testing.assert_array_equal(np.vstack(parts), expect)

@@ -149,6 +149,30 @@ def block_thermocouples(cols: Mapping[str, Array], skin: Skin) -> list[Array]:
     return out
 
 
+def fresh_with_changes(cols: Mapping[str, Array], skin: Skin, fresh: NDArray[np.int64],
+                       last: dict[str, Array] | None = None) -> NDArray[np.int64]:
+    """A skin log's ``fresh`` bits ``(m, P)`` with each thermocouple's bit set too where its value
+    changed (as the single patch's :mod:`thermoskin.estimation.freshness` does): a log kept at
+    every n-th row of the loop's has lost the bits of the readings between its rows, and a held
+    reading never changes. ``last``: each column's previous row (updated; None: none before)."""
+    out = fresh.astype(np.int64).copy()
+    chans = [("T_w", 1), ("T_p", 2), ("T_a", 4)]
+    chans += [(f"T_w{j}", tc_fresh_bit(j - 1)) for j in range(2, skin.n_thermocouples + 1)]
+    for col, bit in chans:
+        if col not in cols:
+            continue
+        x = np.asarray(cols[col], dtype=float)
+        if not len(x):
+            continue
+        before = last.get(col) if last is not None else None
+        prev = np.vstack([np.full((1, x.shape[1]), np.nan) if before is None else before[None, :], x[:-1]])
+        changed = (x != prev) & ~(np.isnan(x) & np.isnan(prev))
+        out |= np.where(changed, bit, 0)
+        if last is not None:
+            last[col] = x[-1].copy()
+    return out
+
+
 def loop_t_s(t_s: float, skin: Skin) -> float:
     """A log's sampling interval as the estimator takes it: the configured ``sampling.t_s`` where the
     log's is that within 0.1 % (the median of the differences of its times carries their rounding),
@@ -201,6 +225,7 @@ class SkinEstimator:
         self._contact = np.zeros(self.P, dtype=np.int64)
         self._on_t = np.full(self.P, np.nan)  # when each patch's open contact was detected
         self._patch = np.zeros(0, dtype=np.int64)
+        self._last: dict[str, Array] = {}  # each thermocouple column's last row, for its fresh bits
 
     @property
     def events(self) -> list[tuple[int, ContactEvent]]:
@@ -209,7 +234,8 @@ class SkinEstimator:
     def block(self, t: Array, cols: Mapping[str, Array]) -> SkinBlock:
         """Estimate the next block (class doc)."""
         m, P = len(t), self.P
-        fresh = cols["fresh"].astype(np.int64) if "fresh" in cols else None
+        fresh = (fresh_with_changes(cols, self.skin, cols["fresh"], self._last)
+                 if "fresh" in cols else None)
         T_in, fr = self.inlet.push(block_thermocouples(cols, self.skin), cols["T_p"], cols["v"],
                                    cols["T_a"], fresh)
         if len(self._patch) < m * P:
@@ -257,7 +283,7 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
     """Estimate, detect and locate on every patch of ``skin`` over ``log`` (module doc): the
     :class:`SkinEstimator` fed the whole log as one block."""
     est = SkinEstimator(skin, loop_t_s(log.t_s, skin))
-    fresh = log.cols["fresh"].astype(np.int64) if log.has("fresh") else None
+    fresh = fresh_with_changes(log.cols, skin, log.cols["fresh"]) if log.has("fresh") else None
     b = est.block(log.t, log.cols)
     est.finish(float(log.t[-1]))
     out, T_in, fr = b.columns, b.T_in, b.fresh_in
