@@ -151,6 +151,7 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
     rec = plant.rec
     Tw0 = plant.T_w_read[0]
     Tp, Ta = plant.T_p_read, plant.T_a_read
+    fresh = plant.fresh  # per patch, updated in place by measure()
     clock = time.perf_counter_ns
     ns0 = clock()
     wall0 = time.perf_counter()
@@ -178,11 +179,12 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
                 cmd = cmd_at(t)
                 setpoints.pop(0)
             plant.measure()
-            tw, tp, ta = Tw0.tolist(), Tp.tolist(), Ta.tolist()
+            tw, tp, ta, fr = Tw0.tolist(), Tp.tolist(), Ta.tolist(), fresh.tolist()
             for j in range(L):
                 c = ctrls[j]
                 T_w = tw[fb_idx[j]]
-                c.step(t, T_w, tp[j], ta[j], cmd)
+                # the feedback patch's fresh bits: the pump's still window counts new readings
+                c.step(t, T_w, tp[j], ta[j], cmd, int(fr[fb_idx[j]]))
                 drives[j] = c.drive
                 vs[j] = c.v
                 if k >= half:
