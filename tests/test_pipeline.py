@@ -82,9 +82,19 @@ def test_switch_rows_counts_changes_of_v() -> None:
     from thermoskin.pipeline import switch_rows
 
     v = np.array([0.0, 0.0, 0.14, 0.14, np.nan, 0.0, 0.14])
-    assert switch_rows(v) == 2  # 0 -> 0.14 at row 2, 0 -> 0.14 at row 6; NaN pairs unknown
-    assert switch_rows(v, v_before=0.14) == 3  # the previous chunk ended running
-    assert switch_rows(np.zeros(0)) == 0
+    assert switch_rows(v) == 3  # rows 2, 5 (against 0.14 before the NaN) and 6
+    assert switch_rows(v, v_before=0.14) == 4  # the previous chunk ended running
+    assert switch_rows(np.array([0.0, np.nan, 0.14])) == 1  # a switch across a NaN counts
+    assert switch_rows(np.zeros(0)) == 0 and switch_rows(np.full(3, np.nan)) == 0
+    # chunk by chunk, carrying the last known velocity, as the whole
+    from thermoskin.pipeline import last_known
+
+    w = np.array([0.0, 0.14, np.nan, np.nan, 0.0, np.nan, 0.14, 0.14])
+    total, before = 0, np.nan
+    for a, b in ((0, 2), (2, 4), (4, 5), (5, 8)):
+        total += switch_rows(w[a:b], before)
+        before = last_known(w[a:b], before)
+    assert total == switch_rows(w) == 3
 
 
 def test_a_log_coarser_than_the_loop_with_a_switching_pump_is_warned_about(tmp_path) -> None:  # type: ignore[no-untyped-def]

@@ -32,8 +32,8 @@ from thermoskin.plausible import Cleaned, clean_log
 
 INPUT_COLUMNS = ("t", "T_w", "T_p", "v", "T_a")
 
-__all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "StreamResult", "coarse_log_warnings", "observe",
-           "observe_file", "sample_interval", "switch_rows"]
+__all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "StreamResult", "coarse_log_warnings",
+           "last_known", "observe", "observe_file", "sample_interval", "switch_rows"]
 
 #: The estimator's columns written by :func:`observe_file` (a log that had them keeps its own
 #: as ``*_live``).
@@ -102,12 +102,19 @@ def coarse_log_warnings(t_s: float, cfg: Config, rows: int, switch_rows: int) ->
 
 
 def switch_rows(v: NDArray[np.float64], v_before: float = math.nan) -> int:
-    """Rows whose pump velocity differs from the row before (NaNs skipped as unknown);
-    ``v_before``: the velocity of the row before the first (a previous chunk's last)."""
+    """Rows whose pump velocity differs from the last known one before them (a NaN is unknown:
+    skipped, as the estimator holds the last known pump state over it); ``v_before``: the last
+    known velocity before the first row (a previous chunk's, :func:`last_known`)."""
     v = np.asarray(v, dtype=float)
-    prev = np.concatenate([[v_before], v[:-1]])
-    with np.errstate(invalid="ignore"):
-        return int(np.sum((v != prev) & ~np.isnan(v) & ~np.isnan(prev)))
+    known = np.concatenate([[v_before], v])
+    known = known[~np.isnan(known)]
+    return int(np.count_nonzero(np.diff(known)))
+
+
+def last_known(v: NDArray[np.float64], before: float = math.nan) -> float:
+    """The last non-NaN value of ``v`` (``before`` if it has none)."""
+    ok = np.flatnonzero(~np.isnan(np.asarray(v, dtype=float)))
+    return float(v[ok[-1]]) if len(ok) else before
 
 
 def _loop_t_s(t_s: float, cfg: Config) -> float:
@@ -179,7 +186,7 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
                     valid[k] = valid.get(k, False) or k not in clean.no_valid
                 c = clean.columns
                 n_switch += switch_rows(c["v"], v_last)
-                v_last = float(c["v"][-1])
+                v_last = last_known(c["v"], v_last)
                 cols, new = est.feed(c["t"], c["T_w"], c["T_p"], c["v"], c["T_a"],
                                      T_w_cmd=c.get("T_w_cmd"), fresh=fresh, drive=c.get("drive"))
                 if ch is not None:
