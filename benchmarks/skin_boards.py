@@ -4,7 +4,8 @@ Each skin of ``examples/`` (``single.toml``: one patch; ``forearm.toml``: nine p
 loops) runs its closed loop (``runtime.skin_loop.run_skin``) for 40 s at 24 °C with four
 touches on its first patch (1, 2, 1 and 3 fingers of ``man1`` at 14, 20, 27 and 33 s, 2.5 s
 each), then ``observe_skin`` on the log. A touch is found if an event on its patch is detected
-within ``[t_on, t_on + duration + 1]`` s; every other event is a false alarm. One JSON line::
+within ``[t_on, t_on + duration + 1]`` s (``evaluation.match_events``); every other event is a
+false alarm. One JSON line::
 
     python benchmarks/skin_boards.py [--json]
 """
@@ -21,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from thermoskin.evaluation import match_events
 from thermoskin.params import load_config
 from thermoskin.physics.finger import Touch
 from thermoskin.runtime.skin_loop import run_skin
@@ -48,19 +50,14 @@ def score(name: str, boards: bool, tmp: Path) -> dict[str, Any]:
     for k in ("q_i", "contact_true", "position_true"):
         log.cols.pop(k)
     events = observe_skin(log, skin, locate=False).events
-    used: set[int] = set()
-    lat = []
-    for t_on, _ in TOUCHES:
-        hit = next((i for i, e in enumerate(events) if i not in used and e.patch == 0
-                    and t_on <= e.event.detected_at <= t_on + 3.5), None)
-        if hit is not None:
-            used.add(hit)
-            lat.append(events[hit].event.detected_at - t_on)
+    on_first = [e.event for e in events if e.patch == 0]
+    m = match_events([c.touch for c in contacts], on_first)
+    elsewhere = [e for e in events if e.patch != 0]
     return {"skin": name, "boards": "10 Hz" if boards else "1 kHz", "touches": len(TOUCHES),
-            "hits": len(lat), "false_alarms": len(events) - len(used),
-            "latency_median_s": float(np.median(lat)) if lat else None,
-            "false_alarm_patches": sorted({skin.patches[e.patch].name for i, e in enumerate(events)
-                                           if i not in used})}
+            "hits": m.hits, "false_alarms": m.false_alarms + len(elsewhere),
+            "latency_median_s": float(np.median(m.latencies)) if m.hits else None,
+            "false_alarm_patches": sorted({skin.patches[e.patch].name for e in elsewhere}
+                                          | ({p0} if m.false_alarms else set()))}
 
 
 def main() -> None:

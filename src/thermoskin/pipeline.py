@@ -86,19 +86,28 @@ def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None 
     return res
 
 
+#: The longest sampling interval the estimator is made for (50 Hz), s.
+SLOWEST_T_S = 0.02
+
+
 def coarse_log_warnings(t_s: float, cfg: Config, rows: int, switch_rows: int) -> list[str]:
-    """A line if the log is coarser than the loop (``t_s`` over 1.5 ``sampling.t_s``) and the
-    pump switched within at least 5 % of its ``rows`` (``switch_rows``: rows whose ``v``
-    differs from the row before): when in such a row the pump switched is not in the log, so
-    the reading after it tells little about a touch (``docs/model.md``, Logs coarser than the
-    loop)."""
-    if t_s <= 1.5 * cfg.sampling.t_s or rows <= 0 or switch_rows < 0.05 * rows:
-        return []
-    return [f"the log is sampled at {1.0 / t_s:.4g} Hz, coarser than the loop "
-            f"({1.0 / cfg.sampling.t_s:.4g} Hz), and the pump switched within "
-            f"{100.0 * switch_rows / rows:.0f} % of its rows: when in a row it switched is not "
-            "logged, so those rows tell little about a touch; a light touch (one fingertip) may "
-            "be found late or missed (log at the loop's rate to keep them)"]
+    """What a log's rate costs: a line if it is slower than 50 Hz (:data:`SLOWEST_T_S`), and one
+    if it is coarser than the loop (``t_s`` over 1.5 ``sampling.t_s``) and the pump switched
+    within at least 5 % of its ``rows`` (``switch_rows``: rows whose ``v`` differs from the one
+    before): when in such a row the pump switched is not in the log, so the reading after it
+    tells little about a touch (``docs/model.md``, Logs coarser than the loop)."""
+    out = []
+    if t_s > SLOWEST_T_S + 1e-12:
+        out.append(f"the log is sampled at {1.0 / t_s:.3g} Hz; the estimator is made for 50 Hz to "
+                   "1 kHz: the pump switches faster than this log can show, expect late or missed "
+                   "contacts")
+    if t_s > 1.5 * cfg.sampling.t_s and rows > 0 and switch_rows >= 0.05 * rows:
+        out.append(f"the log is sampled at {1.0 / t_s:.4g} Hz, coarser than the loop "
+                   f"({1.0 / cfg.sampling.t_s:.4g} Hz), and the pump switched within "
+                   f"{100.0 * switch_rows / rows:.0f} % of its rows: when in a row it switched is "
+                   "not logged, so those rows tell little about a touch; a light touch (one "
+                   "fingertip) may be found late or missed (log at the loop's rate to keep them)")
+    return out
 
 
 def switch_rows(v: NDArray[np.float64], v_before: float = math.nan) -> int:

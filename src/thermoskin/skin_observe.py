@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation.freshness import value_changed
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
@@ -159,15 +160,10 @@ def fresh_with_changes(cols: Mapping[str, Array], skin: Skin, fresh: NDArray[np.
     chans = [("T_w", 1), ("T_p", 2), ("T_a", 4)]
     chans += [(f"T_w{j}", tc_fresh_bit(j - 1)) for j in range(2, skin.n_thermocouples + 1)]
     for col, bit in chans:
-        if col not in cols:
+        if col not in cols or not len(cols[col]):
             continue
         x = np.asarray(cols[col], dtype=float)
-        if not len(x):
-            continue
-        before = last.get(col) if last is not None else None
-        prev = np.vstack([np.full((1, x.shape[1]), np.nan) if before is None else before[None, :], x[:-1]])
-        changed = (x != prev) & ~(np.isnan(x) & np.isnan(prev))
-        out |= np.where(changed, bit, 0)
+        out |= np.where(value_changed(x, np.nan if last is None else last.get(col, np.nan)), bit, 0)
         if last is not None:
             last[col] = x[-1].copy()
     return out
@@ -201,6 +197,8 @@ class SkinBlock:
     T_in: Array
     fresh_in: NDArray[np.int64]
     changes: list[Change]
+    fresh: NDArray[np.int64] | None = None
+    """The log's bits the block was estimated with (:func:`fresh_with_changes`; None: none given)."""
 
 
 class SkinEstimator:
@@ -246,7 +244,7 @@ class SkinEstimator:
                                        T_in.ravel(), cols["v"].ravel(), cols["T_a"].ravel(), T_w_cmd=cmd,
                                        fresh=fr.ravel())
         res = {k: out[k].reshape(m, P) for k in ("q_i_hat", "dq_i_hat", "contact", "gap")}
-        return SkinBlock(res, T_in, fr, self._changes(t, res["contact"], ended))
+        return SkinBlock(res, T_in, fr, self._changes(t, res["contact"], ended), fresh)
 
     def _changes(self, t: Array, contact: NDArray[np.generic],
                  ended: list[tuple[int, ContactEvent]]) -> list[Change]:
@@ -283,10 +281,9 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
     """Estimate, detect and locate on every patch of ``skin`` over ``log`` (module doc): the
     :class:`SkinEstimator` fed the whole log as one block."""
     est = SkinEstimator(skin, loop_t_s(log.t_s, skin))
-    fresh = fresh_with_changes(log.cols, skin, log.cols["fresh"]) if log.has("fresh") else None
     b = est.block(log.t, log.cols)
     est.finish(float(log.t[-1]))
-    out, T_in, fr = b.columns, b.T_in, b.fresh_in
+    out, T_in, fr, fresh = b.columns, b.T_in, b.fresh_in, b.fresh
     Y = thermocouples(log, skin)
     c = log.cols
     events: list[SkinEvent] = []

@@ -20,6 +20,7 @@ between its rows, while their values show. On a log as the loop wrote it this ad
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,11 +50,15 @@ def channel_fresh(x: NDArray[np.float64]) -> tuple[NDArray[np.bool_], float]:
     return changed, period
 
 
-def _changed(x: NDArray[np.float64], before: float) -> NDArray[np.bool_]:
-    """Samples whose value differs from the one before (``before``: the sample before the
-    first; NaN after NaN is no change)."""
+def value_changed(x: NDArray[np.float64], before: Any = np.nan) -> NDArray[np.bool_]:
+    """Samples (along the first axis) whose value differs from the one before: ``before`` is
+    the sample before the first (a number, or a row for ``(samples, patches)``; NaN: none);
+    NaN after NaN is no change."""
     x = np.asarray(x, dtype=float)
-    prev = np.concatenate([[before], x[:-1]])
+    if not len(x):
+        return np.zeros(x.shape, dtype=bool)
+    first = np.broadcast_to(np.asarray(before, dtype=float), x.shape[1:])[None]
+    prev = np.concatenate([first, x[:-1]])
     return (x != prev) & ~(np.isnan(x) & np.isnan(prev))
 
 
@@ -63,7 +68,7 @@ def _column_and_changes(log: Mapping[str, NDArray[np.float64]], last: Mapping[st
     f = np.nan_to_num(np.asarray(log["fresh"], dtype=float), nan=0.0).astype(np.int64)
     for ch in CHANNELS:
         if ch in log:
-            f |= np.where(_changed(log[ch], last.get(ch, np.nan)), BITS[ch], 0)
+            f |= np.where(value_changed(log[ch], last.get(ch, np.nan)), BITS[ch], 0)
     return f
 
 
@@ -118,7 +123,8 @@ class FreshInference:
         out = np.zeros(n, dtype=np.int64)
         for ch in CHANNELS:
             x = np.asarray(chunk[ch], dtype=float)
-            changed = np.ones(n, dtype=bool) if self._every[ch] else _changed(x, self._last.get(ch, np.nan))
+            every = self._every[ch]
+            changed = np.ones(n, dtype=bool) if every else value_changed(x, self._last.get(ch, np.nan))
             out |= np.where(changed, BITS[ch], 0)
             if n:
                 self._last[ch] = float(x[-1])
