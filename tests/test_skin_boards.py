@@ -40,3 +40,56 @@ def test_the_skins_pump_stays_still_for_two_board_readings(tmp_path: Path) -> No
         assert np.count_nonzero(fresh_w[a:b]) >= 2, (a, b)
     lengths = np.array([b - a for a, b in stops])
     assert lengths.min() >= 190  # two readings 100 +- 3 ms apart (1 ms samples)
+
+
+def test_slow_boards_are_warned_about_as_measured() -> None:
+    """A skin fed through pipes had false alarms downstream below 500 Hz boards, a tank-fed patch
+    missed touches below 50 Hz (benchmarks/skin_boards.py): each warns under its own rate, once."""
+    from thermoskin.skin_observe import board_warnings
+
+    forearm = load_skin(ROOT / "examples" / "forearm.toml", load_config())
+    single = load_skin(ROOT / "examples" / "single.toml", load_config())
+    for skin, quiet, loud in ((forearm, (1000.0, 500.0, 480.0), (200.0, 100.0, 10.0)),
+                              (single, (1000.0, 100.0, 50.0, 48.0), (20.0, 10.0, 5.0))):
+        for rate in quiet:
+            assert board_warnings(skin, rate) == [], (skin.name, rate)
+        for rate in loud:
+            (w,) = board_warnings(skin, rate)
+            assert f"about {rate:.0f} readings a second" in w
+    assert "false alarms" in board_warnings(forearm, 100.0)[0]
+    assert "missed" in board_warnings(single, 10.0)[0]
+    assert board_warnings(forearm, 0.0) == []  # no rate known: nothing said
+
+
+def test_the_boards_rate_is_read_from_the_log(tmp_path: Path) -> None:
+    """`observe --skin` counts the new pipe readings a second from the log's fresh bits, or from
+    the values' changes where a log has no bits, and warns on 10 Hz boards; `run --skin` warns
+    from the config before it starts."""
+    from click.testing import CliRunner
+
+    from thermoskin.cli import main
+    from thermoskin.skin_observe import observe_skin
+
+    single = ROOT / "examples" / "single.toml"
+    skin = load_skin(single, load_config().replace(sensor=BOARDS_10HZ))
+    base = Scenario("still", "no touch", duration=4.0, T_w_cmd=24.0, T_a=20.0, pump="logic")
+    run_skin(skin, SkinScenario("still", "no touch", base, ()), tmp_path / "s.csv")
+    log = read_skin_log(tmp_path / "s.csv", skin)
+    obs = observe_skin(log, skin, locate=False)
+    assert 9.5 < obs.reading_rate < 10.5 and len(obs.warnings) == 1
+    del log.cols["fresh"]  # held values never change: the same rate from the values
+    assert 9.5 < observe_skin(log, skin, locate=False).reading_rate < 10.5
+    fast = load_skin(single, load_config())
+    run_skin(fast, SkinScenario("still", "no touch", base, ()), tmp_path / "f.csv")
+    obs = observe_skin(read_skin_log(tmp_path / "f.csv", fast), fast, locate=False)
+    assert abs(obs.reading_rate - 1000.0) < 1.0 and obs.warnings == []
+    res = CliRunner().invoke(main, ["observe", "--skin", str(single), str(tmp_path / "s.csv"),
+                                    "-o", str(tmp_path / "o.csv")])
+    assert res.exit_code == 0, res.stderr
+    assert res.stderr.count("thermoskin: warning:") == 1 and "about 10 readings a second" in res.stderr
+    cfg = tmp_path / "boards.toml"
+    cfg.write_text("[sensor]\nperiod_T_w = 0.1\nperiod_T_p = 0.1\nperiod_T_a = 0.1\n")
+    res = CliRunner().invoke(main, ["run", "--skin", str(single), "--config", str(cfg), "--duration", "2",
+                                    "--log", str(tmp_path / "r.csv")])
+    assert res.exit_code == 0, res.stderr
+    assert "about 10 readings a second" in res.stderr

@@ -298,6 +298,8 @@ def _observe_skin(input_path: Path, output: Path, events_path: Path | None, grou
         extra = {f"{k}_live": log.cols[k] for k in live}
         extra.update({"T_in": obs.T_in, **obs.columns})
         write_log(output, long_columns(log, extra, drop=tuple(live)))
+    for w in obs.warnings:
+        click.echo(f"thermoskin: warning: {input_path}: {w}", err=True)
     _skin_report(skin, obs.events, output.with_suffix(".png"), events_path, groups_path,
                  f"thermoskin observe {input_path.name}")
     console.print(f"{log.n} samples of {len(skin.patches)} patches at {1 / log.t_s:.0f} Hz, "
@@ -987,7 +989,7 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     from thermoskin.paths import LOG_SUFFIXES, distinct
     from thermoskin.sim.skin_scenarios import skin_scenario
     from thermoskin.skin import load_skin
-    from thermoskin.skin_observe import SkinEstimator
+    from thermoskin.skin_observe import SkinEstimator, board_warnings
 
     if plot_path is None:
         plot_path = log_path.with_suffix(".png")
@@ -1010,6 +1012,9 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
                   f"({len(sc.contacts)} contacts), {sc.duration:g} s; every patch estimated as it goes")
     from thermoskin.runtime.stopping import StopRequest
 
+    period = skin.cfg.sensor.period_T_w  # the simulated boards'
+    for w in board_warnings(skin, 1.0 / max(period, cfg.sampling.t_s)):
+        click.echo(f"thermoskin: warning: {w}", err=True)
     _note_compile(skin_kernels(skin), "the skin's plant and the estimator", "about a minute")
     est = SkinEstimator(skin, cfg.sampling.t_s)
     stop = StopRequest().install()

@@ -81,11 +81,38 @@ sheet so that the estimate fell back to its baseline at once (the forearm's 2 s 
 was released after 35 ms); with the transport correction the whole-state jump still lost one
 touch of 54 and added a false alarm (docs/skin.md)."""
 
+PIPED_BOARDS_HZ = 500.0
+"""A skin whose patches are fed through pipes (``forearm.toml``) found its touches with no false
+alarm on thermocouple boards of this rate (and at 1 kHz); at 200 Hz and below it had false alarms
+on the patches downstream, below 50 Hz it missed touches too (``benchmarks/skin_boards.py``,
+docs/skin.md)."""
+TANK_FED_BOARDS_HZ = 50.0
+"""A skin whose patches are all fed straight from their tanks (``single.toml``) found every touch
+on boards of this rate; at 20 Hz and below it missed some (the same benchmark)."""
+
 SKIN_EVENT_COLUMNS = ("patch", "onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq",
                       "energy", "position", "position_sd", "heat")
 """Columns of a skin's events table: the patch's name, :data:`~thermoskin.events.EVENT_COLUMNS`,
 the position along its pipe and its sd (m from the inlet; empty where not identifiable), the
 heat of the position fit (W)."""
+
+
+def board_warnings(skin: Skin, rate_hz: float) -> list[str]:
+    """What detection on ``skin`` is worth with its pipe thermocouples read ``rate_hz`` times a
+    second (measured: :data:`PIPED_BOARDS_HZ`, :data:`TANK_FED_BOARDS_HZ`): one line, or none."""
+    piped = [skin.patches[i].name for i in range(len(skin.patches)) if not tank_fed(skin, i)]
+    need = PIPED_BOARDS_HZ if piped else TANK_FED_BOARDS_HZ
+    if not (rate_hz > 0.0) or rate_hz >= 0.95 * need:  # 5 %: a board's jitter and the count's edges
+        return []
+    if piped:
+        why = (f"a skin whose patches are fed through pipes ({', '.join(piped[:3])}"
+               f"{', ...' if len(piped) > 3 else ''}) was measured free of false alarms only on boards "
+               f"of {need:.0f} Hz and faster: expect false alarms on the patches downstream")
+    else:
+        why = (f"a patch fed from its tank found every touch on boards of {need:.0f} Hz and faster: "
+               "expect late or missed touches")
+    return [f"the pipe thermocouples give about {rate_hz:.0f} readings a second: {why} (docs/skin.md, "
+            "On slow thermocouple boards)"]
 
 
 def tank_fed(skin: Skin, i: int) -> bool:
@@ -135,6 +162,10 @@ class SkinObservation:
     T_in: Array
     fresh_in: NDArray[np.int64]
     groups: list[object] = field(default_factory=list)
+    reading_rate: float = 0.0
+    """New pipe readings a second, from the log (:attr:`SkinEstimator.reading_rate`)."""
+    warnings: list[str] = field(default_factory=list)
+    """What the boards' rate costs detection (:func:`board_warnings`)."""
 
 
 def thermocouples(log: SkinLog, skin: Skin) -> list[Array]:
@@ -224,6 +255,18 @@ class SkinEstimator:
         self._on_t = np.full(self.P, np.nan)  # when each patch's open contact was detected
         self._patch = np.zeros(0, dtype=np.int64)
         self._last: dict[str, Array] = {}  # each thermocouple column's last row, for its fresh bits
+        self._n_read = np.zeros(self.P)  # new T_w readings per patch (its fresh bit or its value changed)
+        self._span = [math.nan, math.nan]  # the first and last time seen
+
+    @property
+    def reading_rate(self) -> float:
+        """New ``T_w`` readings a second so far (the median over the patches that had any; 0
+        before a second of samples): the thermocouple boards' rate, from the log itself."""
+        dur = self._span[1] - self._span[0]
+        seen = self._n_read[self._n_read > 1]
+        if not (dur >= 1.0) or not len(seen):
+            return 0.0
+        return float(np.median(seen - 1)) / dur
 
     @property
     def events(self) -> list[tuple[int, ContactEvent]]:
@@ -232,8 +275,17 @@ class SkinEstimator:
     def block(self, t: Array, cols: Mapping[str, Array]) -> SkinBlock:
         """Estimate the next block (class doc)."""
         m, P = len(t), self.P
+        prev_T_w = self._last.get("T_w")
         fresh = (fresh_with_changes(cols, self.skin, cols["fresh"], self._last)
                  if "fresh" in cols else None)
+        if fresh is not None:
+            self._n_read += np.count_nonzero(fresh & 1, axis=0)
+        else:  # no bits: a reading is new where its value changed
+            self._n_read += np.count_nonzero(value_changed(cols["T_w"], np.nan if prev_T_w is None
+                                                           else prev_T_w), axis=0)
+            self._last["T_w"] = cols["T_w"][-1].copy()
+        if m:
+            self._span = [float(t[0]) if self._span[0] != self._span[0] else self._span[0], float(t[-1])]
         T_in, fr = self.inlet.push(block_thermocouples(cols, self.skin), cols["T_p"], cols["v"],
                                    cols["T_a"], fresh)
         if len(self._patch) < m * P:
@@ -300,7 +352,8 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
                              [y[:, i] for y in Y[:len(bits)]], fr_i, out["dq_i_hat"][:, i])
         events.append(SkinEvent(i, skin.patches[i].name, ev, pos))
     events.sort(key=lambda e: (e.event.onset, e.patch))
-    return SkinObservation(out, events, T_in, fr)
+    return SkinObservation(out, events, T_in, fr, reading_rate=est.reading_rate,
+                           warnings=board_warnings(skin, est.reading_rate))
 
 
 def events_columns(events: list[SkinEvent]) -> dict[str, NDArray[np.generic]]:
