@@ -9,7 +9,11 @@ or an event on an untouched patch. Position: for patches with two thermocouples,
 the reported position against the contact's mean true position, RMS as a share of the pipe
 length, and how many touches had a position at all. The machine may be shared.
 
-    python benchmarks/skin_detection.py [--seeds 0,1,2] [--duration S] [--json]
+``--rate HZ``: thermocouple boards converting that many times a second (every channel, 3 %
+jitter; default: fresh every sample); ``--S-w``: the estimator's pipe-node noise (K²/s, kept
+where above a skin patch's own), as a config would set it.
+
+    python benchmarks/skin_detection.py [--seeds 0,1,2] [--duration S] [--rate HZ] [--S-w X] [--json]
 """
 
 from __future__ import annotations
@@ -68,13 +72,20 @@ def main() -> None:
     ap.add_argument("--skin", default=str(ROOT / "examples" / "forearm.toml"))
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--duration", type=float, default=None)
+    ap.add_argument("--rate", type=float, default=None, help="boards' rate, Hz (default: every sample)")
+    ap.add_argument("--S-w", dest="S_w", type=float, default=None, help="estimator.S_w, K^2/s")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     base = load_skin(a.skin)
+    if a.rate:
+        p = 1.0 / a.rate
+        base = load_skin(a.skin, base.cfg.replace(sensor={"period_T_w": p, "period_T_p": p, "period_T_a": p,
+                                                          "jitter": 0.03 * p}))
     runs, lat, err = [], [], []
     for seed in [int(s) for s in a.seeds.split(",")]:
         cfg = dataclasses.replace(base.cfg, sensor=dataclasses.replace(base.cfg.sensor, seed=seed))
         skin = load_skin(a.skin, cfg)
+        seen = skin if a.S_w is None else load_skin(a.skin, cfg.replace(estimator={"S_w": a.S_w}))
         sc = skin_scenario("multi", skin, a.duration)
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "log.parquet"
@@ -82,7 +93,7 @@ def main() -> None:
             log = read_skin_log(path, skin)
         truth = {k: log.cols.pop(k) for k in ("q_i", "contact_true", "position_true")}
         log.names = [k for k in log.names if k not in truth]
-        obs = observe_skin(log, skin)
+        obs = observe_skin(log, seen)
         log.cols.update(truth)
         s = score(log, obs, skin)
         lat += s["latencies"]
@@ -91,7 +102,8 @@ def main() -> None:
                      "latency_median_s": float(np.median(s["latencies"])) if s["latencies"] else None})
         if not a.json:
             print(json.dumps(runs[-1]))
-    out = {"skin": Path(a.skin).name, "scenario": "multi", "seeds": len(runs),
+    out = {"skin": Path(a.skin).name, "scenario": "multi", "rate_hz": a.rate, "S_w": a.S_w,
+           "seeds": len(runs),
            "touches": sum(r["touches"] for r in runs), "found": sum(r["found"] for r in runs),
            "false_on_touched": sum(r["false_on_touched"] for r in runs),
            "events_on_untouched": sum(r["events_on_untouched"] for r in runs),

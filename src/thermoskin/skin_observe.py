@@ -81,14 +81,14 @@ sheet so that the estimate fell back to its baseline at once (the forearm's 2 s 
 was released after 35 ms); with the transport correction the whole-state jump still lost one
 touch of 54 and added a false alarm (docs/skin.md)."""
 
-PIPED_BOARDS_HZ = 500.0
-"""A skin whose patches are fed through pipes (``forearm.toml``) found its touches with no false
-alarm on thermocouple boards of this rate (and at 1 kHz); at 200 Hz and below it had false alarms
-on the patches downstream, below 50 Hz it missed touches too (``benchmarks/skin_boards.py``,
-docs/skin.md)."""
-TANK_FED_BOARDS_HZ = 50.0
+PIPED_BOARDS_HZ = 1000.0
+"""A skin whose patches are fed through pipes (``forearm.toml``) found every touch with no false
+alarm on thermocouple boards of this rate (fresh every 1 ms sample); on 500 Hz boards it missed 1
+of 108 touches and had 2 false alarms, on 200 Hz boards 2 and 28, below that many more
+(``benchmarks/skin_detection.py --rate``, docs/skin.md)."""
+TANK_FED_BOARDS_HZ = 200.0
 """A skin whose patches are all fed straight from their tanks (``single.toml``) found every touch
-on boards of this rate; at 20 Hz and below it missed some (the same benchmark)."""
+on boards of this rate and faster; on 100 Hz boards 11 of 12, on 50 Hz 9 (the same benchmark)."""
 
 SKIN_EVENT_COLUMNS = ("patch", "onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq",
                       "energy", "position", "position_sd", "heat")
@@ -106,8 +106,8 @@ def board_warnings(skin: Skin, rate_hz: float) -> list[str]:
         return []
     if piped:
         why = (f"a skin whose patches are fed through pipes ({', '.join(piped[:3])}"
-               f"{', ...' if len(piped) > 3 else ''}) was measured free of false alarms only on boards "
-               f"of {need:.0f} Hz and faster: expect false alarms on the patches downstream")
+               f"{', ...' if len(piped) > 3 else ''}) was measured free of false alarms and missed touches "
+               f"only on boards of {need:.0f} Hz: expect some of both, more the slower the boards")
     else:
         why = (f"a patch fed from its tank found every touch on boards of {need:.0f} Hz and faster: "
                "expect late or missed touches")
