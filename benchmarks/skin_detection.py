@@ -11,9 +11,11 @@ length, and how many touches had a position at all. The machine may be shared.
 
 ``--rate HZ``: thermocouple boards converting that many times a second (every channel, 3 %
 jitter; default: fresh every sample); ``--S-w``: the estimator's pipe-node noise (K²/s, kept
-where above a skin patch's own), as a config would set it.
+where above a skin patch's own), as a config would set it; ``--no-fresh``: the log without its
+``fresh`` column (a lab's own logger), its readings found from the values.
 
-    python benchmarks/skin_detection.py [--seeds 0,1,2] [--duration S] [--rate HZ] [--S-w X] [--json]
+    python benchmarks/skin_detection.py [--seeds 0,1,2] [--duration S] [--rate HZ] [--S-w X]
+        [--no-fresh] [--json]
 """
 
 from __future__ import annotations
@@ -74,6 +76,7 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=None)
     ap.add_argument("--rate", type=float, default=None, help="boards' rate, Hz (default: every sample)")
     ap.add_argument("--S-w", dest="S_w", type=float, default=None, help="estimator.S_w, K^2/s")
+    ap.add_argument("--no-fresh", action="store_true", help="drop the log's fresh column")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     base = load_skin(a.skin)
@@ -92,7 +95,9 @@ def main() -> None:
             run_skin(skin, sc, path)
             log = read_skin_log(path, skin)
         truth = {k: log.cols.pop(k) for k in ("q_i", "contact_true", "position_true")}
-        log.names = [k for k in log.names if k not in truth]
+        if a.no_fresh:
+            log.cols.pop("fresh")
+        log.names = [k for k in log.names if k in log.cols]
         obs = observe_skin(log, seen)
         log.cols.update(truth)
         s = score(log, obs, skin)
@@ -103,6 +108,7 @@ def main() -> None:
         if not a.json:
             print(json.dumps(runs[-1]))
     out = {"skin": Path(a.skin).name, "scenario": "multi", "rate_hz": a.rate, "S_w": a.S_w,
+           "fresh": not a.no_fresh,
            "seeds": len(runs),
            "touches": sum(r["touches"] for r in runs), "found": sum(r["found"] for r in runs),
            "false_on_touched": sum(r["false_on_touched"] for r in runs),

@@ -93,3 +93,40 @@ def test_the_boards_rate_is_read_from_the_log(tmp_path: Path) -> None:
                                     "--log", str(tmp_path / "r.csv")])
     assert res.exit_code == 0, res.stderr
     assert "about 10 readings a second" in res.stderr
+
+
+def test_a_skin_log_without_fresh_bits_is_read_from_its_values(tmp_path: Path) -> None:
+    """A lab's own logger writes no `fresh` column: the held readings of slow boards are found
+    from the values (a held reading never changes), as the single patch's `observe` finds them,
+    and the touch is found as with the column; at 1 kHz every sample stays a reading."""
+    from thermoskin.physics.finger import Touch
+    from thermoskin.sim.skin_scenarios import SkinContact
+    from thermoskin.skin_observe import SkinFreshInference, observe_skin
+
+    single = ROOT / "examples" / "single.toml"
+    p = 1.0 / 200.0
+    skin = load_skin(single, load_config().replace(sensor={"period_T_w": p, "period_T_p": p, "period_T_a": p,
+                                                           "jitter": 0.03 * p}))
+    base = Scenario("touch", "one touch", duration=12.0, T_w_cmd=24.0, T_a=20.0, pump="logic")
+    touch = Touch(t_on=7.0, duration=2.0, n_fingers=2, person="man1")
+    contact = SkinContact(touch, patch="patch", position=0.015)
+    run_skin(skin, SkinScenario("touch", "one touch", base, (contact,)), tmp_path / "s.csv")
+    log = read_skin_log(tmp_path / "s.csv", skin)
+    for k in ("q_i", "contact_true", "position_true"):
+        log.cols.pop(k)
+    bits = log.cols["fresh"].astype(np.int64)
+    inferred = SkinFreshInference(skin).feed({k: v for k, v in log.cols.items() if k != "fresh"})
+    assert inferred is not None
+    for bit in (1, 2, 4):  # a changed value is a reading; a reading equal to the last is missed
+        true, got = (bits & bit) != 0, (inferred & bit) != 0
+        assert not (got & ~true)[1:].any()
+        assert got.sum() >= 0.8 * true.sum()
+    with_bits = observe_skin(log, skin, locate=False).events
+    del log.cols["fresh"]
+    without = observe_skin(log, skin, locate=False).events
+    for events in (with_bits, without):
+        assert len(events) == 1 and 7.0 <= events[0].event.detected_at <= 9.0, events
+    fast = load_skin(single, load_config())
+    run_skin(fast, SkinScenario("still", "no touch", base, ()), tmp_path / "f.csv")
+    cols = read_skin_log(tmp_path / "f.csv", fast).cols
+    assert SkinFreshInference(fast).feed({k: v for k, v in cols.items() if k != "fresh"}) is None

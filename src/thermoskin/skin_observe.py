@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
-from thermoskin.estimation.freshness import value_changed
+from thermoskin.estimation.freshness import updates_every_sample, value_changed
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
@@ -188,9 +188,7 @@ def fresh_with_changes(cols: Mapping[str, Array], skin: Skin, fresh: NDArray[np.
     every n-th row of the loop's has lost the bits of the readings between its rows, and a held
     reading never changes. ``last``: each column's previous row (updated; None: none before)."""
     out = fresh.astype(np.int64).copy()
-    chans = [("T_w", 1), ("T_p", 2), ("T_a", 4)]
-    chans += [(f"T_w{j}", tc_fresh_bit(j - 1)) for j in range(2, skin.n_thermocouples + 1)]
-    for col, bit in chans:
+    for col, bit in _channels(skin):
         if col not in cols or not len(cols[col]):
             continue
         x = np.asarray(cols[col], dtype=float)
@@ -198,6 +196,43 @@ def fresh_with_changes(cols: Mapping[str, Array], skin: Skin, fresh: NDArray[np.
         if last is not None:
             last[col] = x[-1].copy()
     return out
+
+
+def _channels(skin: Skin) -> list[tuple[str, int]]:
+    """A skin log's read channels and their ``fresh`` bits."""
+    chans = [("T_w", 1), ("T_p", 2), ("T_a", 4)]
+    return chans + [(f"T_w{j}", tc_fresh_bit(j - 1)) for j in range(2, skin.n_thermocouples + 1)]
+
+
+class SkinFreshInference:
+    """The ``fresh`` bits of a skin log that has no ``fresh`` column, block by block, as the single
+    patch's :class:`~thermoskin.estimation.freshness.FreshInference` reads them: per channel and
+    patch, decided on the first block, a channel that changes on at least half the samples
+    updates every sample, any other is fresh where its value changed (a board's reading held
+    between conversions never changes). None where every channel updates every sample (the
+    estimator then takes every sample as a reading, as without bits)."""
+
+    def __init__(self, skin: Skin) -> None:
+        self.chans = _channels(skin)
+        self._every: dict[str, NDArray[np.bool_]] | None = None
+        self._last: dict[str, Array] = {}
+
+    def feed(self, cols: Mapping[str, Array]) -> NDArray[np.int64] | None:
+        present = [(c, b) for c, b in self.chans if c in cols and np.isfinite(cols[c]).any()]
+        if self._every is None:
+            self._every = {c: updates_every_sample(cols[c]) for c, _ in present}
+        if all(self._every.get(c, np.ones(1, bool)).all() for c, _ in present):
+            return None
+        m, P = cols["T_w"].shape
+        out = np.zeros((m, P), dtype=np.int64)
+        for c, bit in present:
+            x = np.asarray(cols[c], dtype=float)
+            every = self._every.get(c, np.ones(P, dtype=bool))
+            changed = value_changed(x, self._last.get(c, np.nan)) | every[None, :]
+            out |= np.where(changed, bit, 0)
+            if m:
+                self._last[c] = x[-1].copy()
+        return out
 
 
 def loop_t_s(t_s: float, skin: Skin) -> float:
@@ -255,6 +290,7 @@ class SkinEstimator:
         self._on_t = np.full(self.P, np.nan)  # when each patch's open contact was detected
         self._patch = np.zeros(0, dtype=np.int64)
         self._last: dict[str, Array] = {}  # each thermocouple column's last row, for its fresh bits
+        self._infer = SkinFreshInference(skin)  # a log without its fresh column
         self._n_read = np.zeros(self.P)  # new T_w readings per patch (its fresh bit or its value changed)
         self._span = [math.nan, math.nan]  # the first and last time seen
 
@@ -275,15 +311,9 @@ class SkinEstimator:
     def block(self, t: Array, cols: Mapping[str, Array]) -> SkinBlock:
         """Estimate the next block (class doc)."""
         m, P = len(t), self.P
-        prev_T_w = self._last.get("T_w")
         fresh = (fresh_with_changes(cols, self.skin, cols["fresh"], self._last)
-                 if "fresh" in cols else None)
-        if fresh is not None:
-            self._n_read += np.count_nonzero(fresh & 1, axis=0)
-        else:  # no bits: a reading is new where its value changed
-            self._n_read += np.count_nonzero(value_changed(cols["T_w"], np.nan if prev_T_w is None
-                                                           else prev_T_w), axis=0)
-            self._last["T_w"] = cols["T_w"][-1].copy()
+                 if "fresh" in cols else self._infer.feed(cols))
+        self._n_read += m if fresh is None else np.count_nonzero(fresh & 1, axis=0)
         if m:
             self._span = [float(t[0]) if self._span[0] != self._span[0] else self._span[0], float(t[-1])]
         T_in, fr = self.inlet.push(block_thermocouples(cols, self.skin), cols["T_p"], cols["v"],

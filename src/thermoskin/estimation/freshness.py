@@ -32,18 +32,25 @@ ALL_FRESH = 7
 EVERY_SAMPLE = 0.5
 
 
+def updates_every_sample(x: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Per column of ``x`` (samples along the first axis): does that channel update every
+    sample, its value changing on at least :data:`EVERY_SAMPLE` of the samples after the first
+    (module doc)? A channel of fewer than two samples does."""
+    x = np.asarray(x, dtype=float)
+    if len(x) < 2:
+        return np.ones(x.shape[1:], dtype=bool)
+    return np.asarray(np.mean(value_changed(x[1:], x[0]), axis=0) >= EVERY_SAMPLE)
+
+
 def channel_fresh(x: NDArray[np.float64]) -> tuple[NDArray[np.bool_], float]:
     """Fresh samples of one channel and its median update period in samples."""
     x = np.asarray(x, dtype=float)
     n = len(x)
     if n == 0:
         return np.zeros(0, dtype=bool), 1.0
-    changed = np.empty(n, dtype=bool)
+    changed = value_changed(x)
     changed[0] = True
-    prev, cur = x[:-1], x[1:]
-    changed[1:] = (cur != prev) & ~(np.isnan(cur) & np.isnan(prev))
-    frac = float(np.mean(changed[1:])) if n > 1 else 1.0
-    if frac >= EVERY_SAMPLE:
+    if updates_every_sample(x):
         return np.ones(n, dtype=bool), 1.0
     idx = np.flatnonzero(changed)
     period = float(np.median(np.diff(idx))) if len(idx) > 2 else float(n)
