@@ -3,7 +3,7 @@
 Readings every few samples leave the water between them unread. Where that water is short
 (``INTERP_M``) the inlet is the linear interpolation of the two readings, fresh; longer gaps,
 and the tank's own readings, are held and not fresh, as before. Checked against the source's
-true values on a ramp, where linear interpolation is exact.
+true values on a ramp, where linear interpolation is exact (block by block: test_skin_live.py).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from thermoskin.skin import load_skin
-from thermoskin.skin_inlet import FRESH_T_P, INTERP_M, InletStream, inlet_inputs
+from thermoskin.skin_inlet import FRESH_T_P, INTERP_M, inlet_inputs
 
 FOREARM = Path(__file__).resolve().parents[1] / "examples" / "forearm.toml"
 T_S = 1e-3
@@ -73,22 +73,3 @@ def test_long_gaps_are_held_and_not_fresh() -> None:
     # held: the value changes at most at the fresh samples (and by the pipe's slow cooling)
     jumps = np.abs(np.diff(T_in[steady, i])) > 1e-3
     assert np.all((fr[steady, i][1:] & FRESH_T_P)[jumps] != 0)
-
-
-def test_interpolation_is_causal_block_by_block() -> None:
-    """Fed in blocks (live), the inlet equals the whole log's to the bit: the later reading is
-    used only once it has come."""
-    skin, f, T_w, T_p, v, T_a, fresh = _ramp_loop(5)
-    v[1000:1400] = 0.0  # the pump stands: no new water, the history must keep the last reading
-    whole = inlet_inputs(skin, T_S, T_w, T_p, v, T_a, fresh)
-    n = len(f)
-    for sizes in ([1, 3, 7, 250, 999], [4] * 700):
-        st, parts, k = InletStream(skin, T_S), [], 0
-        for m in [*sizes, n]:
-            m = min(m, n - k)
-            if m:
-                parts.append(st.push([y[k:k + m] for y in T_w], T_p[k:k + m], v[k:k + m], T_a[k:k + m],
-                                     fresh[k:k + m]))
-                k += m
-        assert np.array_equal(np.concatenate([a for a, _ in parts]), whole[0])
-        assert np.array_equal(np.concatenate([b for _, b in parts]), whole[1])

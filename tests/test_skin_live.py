@@ -147,16 +147,37 @@ def test_inlet_stream_cut_anywhere_equals_the_whole_log() -> None:
     fresh = rng.integers(0, 32, (n, P))
     whole = inlet_inputs(skin, 1e-3, T_w, T_p, v, T_a, fresh)
     for sizes in ([1, 2, 997, 1000, 5003], [4000] * 3):
-        st, parts, k = InletStream(skin, 1e-3), [], 0
-        for m in [*sizes, n]:
-            m = min(m, n - k)
-            if m:
-                parts.append(st.push([y[k:k + m] for y in T_w], T_p[k:k + m], v[k:k + m], T_a[k:k + m],
-                                     fresh[k:k + m]))
-                k += m
-        assert np.array_equal(np.concatenate([a for a, _ in parts]), whole[0])
-        assert np.array_equal(np.concatenate([b for _, b in parts]), whole[1])
+        st, got = _inlet_in_blocks(skin, sizes, T_w, T_p, v, T_a, fresh)
+        assert np.array_equal(got[0], whole[0]) and np.array_equal(got[1], whole[1])
         assert max(len(x) for x in st._x) < 3000  # only what is still in the pipes is kept
+
+
+def _inlet_in_blocks(skin, sizes, T_w, T_p, v, T_a, fresh):  # type: ignore[no-untyped-def]
+    """The inlet stream fed blocks of ``sizes`` (then the rest): the stream and its
+    ``(T_in, fresh_in)``, joined."""
+    n = len(T_p)
+    st, parts, k = InletStream(skin, 1e-3), [], 0
+    for m in [*sizes, n]:
+        m = min(m, n - k)
+        if m:
+            parts.append(st.push([y[k:k + m] for y in T_w], T_p[k:k + m], v[k:k + m], T_a[k:k + m],
+                                 fresh[k:k + m]))
+            k += m
+    return st, (np.concatenate([a for a, _ in parts]), np.concatenate([b for _, b in parts]))
+
+
+def test_inlet_between_slow_readings_cut_anywhere_equals_the_whole_log() -> None:
+    """Interpolated between an outlet's readings (200 Hz boards), the inlet fed in blocks still
+    equals the whole log's, to the bit: the later reading is used only once it has come, and a
+    standing pump keeps the last reading in the history."""
+    from test_inlet_between_readings import _ramp_loop
+
+    skin, _, T_w, T_p, v, T_a, fresh = _ramp_loop(5)
+    v[1000:1400] = 0.0
+    whole = inlet_inputs(skin, 1e-3, T_w, T_p, v, T_a, fresh)
+    for sizes in ([1, 3, 7, 250, 999], [4] * 700):
+        _, got = _inlet_in_blocks(skin, sizes, T_w, T_p, v, T_a, fresh)
+        assert np.array_equal(got[0], whole[0]) and np.array_equal(got[1], whole[1])
 
 
 def test_live_estimation_equals_observe_on_the_log(tmp_path: Path) -> None:
