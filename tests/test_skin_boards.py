@@ -121,12 +121,24 @@ def test_a_skin_log_without_fresh_bits_is_read_from_its_values(tmp_path: Path) -
         true, got = (bits & bit) != 0, (inferred & bit) != 0
         assert not (got & ~true)[1:].any()
         assert got.sum() >= 0.8 * true.sum()
-    with_bits = observe_skin(log, skin, locate=False).events
+    no_bits = {k: v for k, v in log.cols.items() if k != "fresh"}
+    for cuts in ([1, 2, 30], [63, 1], [64], [500, 7]):  # the bits do not depend on the blocks
+        inf, parts, k = SkinFreshInference(skin), [], 0
+        for m in [*cuts, len(log.t)]:
+            parts.append(inf.feed({c: v[k:k + m] for c, v in no_bits.items()}))
+            k += m
+        assert np.array_equal(np.concatenate(parts), inferred)
+    with_bits = observe_skin(log, skin, locate=False)
     del log.cols["fresh"]
-    without = observe_skin(log, skin, locate=False).events
-    for events in (with_bits, without):
+    without = observe_skin(log, skin, locate=False)
+    for obs in (with_bits, without):
+        events = obs.events
         assert len(events) == 1 and 7.0 <= events[0].event.detected_at <= 9.0, events
+        # 200 Hz boards, read as such (a reading equal to the last, missed without bits, does not
+        # lower it), and no warning for a tank-fed patch, clean at that rate
+        assert abs(obs.reading_rate - 200.0) < 2.0 and obs.warnings == [], obs.reading_rate
     fast = load_skin(single, load_config())
     run_skin(fast, SkinScenario("still", "no touch", base, ()), tmp_path / "f.csv")
     cols = read_skin_log(tmp_path / "f.csv", fast).cols
-    assert SkinFreshInference(fast).feed({k: v for k, v in cols.items() if k != "fresh"}) is None
+    bits = SkinFreshInference(fast).feed({k: v for k, v in cols.items() if k != "fresh"})
+    assert ((bits[SkinFreshInference.DECIDE_ROWS:] & 7) == 7).all()  # 1 kHz: every sample a reading

@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
-from thermoskin.estimation.freshness import updates_every_sample, value_changed
+from thermoskin.estimation.freshness import EVERY_SAMPLE, value_changed
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
@@ -83,8 +83,8 @@ touch of 54 and added a false alarm (docs/skin.md)."""
 
 PIPED_BOARDS_HZ = 1000.0
 """A skin whose patches are fed through pipes (``forearm.toml``) found every touch with no false
-alarm on thermocouple boards of this rate (fresh every 1 ms sample); on 500 Hz boards it missed 1
-of 108 touches and had 2 false alarms, on 200 Hz boards 2 and 28, below that many more
+alarm on thermocouple boards of this rate (fresh every 1 ms sample); on 500 Hz boards it found
+108 of 108 with 3 false alarms, on 200 Hz boards 108 with 16, on 100 Hz 99 with 128
 (``benchmarks/skin_detection.py --rate``, docs/skin.md)."""
 TANK_FED_BOARDS_HZ = 200.0
 """A skin whose patches are all fed straight from their tanks (``single.toml``) found every touch
@@ -207,31 +207,41 @@ def _channels(skin: Skin) -> list[tuple[str, int]]:
 class SkinFreshInference:
     """The ``fresh`` bits of a skin log that has no ``fresh`` column, block by block, as the single
     patch's :class:`~thermoskin.estimation.freshness.FreshInference` reads them: per channel and
-    patch, decided on the first block, a channel that changes on at least half the samples
-    updates every sample, any other is fresh where its value changed (a board's reading held
-    between conversions never changes). None where every channel updates every sample (the
-    estimator then takes every sample as a reading, as without bits)."""
+    patch, a channel that changes on at least half of the first :data:`DECIDE_ROWS` rows updates
+    every sample, any other is fresh where its value changed (a board's reading held between
+    conversions never changes). The first rows, before that is known, are read by their changes
+    alone, however the blocks are cut, so the bits do not depend on where they are."""
+
+    DECIDE_ROWS = 64
 
     def __init__(self, skin: Skin) -> None:
         self.chans = _channels(skin)
-        self._every: dict[str, NDArray[np.bool_]] | None = None
+        self._every: dict[str, NDArray[np.bool_]] = {}
+        self._n_changed: dict[str, Array] = {}
+        self._rows = 0
         self._last: dict[str, Array] = {}
 
-    def feed(self, cols: Mapping[str, Array]) -> NDArray[np.int64] | None:
-        present = [(c, b) for c, b in self.chans if c in cols and np.isfinite(cols[c]).any()]
-        if self._every is None:
-            self._every = {c: updates_every_sample(cols[c]) for c, _ in present}
-        if all(self._every.get(c, np.ones(1, bool)).all() for c, _ in present):
-            return None
+    def feed(self, cols: Mapping[str, Array]) -> NDArray[np.int64]:
         m, P = cols["T_w"].shape
+        k0, D = self._rows, self.DECIDE_ROWS
         out = np.zeros((m, P), dtype=np.int64)
-        for c, bit in present:
+        for c, bit in self.chans:
+            if c not in cols:
+                continue
             x = np.asarray(cols[c], dtype=float)
-            every = self._every.get(c, np.ones(P, dtype=bool))
-            changed = value_changed(x, self._last.get(c, np.nan)) | every[None, :]
+            changed = value_changed(x, self._last.get(c, np.nan))
+            if k0 < D:  # the deciding rows (the first row, new by definition, not counted)
+                a = max(1 - k0, 0)
+                n = self._n_changed.setdefault(c, np.zeros(P))
+                n += changed[a:D - k0].sum(axis=0)
+                if k0 + m >= D:
+                    self._every[c] = n / (D - 1) >= EVERY_SAMPLE
+            if c in self._every and k0 + m > D:
+                changed[max(D - k0, 0):] |= self._every[c][None, :]
             out |= np.where(changed, bit, 0)
             if m:
                 self._last[c] = x[-1].copy()
+        self._rows = k0 + m
         return out
 
 
@@ -291,18 +301,42 @@ class SkinEstimator:
         self._patch = np.zeros(0, dtype=np.int64)
         self._last: dict[str, Array] = {}  # each thermocouple column's last row, for its fresh bits
         self._infer = SkinFreshInference(skin)  # a log without its fresh column
-        self._n_read = np.zeros(self.P)  # new T_w readings per patch (its fresh bit or its value changed)
-        self._span = [math.nan, math.nan]  # the first and last time seen
+        self._rows = 0
+        self._last_read = np.full(self.P, -1, dtype=np.int64)  # each patch's last T_w reading (row)
+        self._gaps = np.zeros(self.GAP_BINS, dtype=np.int64)  # rows between readings, all patches
+
+    GAP_BINS = 4096
+    """Intervals between readings counted up to this many rows (longer ones in the last bin)."""
 
     @property
     def reading_rate(self) -> float:
-        """New ``T_w`` readings a second so far (the median over the patches that had any; 0
-        before a second of samples): the thermocouple boards' rate, from the log itself."""
-        dur = self._span[1] - self._span[0]
-        seen = self._n_read[self._n_read > 1]
-        if not (dur >= 1.0) or not len(seen):
+        """New ``T_w`` readings a second so far: one over the mean interval between a patch's
+        readings (over every patch; 0 before there are 20), of the intervals within a row of their
+        median. A reading equal to the one before it, missed where a log has no bits, doubles a
+        few intervals, which fall outside; a board between two sample rates (700 Hz: 1 and 2 rows
+        apart) is averaged."""
+        n = int(self._gaps.sum())
+        if n < 20:
             return 0.0
-        return float(np.median(seen - 1)) / dur
+        med = int(np.searchsorted(np.cumsum(self._gaps), 0.5 * n))  # bin j: j rows apart
+        j = np.arange(max(med - 1, 1), min(med + 2, self.GAP_BINS))  # its neighbours: a board
+        w = self._gaps[j]                                            # between two sample rates
+        return 1.0 / (float((j * w).sum()) / float(w.sum()) * self.t_s)
+
+    def _count_readings(self, fresh: NDArray[np.int64] | None, m: int) -> None:
+        k0 = self._rows
+        self._rows = k0 + m
+        if fresh is None:  # every row a reading
+            self._gaps[1] += m * self.P
+            return
+        for i in range(self.P):
+            rows = k0 + np.flatnonzero(fresh[:, i] & 1)
+            if not len(rows):
+                continue
+            prev = self._last_read[i]
+            gaps = np.diff(rows) if prev < 0 else np.diff(np.concatenate(([prev], rows)))
+            np.add.at(self._gaps, np.minimum(gaps, self.GAP_BINS - 1), 1)
+            self._last_read[i] = rows[-1]
 
     @property
     def events(self) -> list[tuple[int, ContactEvent]]:
@@ -313,9 +347,7 @@ class SkinEstimator:
         m, P = len(t), self.P
         fresh = (fresh_with_changes(cols, self.skin, cols["fresh"], self._last)
                  if "fresh" in cols else self._infer.feed(cols))
-        self._n_read += m if fresh is None else np.count_nonzero(fresh & 1, axis=0)
-        if m:
-            self._span = [float(t[0]) if self._span[0] != self._span[0] else self._span[0], float(t[-1])]
+        self._count_readings(fresh, m)
         T_in, fr = self.inlet.push(block_thermocouples(cols, self.skin), cols["T_p"], cols["v"],
                                    cols["T_a"], fresh)
         if len(self._patch) < m * P:
