@@ -274,7 +274,8 @@ class SkinBlock:
     fresh_in: NDArray[np.int64]
     changes: list[Change]
     fresh: NDArray[np.int64] | None = None
-    """The log's bits the block was estimated with (:func:`fresh_with_changes`; None: none given)."""
+    """The bits the block was estimated with: the log's (:func:`fresh_with_changes`), or read from
+    its values where it has none (:class:`SkinFreshInference`)."""
 
 
 class SkinEstimator:
@@ -323,12 +324,9 @@ class SkinEstimator:
         w = self._gaps[j]                                            # between two sample rates
         return 1.0 / (float((j * w).sum()) / float(w.sum()) * self.t_s)
 
-    def _count_readings(self, fresh: NDArray[np.int64] | None, m: int) -> None:
+    def _count_readings(self, fresh: NDArray[np.int64], m: int) -> None:
         k0 = self._rows
         self._rows = k0 + m
-        if fresh is None:  # every row a reading
-            self._gaps[1] += m * self.P
-            return
         for i in range(self.P):
             rows = k0 + np.flatnonzero(fresh[:, i] & 1)
             if not len(rows):
