@@ -71,6 +71,55 @@ def collect(dev: SerialDevice, seconds: float, command: tuple[float, float] | No
     return out
 
 
+def test_a_write_that_went_out_is_no_link_fault(start_emulator: Start,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """A write whose bytes all went out, its thread then held up past the write timeout (a
+    stalled process; a cold compile in another thread took the CI's handshake down this way), is
+    no link fault: pyserial's own write raised "Write timeout" after writing everything."""
+    _, link = start_emulator()
+    dev = SerialDevice(str(link))
+    real_write, slow = os.write, []
+
+    def write_then_stall(fd: int, data: bytes) -> int:  # type: ignore[no-untyped-def]
+        n = real_write(fd, data)
+        if fd == dev._fd and threading.current_thread() is threading.main_thread():
+            slow.append(n)
+            time.sleep(0.6)
+        return n
+
+    monkeypatch.setattr(os, "write", write_then_stall)
+    dev.open()
+    try:
+        assert slow and dev.ack is not None  # the HELLO went out slowly, and was answered
+        dev.write_command(0.3, 0.141)
+        assert collect(dev, 0.2)
+    finally:
+        monkeypatch.setattr(os, "write", real_write)
+        dev.close()
+
+
+def test_a_port_that_takes_nothing_is_a_link_fault() -> None:
+    """No room in the port for the write timeout: a write fails (then a link fault), in about
+    that time, not sooner and not never."""
+    import tty
+
+    from thermoskin.devices.serial_device import WRITE_TIMEOUT_S
+
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    os.set_blocking(slave, False)
+    try:
+        dev = SerialDevice(os.ttyname(slave))
+        dev._fd = slave  # nobody reads the other side: the pty's queue fills
+        t0 = time.monotonic()
+        with pytest.raises(serial.SerialTimeoutException):
+            dev._write(None, b"x" * (1 << 20))  # type: ignore[arg-type]
+        assert WRITE_TIMEOUT_S - 0.01 <= time.monotonic() - t0 < WRITE_TIMEOUT_S + 1.0
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
 def test_end_to_end_handshake_samples_commands(start_emulator: Start) -> None:
     emu, link = start_emulator()
     dev = SerialDevice(str(link))

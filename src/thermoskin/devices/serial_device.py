@@ -16,6 +16,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import math
+import os
 import select
 import time
 
@@ -23,6 +24,9 @@ import serial
 
 from thermoskin.devices import protocol as proto
 from thermoskin.devices.base import ChannelTracker, DeviceError, Sample
+
+WRITE_TIMEOUT_S = 0.5
+"""Longest wait for room in the port before a write is a link fault, s."""
 
 
 class LinkError(DeviceError):
@@ -69,11 +73,12 @@ class SerialDevice:
         """Open the port and handshake; :class:`DeviceError` names the port and the problem."""
         try:
             self._ser = serial.serial_for_url(self.port, baudrate=self.baudrate, timeout=0,
-                                              write_timeout=0.5)
+                                              write_timeout=WRITE_TIMEOUT_S)
         except (serial.SerialException, OSError, ValueError) as e:
             raise DeviceError(f"cannot open {self.port}: {e}") from None
         try:
             self._fd = self._ser.fileno()
+            os.set_blocking(self._fd, False)  # (pyserial opens it so; _write relies on it)
         except (AttributeError, NotImplementedError, OSError, ValueError):
             self._fd = None
         self._ser.reset_input_buffer()
@@ -186,9 +191,33 @@ class SerialDevice:
             raise LinkError(f"{self.port} is not open")
         frame = proto.encode(msg)
         try:
-            ser.write(b"\x00" + frame if leading_zero else frame)
+            self._write(ser, b"\x00" + frame if leading_zero else frame)
         except (serial.SerialException, OSError) as e:
             raise LinkError(f"{self.port}: write failed: {_reason(e)}") from None
+
+    def _write(self, ser: serial.SerialBase, data: bytes) -> None:
+        """Write all of ``data``, waiting at most :data:`WRITE_TIMEOUT_S` for room in the port.
+
+        pyserial's own ``write`` also raises its "Write timeout" when every byte went out but the
+        thread was then held up past the timeout (checked after the write: a process stalled
+        half a second, a cold compile in another thread), which is no link fault; here only a
+        port that takes no byte for that long is. Ports without a file descriptor (URLs) keep
+        pyserial's write."""
+        fd = self._fd
+        if fd is None:
+            ser.write(data)
+            return
+        view = memoryview(data)
+        t_end = time.monotonic() + WRITE_TIMEOUT_S
+        while len(view):
+            try:
+                view = view[os.write(fd, view):]
+                continue
+            except (BlockingIOError, InterruptedError):
+                pass
+            left = t_end - time.monotonic()
+            if left <= 0.0 or not select.select([], [fd], [], left)[1]:
+                raise serial.SerialTimeoutException("Write timeout")
 
     def _wait(self, timeout: float) -> None:
         if timeout <= 0.0:
