@@ -81,7 +81,10 @@ def test_realtime_sim_same_columns_and_paced() -> None:
     cols = res.columns
     assert set(COLUMNS) <= set(cols) and len(cols["t"]) == 1500
     assert np.all(np.diff(cols["t"]) == pytest.approx(1e-3))
-    assert 1.4 < res.wall_s < 6.0  # wall-clock speed, plus the process start (1-3 s under load)
+    # wall-clock speed (not faster), plus the loop process's start: 1-3 s under load, more on a
+    # clean clone, where it compiles its kernel first (6.04 s once in CI); the pacing itself is
+    # the lateness below
+    assert 1.4 < res.wall_s < 15.0
     tm = res.timing()
     assert tm["late_p50_us"] < 500 and tm["lost_rows"] == 0
     # the same blocks and the same plant as the in-process loop: the same log
