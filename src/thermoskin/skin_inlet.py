@@ -132,7 +132,7 @@ def _between_readings(sh: Array, xh: Array, read: Ints, j: Ints, now: Ints, src:
     p = read[np.maximum(r, 0)]
     n = read[np.minimum(r + 1, len(read) - 1)]
     a, b = sh[p], sh[n]
-    ok = ((r >= 0) & (r + 1 < len(read)) & (p < j) & (n <= now) & (xh[n] - xh[p] <= INTERP_M)
+    ok = ((r >= 0) & (r + 1 < len(read)) & (n <= now) & (xh[n] - xh[p] <= INTERP_M)
           & np.isfinite(a) & np.isfinite(b))
     if not ok.any():
         return src, known

@@ -273,7 +273,7 @@ class SkinBlock:
     T_in: Array
     fresh_in: NDArray[np.int64]
     changes: list[Change]
-    fresh: NDArray[np.int64] | None = None
+    fresh: NDArray[np.int64]
     """The bits the block was estimated with: the log's (:func:`fresh_with_changes`), or read from
     its values where it has none (:class:`SkinFreshInference`)."""
 
@@ -407,7 +407,7 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
             k_on = round((ev.onset - log.t[0]) / log.t_s)
             k_off = round((ev.release - log.t[0]) / log.t_s)
             bits = [tc_fresh_bit(j) for j in range(len(skin.patches[i].thermocouples))]
-            fr_i = None if fresh is None else [(fresh[:, i] & b_) != 0 for b_ in bits]
+            fr_i = [(fresh[:, i] & b_) != 0 for b_ in bits]
             pos = loc.locate(k_on, k_off, T_in[:, i], c["T_a"][:, i], c["v"][:, i],
                              [y[:, i] for y in Y[:len(bits)]], fr_i, out["dq_i_hat"][:, i])
         events.append(SkinEvent(i, skin.patches[i].name, ev, pos))
