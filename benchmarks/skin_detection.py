@@ -5,9 +5,12 @@ closed loop (``run_skin``), the truth columns are removed, and every patch is es
 (``observe_skin``). Against the truth (``contact_true`` per patch): a touch is found when an
 event on its patch overlaps it (latency: detection minus the true onset); an event overlapping
 no touch of its patch (0.5 s of slack after the release) is a false alarm (on a touched patch)
-or an event on an untouched patch. Position: for patches with two thermocouples, the error of
-the reported position against the contact's mean true position, RMS as a share of the pipe
-length, and how many touches had a position at all. The machine may be shared.
+or an event on an untouched patch (a patch the scenario never touches: none in ``multi``, where
+every patch is touched at some time); ``false_near_touch`` counts the false alarms that came
+while some patch of the skin was touched or within ``NEAR_S`` s after. Position: for patches
+with two thermocouples, the error of the reported position against the contact's mean true
+position, RMS as a share of the pipe length, and how many touches had a position at all.
+The machine may be shared.
 
 ``--rate HZ``: thermocouple boards converting that many times a second (every channel, 3 %
 jitter; default: fresh every sample); ``--S-w``: the estimator's pipe-node noise (K²/s, kept
@@ -35,12 +38,16 @@ from thermoskin.skin_log import read_skin_log
 from thermoskin.skin_observe import observe_skin
 
 ROOT = Path(__file__).resolve().parent.parent
+NEAR_S = 3.0
+"""A false alarm this soon after (or during) a touch anywhere on the skin counts as near a touch."""
 
 
 def score(log, obs, skin) -> dict[str, object]:
     """Touches found, latencies, false alarms and position errors of one run (module doc)."""
     t = log.t
     lat, missed, false, pos_err, pos_none = [], [], [], [], 0
+    any_touch = log.cols["contact_true"].any(axis=1)
+    w = round(NEAR_S / log.t_s)
     for i, p in enumerate(skin.patches):
         c = log.cols["contact_true"][:, i].astype(int)
         d = np.diff(np.concatenate([[0], c, [0]]))
@@ -62,10 +69,13 @@ def score(log, obs, skin) -> dict[str, object]:
         for e in evs:
             if not any(e.event.onset < t[b - 1] + 0.5 and e.event.release > t[a] for a, b in zip(on, off,
                                                                                            strict=True)):
-                false.append((p.name, round(e.event.onset, 2), bool(len(on))))
+                k = int(np.searchsorted(t, e.event.onset))
+                near = any_touch[max(k - w, 0):k + 1].any()  # another patch touched then (or just before)
+                false.append((p.name, round(e.event.onset, 2), bool(len(on)), bool(near)))
     return {"touches": len(lat) + len(missed), "found": len(lat), "missed": missed,
             "false_on_touched": sum(1 for f in false if f[2]),
-            "events_on_untouched": sum(1 for f in false if not f[2]), "false": false[:20],
+            "events_on_untouched": sum(1 for f in false if not f[2]),
+            "false_near_touch": sum(1 for f in false if f[3]), "false": false[:20],
             "latencies": lat, "pos_err": pos_err, "pos_none": pos_none}
 
 
@@ -113,6 +123,7 @@ def main() -> None:
            "touches": sum(r["touches"] for r in runs), "found": sum(r["found"] for r in runs),
            "false_on_touched": sum(r["false_on_touched"] for r in runs),
            "events_on_untouched": sum(r["events_on_untouched"] for r in runs),
+           "false_near_touch": sum(r["false_near_touch"] for r in runs),
            "latency_median_s": float(np.median(lat)) if lat else None,
            "latency_p90_s": float(np.quantile(lat, 0.9)) if lat else None,
            "position_rms_share_of_length": float(np.sqrt(np.mean(np.square(err)))) if err else None,
