@@ -223,6 +223,34 @@ def test_stop_request_by_real_signals() -> None:
         assert signal.getsignal(sig) is not stop._handle  # the previous handler is back
 
 
+_SIGINT_IN_A_WRITE = """
+import os, signal, sys, threading, time
+import numpy as np
+from thermoskin.runtime.stopping import StopRequest
+stop = StopRequest().install()  # as `thermoskin run` does, before any log library is imported
+from thermoskin.logio import LogWriter
+cols = {f"c{i}": np.random.default_rng(i).random(400_000) for i in range(8)}
+threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+t0 = time.monotonic()
+with LogWriter(sys.argv[1], list(cols)) as w:  # polars writes the CSV, for about a second
+    while time.monotonic() - t0 < 1.0:
+        w.write(cols)
+        w.flush()
+print("stopped" if stop.is_set() else "not stopped")
+"""
+
+
+def test_sigint_inside_a_log_write_only_asks_to_stop(tmp_path: Path) -> None:
+    """A SIGINT that comes while polars is writing the log (it installs a SIGINT handler of
+    its own on import and raises KeyboardInterrupt from inside its calls) only sets the stop
+    flag, as anywhere else: `run` then stops the clean way. A fresh interpreter, since the
+    order of the imports is the point (before the fix: KeyboardInterrupt from
+    ``write_csv``, about once in twenty runs of `run` under load; here every time)."""
+    r = subprocess.run([sys.executable, "-c", _SIGINT_IN_A_WRITE, str(tmp_path / "big.csv")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stdout.strip() == "stopped", r.stderr[-2000:]
+
+
 def test_stopped_run_scores_only_what_it_could_see() -> None:
     """Touches scripted after the stop, or cut by it before any detection, are not misses."""
     from thermoskin.evaluation import match_events

@@ -9,6 +9,15 @@ exits with ``128 + signal number`` (130 SIGINT, 143 SIGTERM, 129 SIGHUP). Nothin
 raised asynchronously, so no write is torn. A second signal raises
 ``KeyboardInterrupt`` (the impatient user's way out; the recording is still closed by
 its ``finally``).
+
+Two of the log libraries interrupt their own calls on SIGINT, below Python's handler:
+polars installs a handler of its own when it is imported (chained to the one there
+before) and raises ``KeyboardInterrupt`` from any call under way, and pyarrow cancels a
+long read (``ArrowCancelled``). Either would end a run through an exception instead of this
+flag, without the safe-state report, whenever the signal came during a log write (seen
+about once in twenty runs under load). So :meth:`StopRequest.install` imports polars first,
+so that the handler it then installs replaces polars' (Python's ``signal.signal`` sets the
+process's action), and turns pyarrow's interruption off until :meth:`StopRequest.restore`.
 """
 
 from __future__ import annotations
@@ -53,14 +62,18 @@ class StopRequest:
         self.set(signum)
 
     def install(self) -> StopRequest:
-        """Take SIGINT, SIGTERM and SIGHUP (main thread only; elsewhere a no-op)."""
+        """Take SIGINT, SIGTERM and SIGHUP (main thread only; elsewhere a no-op), from the
+        log libraries too (module doc)."""
         if threading.current_thread() is threading.main_thread():
+            _quiet_libraries(True)
             for sig in SIGNALS:
                 self._previous[sig] = signal.signal(sig, self._handle)
         return self
 
     def restore(self) -> None:
         """Put the previous handlers back."""
+        if self._previous:
+            _quiet_libraries(False)
         for sig, prev in self._previous.items():
             signal.signal(sig, prev if prev is not None else signal.SIG_DFL)
         self._previous.clear()
@@ -70,3 +83,13 @@ class StopRequest:
 
     def __exit__(self, *exc: object) -> None:
         self.restore()
+
+
+def _quiet_libraries(quiet: bool) -> None:
+    """Keep polars and pyarrow from interrupting their own calls on SIGINT (module doc):
+    polars imported before the handlers are set (its own is set on import), pyarrow's
+    interruption off while ``quiet``."""
+    import polars  # noqa: F401  (its SIGINT handler, set on import, is then replaced by ours)
+    import pyarrow
+
+    pyarrow.enable_signal_handlers(not quiet)
