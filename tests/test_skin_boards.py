@@ -142,3 +142,45 @@ def test_a_skin_log_without_fresh_bits_is_read_from_its_values(tmp_path: Path) -
     cols = read_skin_log(tmp_path / "f.csv", fast).cols
     bits = SkinFreshInference(fast).feed({k: v for k, v in cols.items() if k != "fresh"})
     assert ((bits[SkinFreshInference.DECIDE_ROWS:] & 7) == 7).all()  # 1 kHz: every sample a reading
+
+
+def test_flow_noise_only_while_the_pump_runs() -> None:
+    """``estimator.S_w_flow`` adds process noise on the pipe node in the pumping rows only: the
+    added covariance is ``int_0^t_s e^{As} dS e^{A's} ds``, here by quadrature (scipy's
+    ``quad_vec``) against the tables' Van Loan block exponential; the still rows are unchanged."""
+    from scipy.integrate import quad_vec
+    from scipy.linalg import expm
+
+    from thermoskin.estimation.model import I_TW, R_w_of, build_tables, patch_matrices
+
+    cfg = load_config()
+    x = 0.3
+    t_s = cfg.sampling.t_s
+    v_on = cfg.pump.v_on
+    base = build_tables(cfg, t_s, (0.0, v_on))
+    flow = build_tables(cfg.replace(estimator={"S_w_flow": x}), t_s, (0.0, v_on))
+    for Q0, Q1 in ((base.Q, flow.Q), (base.Q_idle, flow.Q_idle)):
+        np.testing.assert_array_equal(Q1[0], Q0[0])  # the pump stands still: nothing comes in
+        A = patch_matrices(cfg, R_w_of(v_on, cfg.skin))[0]
+        dS = np.zeros_like(A)
+        dS[I_TW, I_TW] = x
+        want = quad_vec(lambda s, A=A, dS=dS: expm(A * s) @ dS @ expm(A * s).T, 0.0, t_s, epsabs=1e-16)[0]
+        np.testing.assert_allclose(Q1[1] - Q0[1], want, rtol=1e-6, atol=1e-15)
+        assert want[I_TW, I_TW] > 0.9 * x * t_s
+    np.testing.assert_array_equal(flow.Phi, base.Phi)
+
+
+def test_a_skin_lets_its_pipe_node_go_by_its_boards_period() -> None:
+    """A skin patch's ``S_w_flow`` is ``FLOW_NOISE * period^1.5`` of its boards (0 for boards
+    read every sample); a larger value the user's config sets is kept."""
+    from thermoskin.skin_observe import FLOW_NOISE, patch_config
+
+    path = ROOT / "examples" / "forearm.toml"
+    every = load_skin(path)
+    slow = load_skin(path, every.cfg.replace(sensor=BOARDS_10HZ))
+    mine = load_skin(path, every.cfg.replace(sensor=BOARDS_10HZ, estimator={"S_w_flow": 5.0}))
+    for i in range(len(every.patches)):
+        assert patch_config(every, i).estimator.S_w_flow == 0.0
+        assert patch_config(slow, i).estimator.S_w_flow == FLOW_NOISE * 0.1**1.5
+        assert patch_config(mine, i).estimator.S_w_flow == 5.0
+    assert load_config().estimator.S_w_flow == 0.0  # the paper's single patch: unchanged

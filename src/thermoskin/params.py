@@ -149,6 +149,10 @@ class EstimatorParams(_Validated):
     S_a: float = _p(1e-3, "K^2/s", 1e-12, 1e6,
                     doc="random-walk density of the ambient temperature T_a")
     S_w: float = _p(1e-8, "K^2/s", 0.0, 1e6, doc="model error on the pipe node")
+    S_w_flow: float = _p(0.0, "K^2/s", 0.0, 1e6,
+                         doc="more model error on the pipe node while the pump runs: water comes in "
+                             "whose temperature the inlet's thermocouple, read only now and then, "
+                             "has not seen (a skin sets it from its boards' period, docs/skin.md)")
     switch_bins: int = _p(0, "samples", 0, 64,
                           doc="pump-cycle correction of T_w: the mean no-touch misfit per sample "
                               "since the last pump switch, this many bins per direction (a pipe "

@@ -16,7 +16,8 @@ estimated with ``drive = 0``: ``r_p`` then carries the whole rate (a constant-ve
 
 ``q_i`` is the paper's touch heat (``q_i`` of Fig. 3), so the estimate is of the heat the
 touch brings to the sheet, not of its share that reaches the pipe. ``w`` is white process
-noise with spectral densities ``S`` (``w_w`` for model error on the pipe node, ``S_w``).
+noise with spectral densities ``S`` (``w_w`` for model error on the pipe node, ``S_w``; while
+the pump runs ``S_w + S_w_flow``).
 
 Each sample the state is advanced over ``t_s`` with ``v`` and ``T_a`` held (zero-order hold),
 exactly (Van Loan, *Computing integrals involving the matrix exponential*, 1978)::
@@ -155,10 +156,15 @@ def build_tables(cfg: Config, t_s: float, v_values: tuple[float, ...] | list[flo
     Gam = np.empty((len(vs), NX, 2))
     Q = np.empty((len(vs), NX, NX))
     Q_idle = np.empty((len(vs), NX, NX))
+    flow = cfg.estimator.S_w_flow
     for i, v in enumerate(vs):
         A, B, S = patch_matrices(cfg, R_w_of(v, cfg.skin))
+        if v > 0.0:  # water flowing in: the pipe node's own extra noise (estimator.S_w_flow)
+            S[I_TW, I_TW] += flow
         Phi[i], Gam[i], Q[i] = van_loan(A, B, S, t_s)
         A, B, S = patch_matrices(cfg, R_w_of(v, cfg.skin), cfg.estimator.S_q_idle)
+        if v > 0.0:
+            S[I_TW, I_TW] += flow
         Q_idle[i] = van_loan(A, B, S, t_s)[2]
     # q_i and r_p are random walks: their rows of Phi are unit rows and of Gamma zero, up to
     # the matrix exponential's rounding; made exact (the kernel relies on it)
