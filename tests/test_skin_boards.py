@@ -59,6 +59,11 @@ def test_slow_boards_are_warned_about_as_measured() -> None:
     assert "false alarms" in board_warnings(forearm, 100.0)[0]
     assert "missed" in board_warnings(single, 10.0)[0]
     assert board_warnings(forearm, 0.0) == []  # no rate known: nothing said
+    # a config that does not describe the boards is told what to set; one that does is not
+    assert "set it to 0.1 s" in board_warnings(forearm, 10.0)[0]
+    ten = load_skin(ROOT / "examples" / "forearm.toml", load_config().replace(sensor=BOARDS_10HZ))
+    (w,) = board_warnings(ten, 10.0)
+    assert "period_T_w" not in w
 
 
 def test_the_boards_rate_is_read_from_the_log(tmp_path: Path) -> None:

@@ -109,7 +109,9 @@ heat of the position fit (W)."""
 
 def board_warnings(skin: Skin, rate_hz: float) -> list[str]:
     """What detection on ``skin`` is worth with its pipe thermocouples read ``rate_hz`` times a
-    second (measured: :data:`PIPED_BOARDS_HZ`, :data:`TANK_FED_BOARDS_HZ`): one line, or none."""
+    second (measured: :data:`PIPED_BOARDS_HZ`, :data:`TANK_FED_BOARDS_HZ`): one line, or none;
+    where the config's boards (``sensor.period_T_w``, which sets :data:`FLOW_NOISE`'s share) are
+    not these, the line says what to set."""
     piped = [skin.patches[i].name for i in range(len(skin.patches)) if not tank_fed(skin, i)]
     need = PIPED_BOARDS_HZ if piped else TANK_FED_BOARDS_HZ
     if not (rate_hz > 0.0) or rate_hz >= 0.95 * need:  # 5 %: a board's jitter and the count's edges
@@ -121,6 +123,10 @@ def board_warnings(skin: Skin, rate_hz: float) -> list[str]:
     else:
         why = (f"a patch fed from its tank found every touch on boards of {need:.0f} Hz and faster: "
                "expect late or missed touches")
+    period = skin.cfg.sensor.period_T_w
+    if abs(period * rate_hz - 1.0) > 0.3:  # the config does not describe these boards
+        why += (f"; [sensor] period_T_w is {period:g} s in the config: set it to {1.0 / rate_hz:.3g} s, so "
+                "that the estimator lets the pipe node go while the pump runs (fewer false alarms)")
     return [f"the pipe thermocouples give about {rate_hz:.0f} readings a second: {why} (docs/skin.md, "
             "On slow thermocouple boards)"]
 
