@@ -176,8 +176,9 @@ def test_flow_noise_only_while_the_pump_runs() -> None:
 
 
 def test_a_skin_lets_its_pipe_node_go_by_its_boards_period() -> None:
-    """A skin patch's ``S_w_flow`` is ``FLOW_NOISE * period^1.5`` of its boards (0 for boards
-    read every sample); a larger value the user's config sets is kept."""
+    """A skin patch fed through a pipe has ``S_w_flow`` = ``FLOW_NOISE * period^1.5`` of its
+    boards (0 for boards read every sample), a patch fed from its tank none; a larger value the
+    user's config sets is kept."""
     from thermoskin.skin_observe import FLOW_NOISE, patch_config
 
     path = ROOT / "examples" / "forearm.toml"
@@ -189,3 +190,5 @@ def test_a_skin_lets_its_pipe_node_go_by_its_boards_period() -> None:
         assert patch_config(slow, i).estimator.S_w_flow == FLOW_NOISE * 0.1**1.5
         assert patch_config(mine, i).estimator.S_w_flow == 5.0
     assert load_config().estimator.S_w_flow == 0.0  # the paper's single patch: unchanged
+    single = load_skin(ROOT / "examples" / "single.toml", load_config().replace(sensor=BOARDS_10HZ))
+    assert patch_config(single, 0).estimator.S_w_flow == 0.0  # fed from its tank
