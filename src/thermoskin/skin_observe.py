@@ -95,8 +95,8 @@ touch of 54 and added a false alarm (docs/skin.md)."""
 PIPED_BOARDS_HZ = 1000.0
 """A skin whose patches are fed through pipes (``forearm.toml``) found every touch with no false
 alarm on thermocouple boards of this rate (fresh every 1 ms sample); on 500 Hz boards it found
-108 of 108 with 3 false alarms, on 200 Hz boards 108 with 16, on 100 Hz 99 with 128
-(``benchmarks/skin_detection.py --rate``, docs/skin.md)."""
+108 of 108 with 2 false alarms, on 200 Hz boards 106 with 1, on 100 Hz 90 with 23, on 10 Hz 74
+with 81 (``benchmarks/skin_detection.py --rate``, with :data:`FLOW_NOISE`; docs/skin.md)."""
 TANK_FED_BOARDS_HZ = 200.0
 """A skin whose patches are all fed straight from their tanks (``single.toml``) found every touch
 on boards of this rate and faster; on 100 Hz boards 11 of 12, on 50 Hz 9 (the same benchmark)."""
