@@ -59,9 +59,11 @@ def test_slow_boards_are_warned_about_as_measured() -> None:
     assert "false alarms" in board_warnings(forearm, 100.0)[0]
     assert "missed" in board_warnings(single, 10.0)[0]
     assert board_warnings(forearm, 0.0) == []  # no rate known: nothing said
-    # a config that does not describe the boards is told what to set; one that does is not
-    assert "set it to 0.1 s" in board_warnings(forearm, 10.0)[0]
+    # no boards in the config: their period was read from the log; other boards: what to set;
+    # the boards the log shows: nothing more
+    assert "took the boards' period, 0.1 s, from the log" in board_warnings(forearm, 10.0)[0]
     ten = load_skin(ROOT / "examples" / "forearm.toml", load_config().replace(sensor=BOARDS_10HZ))
+    assert "set it to 0.01 s" in board_warnings(ten, 100.0)[0]
     (w,) = board_warnings(ten, 10.0)
     assert "period_T_w" not in w
 
@@ -192,3 +194,29 @@ def test_a_skin_lets_its_pipe_node_go_by_its_boards_period() -> None:
     assert load_config().estimator.S_w_flow == 0.0  # the paper's single patch: unchanged
     single = load_skin(ROOT / "examples" / "single.toml", load_config().replace(sensor=BOARDS_10HZ))
     assert patch_config(single, 0).estimator.S_w_flow == 0.0  # fed from its tank
+
+
+def test_observe_takes_the_boards_period_from_the_log(tmp_path: Path) -> None:
+    """`observe --skin` with a config that gives no boards reads their period from the log (10 Hz
+    boards with 3 ms of jitter: 0.1 s) and models them as the run did with the config that gave
+    them: the same contacts on the same patches, detected at the same readings."""
+    from thermoskin.physics.finger import Touch
+    from thermoskin.sim.skin_scenarios import SkinContact
+    from thermoskin.skin_observe import log_boards_period, observe_skin
+
+    path = ROOT / "examples" / "forearm.toml"
+    skin10 = load_skin(path, load_config().replace(sensor=BOARDS_10HZ))
+    skin0 = load_skin(path, load_config())
+    base = Scenario("touch", "two touches", duration=24.0, T_w_cmd=24.0, T_a=20.0, pump="logic")
+    contacts = tuple(SkinContact(Touch(t_on=t, duration=2.5, n_fingers=3, person="man1"), patch=name,
+                                 position=0.015) for t, name in ((12.0, "dorsal2"), (18.0, "ventral2")))
+    run_skin(skin10, SkinScenario("touch", "two touches", base, contacts), tmp_path / "s.parquet")
+    log = read_skin_log(tmp_path / "s.parquet", skin10)
+    period = log_boards_period(log, skin0, log.t_s)
+    assert period is not None and abs(period - 0.1) < 0.003
+    assert log_boards_period(log, skin10, log.t_s) is None  # the config's, as the live loop took it
+    a = observe_skin(log, skin10, locate=False)
+    b = observe_skin(log, skin0, locate=False)
+    assert a.events and [(e.name, e.event.detected_at) for e in a.events] == \
+        [(e.name, e.event.detected_at) for e in b.events]
+    assert "from the log" in b.warnings[0]

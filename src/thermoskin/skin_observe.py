@@ -112,7 +112,8 @@ def board_warnings(skin: Skin, rate_hz: float) -> list[str]:
     """What detection on ``skin`` is worth with its pipe thermocouples read ``rate_hz`` times a
     second (measured: :data:`PIPED_BOARDS_HZ`, :data:`TANK_FED_BOARDS_HZ`): one line, or none;
     where the config's boards (``sensor.period_T_w``, which sets :data:`FLOW_NOISE`'s share) are
-    not these, the line says what to set."""
+    not these, the line says what to set (none given: the period was read from the log,
+    :func:`log_boards_period`)."""
     piped = [skin.patches[i].name for i in range(len(skin.patches)) if not tank_fed(skin, i)]
     need = PIPED_BOARDS_HZ if piped else TANK_FED_BOARDS_HZ
     if not (rate_hz > 0.0) or rate_hz >= 0.95 * need:  # 5 %: a board's jitter and the count's edges
@@ -125,9 +126,12 @@ def board_warnings(skin: Skin, rate_hz: float) -> list[str]:
         why = (f"a patch fed from its tank found every touch on boards of {need:.0f} Hz and faster: "
                "expect late or missed touches")
     period = skin.cfg.sensor.period_T_w
-    if abs(period * rate_hz - 1.0) > 0.3:  # the config does not describe these boards
+    if period == 0.0:  # the config says nothing of the boards: observe_skin read them from the log
+        why += (f"; the estimator took the boards' period, {1.0 / rate_hz:.3g} s, from the log "
+                "([sensor] period_T_w)")
+    elif abs(period * rate_hz - 1.0) > 0.3:  # the config describes other boards
         why += (f"; [sensor] period_T_w is {period:g} s in the config: set it to {1.0 / rate_hz:.3g} s, so "
-                "that the estimator lets the pipe node go while the pump runs (fewer false alarms)")
+                "that the estimator lets the pipe node go while the pump runs as these boards need")
     return [f"the pipe thermocouples give about {rate_hz:.0f} readings a second: {why} (docs/skin.md, "
             "On slow thermocouple boards)"]
 
@@ -138,9 +142,10 @@ def tank_fed(skin: Skin, i: int) -> bool:
     return lp.patches[0] == i and lp.pipes[0].length == 0.0
 
 
-def patch_config(skin: Skin, i: int) -> Config:
+def patch_config(skin: Skin, i: int, boards_period: float | None = None) -> Config:
     """The estimator's config of patch ``i``: its loop's config, its own network, the skin's
-    noise (module doc)."""
+    noise (module doc); ``boards_period``: the pipe thermocouples' period, s (default: the
+    config's ``sensor.period_T_w``), which sets :data:`FLOW_NOISE`'s share."""
     p = skin.patches[i]
     lc = skin.loops[p.loop].cfg
     net = {k: getattr(p.skin, k) for k in NETWORK_KEYS}
@@ -148,7 +153,8 @@ def patch_config(skin: Skin, i: int) -> Config:
     if tank_fed(skin, i):  # its inlet is the tank's own reading: no unseen water (FLOW_NOISE)
         own = dict(TANK_FED_ESTIMATOR)
     else:
-        own = dict(SKIN_ESTIMATOR, S_w_flow=FLOW_NOISE * cfg.sensor.period_T_w ** 1.5)
+        period = cfg.sensor.period_T_w if boards_period is None else boards_period
+        own = dict(SKIN_ESTIMATOR, S_w_flow=FLOW_NOISE * period ** 1.5)
     es = {k: max(v, getattr(cfg.estimator, k)) for k, v in own.items()}
     de = {k: max(v, getattr(cfg.detector, k)) for k, v in SKIN_DETECTOR.items()}
     de["onset_state_jump"] = SKIN_ONSET_STATE_JUMP
@@ -298,6 +304,70 @@ class SkinBlock:
     its values where it has none (:class:`SkinFreshInference`)."""
 
 
+class ReadingCounter:
+    """New ``T_w`` readings a second over the patches of a skin, from their fresh bits block by
+    block: one over the mean interval between a patch's readings (over every patch; 0 before
+    there are 20), of the intervals within a row of their median. A reading equal to the one
+    before it, missed where a log has no bits, doubles a few intervals, which fall outside; a
+    board between two sample rates (700 Hz: 1 and 2 rows apart) is averaged."""
+
+    BINS = 4096
+    """Intervals between readings counted up to this many rows (longer ones in the last bin)."""
+
+    def __init__(self, n_patches: int, t_s: float) -> None:
+        self.P, self.t_s = n_patches, float(t_s)
+        self._rows = 0
+        self._last_read = np.full(n_patches, -1, dtype=np.int64)  # each patch's last reading (row)
+        self._gaps = np.zeros(self.BINS, dtype=np.int64)  # rows between readings, all patches
+
+    def count(self, fresh: NDArray[np.int64]) -> None:
+        """Count the readings (bit 1) of the next ``(m, P)`` block of fresh bits."""
+        m = len(fresh)
+        k0 = self._rows
+        self._rows = k0 + m
+        for i in range(self.P):
+            rows = k0 + np.flatnonzero(fresh[:, i] & 1)
+            if not len(rows):
+                continue
+            prev = self._last_read[i]
+            gaps = np.diff(rows) if prev < 0 else np.diff(np.concatenate(([prev], rows)))
+            np.add.at(self._gaps, np.minimum(gaps, self.BINS - 1), 1)
+            self._last_read[i] = rows[-1]
+
+    @property
+    def rate(self) -> float:
+        """Readings a second so far (class doc)."""
+        n = int(self._gaps.sum())
+        if n < 20:
+            return 0.0
+        med = int(np.searchsorted(np.cumsum(self._gaps), 0.5 * n))  # bin j: j rows apart
+        j = np.arange(max(med - 1, 1), min(med + 2, self.BINS))  # its neighbours: a board
+        w = self._gaps[j]                                        # between two sample rates
+        return 1.0 / (float((j * w).sum()) / float(w.sum()) * self.t_s)
+
+
+def log_fresh(cols: Mapping[str, Array], skin: Skin, last: dict[str, Array] | None = None,
+              infer: SkinFreshInference | None = None) -> NDArray[np.int64]:
+    """A block's fresh bits ``(m, P)``: the log's own column with the changes of its values
+    (:func:`fresh_with_changes`), or, without the column, inferred (``infer``, or a new
+    :class:`SkinFreshInference`) from the values."""
+    if "fresh" in cols:
+        return fresh_with_changes(cols, skin, cols["fresh"], last)
+    return (infer or SkinFreshInference(skin)).feed(cols)
+
+
+def log_boards_period(log: SkinLog, skin: Skin, t_s: float) -> float | None:
+    """The pipe thermocouples' period read from ``log`` (s) where the config gives none
+    (``sensor.period_T_w`` 0) and the log's boards are slower than its rows; else None (the
+    config's, as the live loop takes it)."""
+    if skin.cfg.sensor.period_T_w != 0.0:
+        return None
+    rc = ReadingCounter(len(skin.patches), t_s)
+    rc.count(log_fresh(log.cols, skin))
+    r = rc.rate
+    return 1.0 / r if 0.0 < r < 0.95 / t_s else None
+
+
 class SkinEstimator:
     """Every patch of ``skin`` estimated and its contacts detected, block by block (module doc).
 
@@ -306,13 +376,15 @@ class SkinEstimator:
     :attr:`events` collects the finished contacts ``(patch, ContactEvent)`` in the order they end.
     """
 
-    def __init__(self, skin: Skin, t_s: float) -> None:
+    def __init__(self, skin: Skin, t_s: float, boards_period: float | None = None) -> None:
+        """``boards_period``: the pipe thermocouples' period (s) where not the config's
+        (:func:`log_boards_period`)."""
         from thermoskin.pipeline import check_interval
 
         check_interval(t_s)
         self.skin, self.t_s = skin, float(t_s)
         self.P = len(skin.patches)
-        cfgs = [patch_config(skin, i) for i in range(self.P)]
+        cfgs = [patch_config(skin, i, boards_period) for i in range(self.P)]
         self.est = PatchEstimators(cfgs, t_s=self.t_s, parallel=False)
         self.inlet = InletStream(skin, self.t_s)
         self.transport = TransportCorrection(skin, self.t_s, [c.skin for c in cfgs],
@@ -322,39 +394,12 @@ class SkinEstimator:
         self._patch = np.zeros(0, dtype=np.int64)
         self._last: dict[str, Array] = {}  # each thermocouple column's last row, for its fresh bits
         self._infer = SkinFreshInference(skin)  # a log without its fresh column
-        self._rows = 0
-        self._last_read = np.full(self.P, -1, dtype=np.int64)  # each patch's last T_w reading (row)
-        self._gaps = np.zeros(self.GAP_BINS, dtype=np.int64)  # rows between readings, all patches
-
-    GAP_BINS = 4096
-    """Intervals between readings counted up to this many rows (longer ones in the last bin)."""
+        self._readings = ReadingCounter(self.P, self.t_s)
 
     @property
     def reading_rate(self) -> float:
-        """New ``T_w`` readings a second so far: one over the mean interval between a patch's
-        readings (over every patch; 0 before there are 20), of the intervals within a row of their
-        median. A reading equal to the one before it, missed where a log has no bits, doubles a
-        few intervals, which fall outside; a board between two sample rates (700 Hz: 1 and 2 rows
-        apart) is averaged."""
-        n = int(self._gaps.sum())
-        if n < 20:
-            return 0.0
-        med = int(np.searchsorted(np.cumsum(self._gaps), 0.5 * n))  # bin j: j rows apart
-        j = np.arange(max(med - 1, 1), min(med + 2, self.GAP_BINS))  # its neighbours: a board
-        w = self._gaps[j]                                            # between two sample rates
-        return 1.0 / (float((j * w).sum()) / float(w.sum()) * self.t_s)
-
-    def _count_readings(self, fresh: NDArray[np.int64], m: int) -> None:
-        k0 = self._rows
-        self._rows = k0 + m
-        for i in range(self.P):
-            rows = k0 + np.flatnonzero(fresh[:, i] & 1)
-            if not len(rows):
-                continue
-            prev = self._last_read[i]
-            gaps = np.diff(rows) if prev < 0 else np.diff(np.concatenate(([prev], rows)))
-            np.add.at(self._gaps, np.minimum(gaps, self.GAP_BINS - 1), 1)
-            self._last_read[i] = rows[-1]
+        """New ``T_w`` readings a second so far (:class:`ReadingCounter`)."""
+        return self._readings.rate
 
     @property
     def events(self) -> list[tuple[int, ContactEvent]]:
@@ -363,9 +408,8 @@ class SkinEstimator:
     def block(self, t: Array, cols: Mapping[str, Array]) -> SkinBlock:
         """Estimate the next block (class doc)."""
         m, P = len(t), self.P
-        fresh = (fresh_with_changes(cols, self.skin, cols["fresh"], self._last)
-                 if "fresh" in cols else self._infer.feed(cols))
-        self._count_readings(fresh, m)
+        fresh = log_fresh(cols, self.skin, self._last, self._infer)
+        self._readings.count(fresh)
         T_in, fr = self.inlet.push(block_thermocouples(cols, self.skin), cols["T_p"], cols["v"],
                                    cols["T_a"], fresh)
         if len(self._patch) < m * P:
@@ -412,7 +456,8 @@ class SkinEstimator:
 def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObservation:
     """Estimate, detect and locate on every patch of ``skin`` over ``log`` (module doc): the
     :class:`SkinEstimator` fed the whole log as one block."""
-    est = SkinEstimator(skin, loop_t_s(log.t_s, skin))
+    t_s = loop_t_s(log.t_s, skin)
+    est = SkinEstimator(skin, t_s, log_boards_period(log, skin, t_s))
     b = est.block(log.t, log.cols)
     est.finish(float(log.t[-1]))
     out, T_in, fr, fresh = b.columns, b.T_in, b.fresh_in, b.fresh
