@@ -13,6 +13,7 @@ import itertools
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from thermoskin.params import load_config
 from thermoskin.runtime.skin_loop import run_skin
@@ -61,7 +62,9 @@ def test_slow_boards_are_warned_about_as_measured() -> None:
     assert board_warnings(forearm, 0.0) == []  # no rate known: nothing said
     # no boards in the config: their period was read from the log; other boards: what to set;
     # the boards the log shows: nothing more
-    assert "took the boards' period, 0.1 s, from the log" in board_warnings(forearm, 10.0)[0]
+    assert "took the boards' period, 0.1 s, from the log" in board_warnings(forearm, 10.0, 0.1)[0]
+    assert "set it to 0.1 s" in board_warnings(forearm, 10.0)[0]  # the config's: every sample
+    assert "period" not in board_warnings(single, 10.0, 0.1)[0]  # a tank-fed patch: not used
     ten = load_skin(ROOT / "examples" / "forearm.toml", load_config().replace(sensor=BOARDS_10HZ))
     assert "set it to 0.01 s" in board_warnings(ten, 100.0)[0]
     (w,) = board_warnings(ten, 10.0)
@@ -187,10 +190,19 @@ def test_a_skin_lets_its_pipe_node_go_by_its_boards_period() -> None:
     every = load_skin(path)
     slow = load_skin(path, every.cfg.replace(sensor=BOARDS_10HZ))
     mine = load_skin(path, every.cfg.replace(sensor=BOARDS_10HZ, estimator={"S_w_flow": 5.0}))
+    loop_rate = load_skin(path, every.cfg.replace(sensor={"period_T_w": 0.001, "period_T_p": 0.001}))
+    tank_slow = load_skin(path, every.cfg.replace(sensor={"period_T_p": 0.1}))  # the tank's board only
+    firsts = {lp.patches[0] for lp in every.loops}
     for i in range(len(every.patches)):
         assert patch_config(every, i).estimator.S_w_flow == 0.0
+        assert patch_config(loop_rate, i).estimator.S_w_flow == 0.0  # read every sample: none
         assert patch_config(slow, i).estimator.S_w_flow == FLOW_NOISE * 0.1**1.5
         assert patch_config(mine, i).estimator.S_w_flow == 5.0
+        # the board that reads the patch's inlet: the tank's for the first patch of a loop
+        assert (patch_config(tank_slow, i).estimator.S_w_flow > 0.0) == (i in firsts)
+        assert patch_config(every, i, 0.1).estimator.S_w_flow == FLOW_NOISE * 0.1**1.5
+    with pytest.raises(ValueError, match="boards_period"):
+        patch_config(every, 1, -0.1)
     assert load_config().estimator.S_w_flow == 0.0  # the paper's single patch: unchanged
     single = load_skin(ROOT / "examples" / "single.toml", load_config().replace(sensor=BOARDS_10HZ))
     assert patch_config(single, 0).estimator.S_w_flow == 0.0  # fed from its tank

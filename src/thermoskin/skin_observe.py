@@ -75,10 +75,11 @@ TANK_FED_ESTIMATOR = {"S_w": 3e-4, "S_p": 100.0, "switch_bins": 64}
 misfit is locked to the pump's cycle, which the pump-cycle correction learns (``switch_bins``,
 module doc), so the pipe node needs ten times less noise."""
 FLOW_NOISE = 14.0
-"""``estimator.S_w_flow`` of a skin patch, K^2/s per s^1.5 of its boards' period
-(``sensor.period_T_w``): ``FLOW_NOISE * period^1.5`` (0 for boards read every sample). Between
-two readings of the thermocouple upstream, the water the pump brings in was not seen; the pipe
-node is then let go while the pump runs, not while it stands still, when a touch shows best.
+"""``estimator.S_w_flow`` of a skin patch fed through a pipe, K^2/s per s^1.5 of the period of
+the board that reads its inlet (:func:`patch_config`): ``FLOW_NOISE * period^1.5`` (0 for boards
+read at least every 1.5 samples). Between two readings of the thermocouple upstream, the water
+the pump brings in was not seen; the pipe node is then let go while the pump runs, not while it
+stands still, when a touch shows best.
 Fitted to the trade of touches found against false alarms on ``forearm.toml`` (docs/skin.md,
 On slow thermocouple boards): at 200 Hz 106 of 108 found with 1 false alarm (16 without), at
 10 Hz 74 with 81 (75 with 330). Not for a patch fed straight from its tank (it had no false
@@ -108,12 +109,12 @@ the position along its pipe and its sd (m from the inlet; empty where not identi
 heat of the position fit (W)."""
 
 
-def board_warnings(skin: Skin, rate_hz: float) -> list[str]:
+def board_warnings(skin: Skin, rate_hz: float, log_period: float | None = None) -> list[str]:
     """What detection on ``skin`` is worth with its pipe thermocouples read ``rate_hz`` times a
-    second (measured: :data:`PIPED_BOARDS_HZ`, :data:`TANK_FED_BOARDS_HZ`): one line, or none;
-    where the config's boards (``sensor.period_T_w``, which sets :data:`FLOW_NOISE`'s share) are
-    not these, the line says what to set (none given: the period was read from the log,
-    :func:`log_boards_period`)."""
+    second (measured: :data:`PIPED_BOARDS_HZ`, :data:`TANK_FED_BOARDS_HZ`): one line, or none.
+    For a skin with patches fed through pipes (:data:`FLOW_NOISE`) the line also says where the
+    boards' period came from: ``log_period``, read from the log (:func:`log_boards_period`), or
+    what to set where the config's boards (``sensor.period_T_w``) are not these."""
     piped = [skin.patches[i].name for i in range(len(skin.patches)) if not tank_fed(skin, i)]
     need = PIPED_BOARDS_HZ if piped else TANK_FED_BOARDS_HZ
     if not (rate_hz > 0.0) or rate_hz >= 0.95 * need:  # 5 %: a board's jitter and the count's edges
@@ -125,13 +126,14 @@ def board_warnings(skin: Skin, rate_hz: float) -> list[str]:
     else:
         why = (f"a patch fed from its tank found every touch on boards of {need:.0f} Hz and faster: "
                "expect late or missed touches")
-    period = skin.cfg.sensor.period_T_w
-    if period == 0.0:  # the config says nothing of the boards: observe_skin read them from the log
-        why += (f"; the estimator took the boards' period, {1.0 / rate_hz:.3g} s, from the log "
+    period = max(skin.cfg.sensor.period_T_w, skin.cfg.sampling.t_s)  # 0: every sample
+    if piped and log_period is not None:
+        why += (f"; the estimator took the boards' period, {log_period:.3g} s, from the log "
                 "([sensor] period_T_w)")
-    elif abs(period * rate_hz - 1.0) > 0.3:  # the config describes other boards
-        why += (f"; [sensor] period_T_w is {period:g} s in the config: set it to {1.0 / rate_hz:.3g} s, so "
-                "that the estimator lets the pipe node go while the pump runs as these boards need")
+    elif piped and abs(period * rate_hz - 1.0) > 0.3:  # the config describes other boards
+        why += (f"; [sensor] period_T_w is {skin.cfg.sensor.period_T_w:g} s in the config: set it to "
+                f"{1.0 / rate_hz:.3g} s, so that the estimator lets the pipe node go while the pump runs "
+                "as these boards need")
     return [f"the pipe thermocouples give about {rate_hz:.0f} readings a second: {why} (docs/skin.md, "
             "On slow thermocouple boards)"]
 
@@ -144,8 +146,12 @@ def tank_fed(skin: Skin, i: int) -> bool:
 
 def patch_config(skin: Skin, i: int, boards_period: float | None = None) -> Config:
     """The estimator's config of patch ``i``: its loop's config, its own network, the skin's
-    noise (module doc); ``boards_period``: the pipe thermocouples' period, s (default: the
-    config's ``sensor.period_T_w``), which sets :data:`FLOW_NOISE`'s share."""
+    noise (module doc). :data:`FLOW_NOISE`'s share is set by the period of the board that reads
+    the patch's inlet: ``boards_period`` (s) if given, else the config's (``sensor.period_T_p``,
+    the tank's, for the first patch of a loop; ``period_T_w``, the outlet upstream, for the
+    others); none for boards read at least every 1.5 rows (at the loop's rate)."""
+    if boards_period is not None and not (math.isfinite(boards_period) and boards_period >= 0.0):
+        raise ValueError(f"boards_period = {boards_period} s must be finite and >= 0")
     p = skin.patches[i]
     lc = skin.loops[p.loop].cfg
     net = {k: getattr(p.skin, k) for k in NETWORK_KEYS}
@@ -153,8 +159,11 @@ def patch_config(skin: Skin, i: int, boards_period: float | None = None) -> Conf
     if tank_fed(skin, i):  # its inlet is the tank's own reading: no unseen water (FLOW_NOISE)
         own = dict(TANK_FED_ESTIMATOR)
     else:
-        period = cfg.sensor.period_T_w if boards_period is None else boards_period
-        own = dict(SKIN_ESTIMATOR, S_w_flow=FLOW_NOISE * period ** 1.5)
+        first = skin.loops[p.loop].patches[0] == i  # fed from the tank through its supply pipe
+        period = boards_period if boards_period is not None else (
+            cfg.sensor.period_T_p if first else cfg.sensor.period_T_w)
+        unseen = period >= 1.5 * cfg.sampling.t_s  # water comes in between two readings
+        own = dict(SKIN_ESTIMATOR, S_w_flow=FLOW_NOISE * period ** 1.5 if unseen else 0.0)
     es = {k: max(v, getattr(cfg.estimator, k)) for k, v in own.items()}
     de = {k: max(v, getattr(cfg.detector, k)) for k, v in SKIN_DETECTOR.items()}
     de["onset_state_jump"] = SKIN_ONSET_STATE_JUMP
@@ -358,14 +367,17 @@ def log_fresh(cols: Mapping[str, Array], skin: Skin, last: dict[str, Array] | No
 
 def log_boards_period(log: SkinLog, skin: Skin, t_s: float) -> float | None:
     """The pipe thermocouples' period read from ``log`` (s) where the config gives none
-    (``sensor.period_T_w`` 0) and the log's boards are slower than its rows; else None (the
-    config's, as the live loop takes it)."""
-    if skin.cfg.sensor.period_T_w != 0.0:
+    (``sensor.period_T_w`` and ``period_T_p`` 0) and the log's boards read at most every 1.5
+    rows (as :func:`patch_config` asks; a log at the loop's rate without bits, whose repeated
+    readings look like a board of 1.1-1.3 rows, is not taken for slow boards); else None (the
+    config's, as the live loop takes it). An estimate (a board's jitter): the run's own period
+    within a fraction of a percent."""
+    if skin.cfg.sensor.period_T_w != 0.0 or skin.cfg.sensor.period_T_p != 0.0:
         return None
     rc = ReadingCounter(len(skin.patches), t_s)
     rc.count(log_fresh(log.cols, skin))
     r = rc.rate
-    return 1.0 / r if 0.0 < r < 0.95 / t_s else None
+    return 1.0 / r if 0.0 < r <= 1.0 / (1.5 * t_s) else None
 
 
 class SkinEstimator:
@@ -457,7 +469,8 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
     """Estimate, detect and locate on every patch of ``skin`` over ``log`` (module doc): the
     :class:`SkinEstimator` fed the whole log as one block."""
     t_s = loop_t_s(log.t_s, skin)
-    est = SkinEstimator(skin, t_s, log_boards_period(log, skin, t_s))
+    period = log_boards_period(log, skin, t_s)
+    est = SkinEstimator(skin, t_s, period)
     b = est.block(log.t, log.cols)
     est.finish(float(log.t[-1]))
     out, T_in, fr, fresh = b.columns, b.T_in, b.fresh_in, b.fresh
@@ -478,7 +491,7 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
         events.append(SkinEvent(i, skin.patches[i].name, ev, pos))
     events.sort(key=lambda e: (e.event.onset, e.patch))
     return SkinObservation(out, events, T_in, fr, reading_rate=est.reading_rate,
-                           warnings=board_warnings(skin, est.reading_rate))
+                           warnings=board_warnings(skin, est.reading_rate, period))
 
 
 def events_columns(events: list[SkinEvent]) -> dict[str, NDArray[np.generic]]:

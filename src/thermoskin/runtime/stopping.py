@@ -17,7 +17,9 @@ long read (``ArrowCancelled``). Either would end a run through an exception inst
 flag, without the safe-state report, whenever the signal came during a log write (seen
 about once in twenty runs under load). So :meth:`StopRequest.install` imports polars first,
 so that the handler it then installs replaces polars' (Python's ``signal.signal`` sets the
-process's action), and turns pyarrow's interruption off until :meth:`StopRequest.restore`.
+process's action), and turns pyarrow's interruption off until the last :meth:`StopRequest.restore`.
+polars' handler is not put back: after a run a long polars call is interrupted only when it
+returns, as any other Python call.
 """
 
 from __future__ import annotations
@@ -85,11 +87,17 @@ class StopRequest:
         self.restore()
 
 
+_QUIET = [0]
+"""Stop requests installed now (nested ones: pyarrow's interruption back on after the last)."""
+
+
 def _quiet_libraries(quiet: bool) -> None:
     """Keep polars and pyarrow from interrupting their own calls on SIGINT (module doc):
     polars imported before the handlers are set (its own is set on import), pyarrow's
-    interruption off while ``quiet``."""
+    interruption off from the first install to the last restore."""
     import polars  # noqa: F401  (its SIGINT handler, set on import, is then replaced by ours)
     import pyarrow
 
-    pyarrow.enable_signal_handlers(not quiet)
+    _QUIET[0] += 1 if quiet else -1
+    if _QUIET[0] == (1 if quiet else 0):
+        pyarrow.enable_signal_handlers(not quiet)
