@@ -156,15 +156,12 @@ def build_tables(cfg: Config, t_s: float, v_values: tuple[float, ...] | list[flo
     Gam = np.empty((len(vs), NX, 2))
     Q = np.empty((len(vs), NX, NX))
     Q_idle = np.empty((len(vs), NX, NX))
-    flow = cfg.estimator.S_w_flow
     for i, v in enumerate(vs):
         A, B, S = patch_matrices(cfg, R_w_of(v, cfg.skin))
         if v > 0.0:  # water flowing in: the pipe node's own extra noise (estimator.S_w_flow)
-            S[I_TW, I_TW] += flow
+            S[I_TW, I_TW] += cfg.estimator.S_w_flow
         Phi[i], Gam[i], Q[i] = van_loan(A, B, S, t_s)
-        A, B, S = patch_matrices(cfg, R_w_of(v, cfg.skin), cfg.estimator.S_q_idle)
-        if v > 0.0:
-            S[I_TW, I_TW] += flow
+        S[I_Q, I_Q] = cfg.estimator.S_q_idle  # idle: only slow drift of q_i
         Q_idle[i] = van_loan(A, B, S, t_s)[2]
     # q_i and r_p are random walks: their rows of Phi are unit rows and of Gamma zero, up to
     # the matrix exponential's rounding; made exact (the kernel relies on it)

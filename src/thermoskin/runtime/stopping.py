@@ -87,7 +87,7 @@ class StopRequest:
         self.restore()
 
 
-_QUIET = [0]
+_installed = 0
 """Stop requests installed now (nested ones: pyarrow's interruption back on after the last)."""
 
 
@@ -98,6 +98,7 @@ def _quiet_libraries(quiet: bool) -> None:
     import polars  # noqa: F401  (its SIGINT handler, set on import, is then replaced by ours)
     import pyarrow
 
-    _QUIET[0] += 1 if quiet else -1
-    if _QUIET[0] == (1 if quiet else 0):
+    global _installed
+    _installed += 1 if quiet else -1
+    if _installed == (1 if quiet else 0):
         pyarrow.enable_signal_handlers(not quiet)
