@@ -88,3 +88,39 @@ def test_a_skin_logs_changed_values_are_fresh_too() -> None:
     parts = [fresh_with_changes({k: v[a:b] for k, v in cols.items()}, skin, fresh[a:b], last)  # type: ignore[arg-type]
              for a, b in ((0, 1), (1, 4))]
     np.testing.assert_array_equal(np.vstack(parts), expect)
+
+
+def test_a_log_without_bits_is_read_the_same_whole_or_in_chunks() -> None:
+    """Without a ``fresh`` column each channel's rate is decided on its first 64 rows, so
+    ``observe`` (the whole log) and ``observe`` of a file (chunks of any size) read the same
+    bits, and a skin's patch reads them as a one-patch log does. By hand: a channel that moves
+    every row is fresh everywhere from row 64 on (before, where it changed); one held for 10
+    rows only where it changed; one that changes on exactly half of rows 1-63 is decided by
+    that half, 32 of 63 (every sample) against 31 (where it changed)."""
+    from types import SimpleNamespace
+
+    from thermoskin.skin_observe import SkinFreshInference
+
+    n = 300
+    rng = np.random.default_rng(5)
+    fast = 20.0 + np.round(rng.normal(0.0, 0.02, n) * 128) / 128  # 1 kHz: equal values are common
+    held = np.repeat(20.0 + np.arange(n // 10) / 64, 10)
+    half = np.repeat(20.0 + np.arange(n // 2 + 1) / 64, 2)[1:n + 1]  # changes at rows 1, 3, 5, ...
+    log = {"t": np.arange(n) * 1e-3, "T_w": fast, "T_p": held, "T_a": half}
+    f, periods = infer_fresh(log)
+    changed = np.concatenate(([True], fast[1:] != fast[:-1]))
+    assert (f[64:] & 1).all() and np.array_equal((f[:64] & 1) != 0, changed[:64])
+    assert not changed.all()  # the rule above is tested on equal readings, not only moving ones
+    np.testing.assert_array_equal((f & 2) != 0, np.arange(n) % 10 == 0)
+    # T_a changes on rows 1, 3, ..., 63 of 1..63: 32 of 63, at least half: every sample
+    assert (f[64:] & 4).all() and ((f[:64] & 4) != 0).sum() == 33
+    assert periods == {"T_w": 1.0, "T_p": 10.0, "T_a": 1.0}
+    for cuts in ([1, 2, 30], [63, 1], [64], [10, 90], [299]):
+        inf, parts, k = FreshInference(), [], 0
+        for m in [*cuts, n]:
+            parts.append(inf.feed({c: v[k:k + m] for c, v in log.items()}))
+            k += m
+        np.testing.assert_array_equal(np.concatenate(parts), f)
+    skin_bits = SkinFreshInference(SimpleNamespace(n_thermocouples=1)).feed(  # type: ignore[arg-type]
+        {c: v[:, None] for c, v in log.items() if c != "t"})
+    np.testing.assert_array_equal(skin_bits[:, 0], f)

@@ -54,7 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
-from thermoskin.estimation.freshness import EVERY_SAMPLE, value_changed
+from thermoskin.estimation.freshness import FreshInference, column_with_changes
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
@@ -219,18 +219,9 @@ def block_thermocouples(cols: Mapping[str, Array], skin: Skin) -> list[Array]:
 def fresh_with_changes(cols: Mapping[str, Array], skin: Skin, fresh: NDArray[np.int64],
                        last: dict[str, Array] | None = None) -> NDArray[np.int64]:
     """A skin log's ``fresh`` bits ``(m, P)`` with each thermocouple's bit set too where its value
-    changed (as the single patch's :mod:`thermoskin.estimation.freshness` does): a log kept at
-    every n-th row of the loop's has lost the bits of the readings between its rows, and a held
-    reading never changes. ``last``: each column's previous row (updated; None: none before)."""
-    out = fresh.astype(np.int64).copy()
-    for col, bit in _channels(skin):
-        if col not in cols or not len(cols[col]):
-            continue
-        x = np.asarray(cols[col], dtype=float)
-        out |= np.where(value_changed(x, np.nan if last is None else last.get(col, np.nan)), bit, 0)
-        if last is not None:
-            last[col] = x[-1].copy()
-    return out
+    changed (the single patch's rule, :func:`~thermoskin.estimation.freshness.column_with_changes`,
+    over the skin's channels). ``last``: each column's previous row (updated; None: none before)."""
+    return column_with_changes(cols, fresh, _channels(skin), last)
 
 
 def _channels(skin: Skin) -> list[tuple[str, int]]:
@@ -239,45 +230,13 @@ def _channels(skin: Skin) -> list[tuple[str, int]]:
     return chans + [(f"T_w{j}", tc_fresh_bit(j - 1)) for j in range(2, skin.n_thermocouples + 1)]
 
 
-class SkinFreshInference:
-    """The ``fresh`` bits of a skin log that has no ``fresh`` column, block by block, as the single
-    patch's :class:`~thermoskin.estimation.freshness.FreshInference` reads them: per channel and
-    patch, a channel that changes on at least half of the first :data:`DECIDE_ROWS` rows updates
-    every sample, any other is fresh where its value changed (a board's reading held between
-    conversions never changes). The first rows, before that is known, are read by their changes
-    alone, however the blocks are cut, so the bits do not depend on where they are."""
-
-    DECIDE_ROWS = 64
+class SkinFreshInference(FreshInference):
+    """The ``fresh`` bits of a skin log, block by block: the single patch's
+    :class:`~thermoskin.estimation.freshness.FreshInference` per patch, over the skin's channels
+    (every thermocouple of a patch)."""
 
     def __init__(self, skin: Skin) -> None:
-        self.chans = _channels(skin)
-        self._every: dict[str, NDArray[np.bool_]] = {}
-        self._n_changed: dict[str, Array] = {}
-        self._rows = 0
-        self._last: dict[str, Array] = {}
-
-    def feed(self, cols: Mapping[str, Array]) -> NDArray[np.int64]:
-        m, P = cols["T_w"].shape
-        k0, D = self._rows, self.DECIDE_ROWS
-        out = np.zeros((m, P), dtype=np.int64)
-        for c, bit in self.chans:
-            if c not in cols:
-                continue
-            x = np.asarray(cols[c], dtype=float)
-            changed = value_changed(x, self._last.get(c, np.nan))
-            if k0 < D:  # the deciding rows (the first row, new by definition, not counted)
-                a = max(1 - k0, 0)
-                n = self._n_changed.setdefault(c, np.zeros(P))
-                n += changed[a:D - k0].sum(axis=0)
-                if k0 + m >= D:
-                    self._every[c] = n / (D - 1) >= EVERY_SAMPLE
-            if c in self._every and k0 + m > D:
-                changed[max(D - k0, 0):] |= self._every[c][None, :]
-            out |= np.where(changed, bit, 0)
-            if m:
-                self._last[c] = x[-1].copy()
-        self._rows = k0 + m
-        return out
+        super().__init__(_channels(skin))
 
 
 def loop_t_s(t_s: float, skin: Skin) -> float:
@@ -355,13 +314,11 @@ class ReadingCounter:
         return 1.0 / (float((j * w).sum()) / float(w.sum()) * self.t_s)
 
 
-def log_fresh(cols: Mapping[str, Array], skin: Skin, last: dict[str, Array] | None = None,
+def log_fresh(cols: Mapping[str, Array], skin: Skin,
               infer: SkinFreshInference | None = None) -> NDArray[np.int64]:
-    """A block's fresh bits ``(m, P)``: the log's own column with the changes of its values
-    (:func:`fresh_with_changes`), or, without the column, inferred (``infer``, or a new
-    :class:`SkinFreshInference`) from the values."""
-    if "fresh" in cols:
-        return fresh_with_changes(cols, skin, cols["fresh"], last)
+    """A block's fresh bits ``(m, P)``: the log's own column with the changes of its values, or,
+    without the column, inferred from the values (``infer``, which carries what it learnt from the
+    blocks before, or a new :class:`SkinFreshInference`)."""
     return (infer or SkinFreshInference(skin)).feed(cols)
 
 
@@ -404,8 +361,7 @@ class SkinEstimator:
         self._contact = np.zeros(self.P, dtype=np.int64)
         self._on_t = np.full(self.P, np.nan)  # when each patch's open contact was detected
         self._patch = np.zeros(0, dtype=np.int64)
-        self._last: dict[str, Array] = {}  # each thermocouple column's last row, for its fresh bits
-        self._infer = SkinFreshInference(skin)  # a log without its fresh column
+        self._infer = SkinFreshInference(skin)  # the blocks' fresh bits (with or without the column)
         self._readings = ReadingCounter(self.P, self.t_s)
 
     @property
@@ -420,7 +376,7 @@ class SkinEstimator:
     def block(self, t: Array, cols: Mapping[str, Array]) -> SkinBlock:
         """Estimate the next block (class doc)."""
         m, P = len(t), self.P
-        fresh = log_fresh(cols, self.skin, self._last, self._infer)
+        fresh = log_fresh(cols, self.skin, self._infer)
         self._readings.count(fresh)
         T_in, fr = self.inlet.push(block_thermocouples(cols, self.skin), cols["T_p"], cols["v"],
                                    cols["T_a"], fresh)

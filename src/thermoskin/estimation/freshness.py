@@ -4,7 +4,8 @@ A thermocouple board converts every 100 ms or so and the loop (or the logger) re
 last reading in between; a repeated reading is no new information. A log written by
 ``thermoskin run`` says which samples were fresh (its ``fresh`` column: bit 1 ``T_w``, 2
 ``T_p``, 4 ``T_a``). For any other log the channel's update rate is read from the data: a
-channel whose value changes on at least half the samples updates every sample (a fresh
+channel whose value changes on at least half of its first 64 samples updates every sample
+(decided there, so that a log read whole or in chunks of any size gets the same bits; a fresh
 reading equal to the last one is then common, about one in ten with 0.02 K of noise and
 1/128 K steps); otherwise a sample is fresh where the value changed. A fresh reading that
 happens to equal the previous one is then taken as stale: the estimator just predicts one
@@ -19,7 +20,7 @@ between its rows, while their values show. On a log as the loop wrote it this ad
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -27,34 +28,11 @@ from numpy.typing import NDArray
 
 CHANNELS = ("T_w", "T_p", "T_a")
 BITS = {"T_w": 1, "T_p": 2, "T_a": 4}
+#: A one-patch log's channels and their bits.
+CHANNEL_BITS: tuple[tuple[str, int], ...] = tuple(BITS.items())
 ALL_FRESH = 7
 #: A channel whose readings change on at least this fraction of samples updates every sample.
 EVERY_SAMPLE = 0.5
-
-
-def updates_every_sample(x: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Per column of ``x`` (samples along the first axis): does that channel update every
-    sample, its value changing on at least :data:`EVERY_SAMPLE` of the samples after the first
-    (module doc)? A channel of fewer than two samples does."""
-    x = np.asarray(x, dtype=float)
-    if len(x) < 2:
-        return np.ones(x.shape[1:], dtype=bool)
-    return np.asarray(np.mean(value_changed(x[1:], x[0]), axis=0) >= EVERY_SAMPLE)
-
-
-def channel_fresh(x: NDArray[np.float64]) -> tuple[NDArray[np.bool_], float]:
-    """Fresh samples of one channel and its median update period in samples."""
-    x = np.asarray(x, dtype=float)
-    n = len(x)
-    if n == 0:
-        return np.zeros(0, dtype=bool), 1.0
-    changed = value_changed(x)
-    changed[0] = True
-    if updates_every_sample(x):
-        return np.ones(n, dtype=bool), 1.0
-    idx = np.flatnonzero(changed)
-    period = float(np.median(np.diff(idx))) if len(idx) > 2 else float(n)
-    return changed, period
 
 
 def value_changed(x: NDArray[np.float64], before: Any = np.nan) -> NDArray[np.bool_]:
@@ -69,70 +47,83 @@ def value_changed(x: NDArray[np.float64], before: Any = np.nan) -> NDArray[np.bo
     return (x != prev) & ~(np.isnan(x) & np.isnan(prev))
 
 
-def _column_and_changes(log: Mapping[str, NDArray[np.float64]], last: Mapping[str, float]
-                        ) -> NDArray[np.int64]:
-    """The log's ``fresh`` column, with each channel's bit set where its value changed too."""
-    f = np.nan_to_num(np.asarray(log["fresh"], dtype=float), nan=0.0).astype(np.int64)
-    for ch in CHANNELS:
-        if ch in log:
-            f |= np.where(value_changed(log[ch], last.get(ch, np.nan)), BITS[ch], 0)
-    return f
-
-
-def infer_fresh(log: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.int64], dict[str, float]]:
-    """The ``fresh`` bitmask per sample (the log's own column if it has one, with a bit set too
-    where the value changed) and each channel's update period in samples (1 = every sample)."""
-    n = len(log["t"])
-    if "fresh" in log:
-        f = _column_and_changes(log, {})
-        periods = {}
-        for ch in CHANNELS:
-            idx = np.flatnonzero(f & BITS[ch])
-            periods[ch] = float(np.median(np.diff(idx))) if len(idx) > 2 else float(n)
-        return f, periods
-    out = np.zeros(n, dtype=np.int64)
-    periods = {}
-    for ch in CHANNELS:
-        fr, per = channel_fresh(log[ch])
-        out |= np.where(fr, BITS[ch], 0)
-        periods[ch] = per
-    return out, periods
+def column_with_changes(cols: Mapping[str, NDArray[np.float64]], fresh: NDArray[Any],
+                        channels: Sequence[tuple[str, int]] = CHANNEL_BITS,
+                        last: dict[str, Any] | None = None) -> NDArray[np.int64]:
+    """A log's ``fresh`` bits with each channel's bit set too where its value changed (module
+    doc). ``cols`` one patch's columns ``(samples,)`` or a skin's ``(samples, patches)``;
+    ``last``: each channel's previous sample (updated; None: none before)."""
+    out = np.nan_to_num(np.asarray(fresh, dtype=float), nan=0.0).astype(np.int64)
+    for col, bit in channels:
+        if col not in cols or not len(cols[col]):
+            continue
+        x = np.asarray(cols[col], dtype=float)
+        out |= np.where(value_changed(x, np.nan if last is None else last.get(col, np.nan)), bit, 0)
+        if last is not None:
+            last[col] = x[-1].copy()
+    return out
 
 
 class FreshInference:
-    """:func:`infer_fresh` chunk by chunk, for a log read in pieces (the same flags: each
-    channel's rate is decided on the first chunk; a change is taken against the previous
-    chunk's last value)."""
+    """The ``fresh`` bits of a log, chunk by chunk, the same however it is cut: the log's own
+    column with the changes of its values (:func:`column_with_changes`), or, where it has none,
+    read from the values per channel (and per patch, for a skin's ``(samples, patches)``
+    columns): a channel that changes on at least :data:`EVERY_SAMPLE` of its first
+    :attr:`DECIDE_ROWS` rows updates every sample, any other is fresh where its value changed
+    (module doc). Its first rows, before that is known, are read by their changes alone.
 
-    def __init__(self) -> None:
-        self._every: dict[str, bool] | None = None
-        self._last: dict[str, float] = {}
+    ``periods``: each channel's update period in samples, the median interval between the
+    bits of the first chunk (of a one-patch log; 1 = every sample)."""
+
+    DECIDE_ROWS = 64
+
+    def __init__(self, channels: Sequence[tuple[str, int]] = CHANNEL_BITS) -> None:
+        self.channels = list(channels)
+        self._rows = 0
+        self._last: dict[str, Any] = {}
+        self._every: dict[str, NDArray[np.bool_]] = {}
+        self._n_changed: dict[str, NDArray[np.float64]] = {}
         self.periods: dict[str, float] = {}
 
     def feed(self, chunk: Mapping[str, NDArray[np.float64]]) -> NDArray[np.int64]:
-        n = len(chunk["t"])
+        """The next chunk's bits (the shape of its ``T_w``)."""
         if "fresh" in chunk:
-            f = _column_and_changes(chunk, self._last)
-            for ch in CHANNELS:
-                if n and ch in chunk:
-                    self._last[ch] = float(chunk[ch][-1])
-            if not self.periods:
-                for ch in CHANNELS:
-                    idx = np.flatnonzero(f & BITS[ch])
-                    self.periods[ch] = float(np.median(np.diff(idx))) if len(idx) > 2 else float(n)
-            return f
-        if self._every is None:
-            self._every = {}
-            for ch in CHANNELS:
-                fr, per = channel_fresh(chunk[ch])
-                self._every[ch] = bool(fr.all())
-                self.periods[ch] = per
-        out = np.zeros(n, dtype=np.int64)
-        for ch in CHANNELS:
-            x = np.asarray(chunk[ch], dtype=float)
-            every = self._every[ch]
-            changed = np.ones(n, dtype=bool) if every else value_changed(x, self._last.get(ch, np.nan))
-            out |= np.where(changed, BITS[ch], 0)
-            if n:
-                self._last[ch] = float(x[-1])
+            out = column_with_changes(chunk, chunk["fresh"], self.channels, self._last)
+        else:
+            out = self._infer(chunk)
+        if not self.periods and out.ndim == 1:
+            n = len(out)
+            for col, bit in self.channels:
+                idx = np.flatnonzero(out & bit)
+                self.periods[col] = float(np.median(np.diff(idx))) if len(idx) > 2 else float(n)
+        self._rows += len(out)
         return out
+
+    def _infer(self, chunk: Mapping[str, NDArray[np.float64]]) -> NDArray[np.int64]:
+        shape = np.shape(chunk["T_w"])
+        m, k0, D = shape[0], self._rows, self.DECIDE_ROWS
+        out = np.zeros(shape, dtype=np.int64)
+        for c, bit in self.channels:
+            if c not in chunk:
+                continue
+            x = np.asarray(chunk[c], dtype=float)
+            changed = value_changed(x, self._last.get(c, np.nan))
+            if k0 < D:  # the deciding rows (the first row, new by definition, not counted)
+                a = max(1 - k0, 0)
+                n = self._n_changed.setdefault(c, np.zeros(shape[1:]))
+                n += changed[a:D - k0].sum(axis=0)
+                if k0 + m >= D:
+                    self._every[c] = n / (D - 1) >= EVERY_SAMPLE
+            if c in self._every and k0 + m > D:
+                changed[max(D - k0, 0):] |= self._every[c][None] if changed.ndim > 1 else self._every[c]
+            out |= np.where(changed, bit, 0)
+            if m:
+                self._last[c] = x[-1].copy()
+        return out
+
+
+def infer_fresh(log: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.int64], dict[str, float]]:
+    """The ``fresh`` bitmask per sample of a whole log (:class:`FreshInference`) and each
+    channel's update period in samples (1 = every sample)."""
+    inf = FreshInference()
+    return inf.feed(log), inf.periods
