@@ -94,9 +94,10 @@ def test_a_log_without_bits_is_read_the_same_whole_or_in_chunks() -> None:
     """Without a ``fresh`` column each channel's rate is decided on its first 64 rows, so
     ``observe`` (the whole log) and ``observe`` of a file (chunks of any size) read the same
     bits, and a skin's patch reads them as a one-patch log does. By hand: a channel that moves
-    every row is fresh everywhere from row 64 on (before, where it changed); one held for 10
-    rows only where it changed; one that changes on exactly half of rows 1-63 is decided by
-    that half, 32 of 63 (every sample) against 31 (where it changed)."""
+    on most rows is fresh everywhere from row 64 on (before, only where it changed); one held
+    for 10 rows only where it changed; of rows 1-63 (row 0 is new by definition, not counted),
+    one that changes on 32 is every sample from row 64, one that changes on 31 is not (were
+    row 0 counted, 32 of 64 would tip it)."""
     from types import SimpleNamespace
 
     from thermoskin.skin_observe import SkinFreshInference
@@ -104,23 +105,44 @@ def test_a_log_without_bits_is_read_the_same_whole_or_in_chunks() -> None:
     n = 300
     rng = np.random.default_rng(5)
     fast = 20.0 + np.round(rng.normal(0.0, 0.02, n) * 128) / 128  # 1 kHz: equal values are common
+    fast[63] = fast[62]  # the last row before the decision is not a change ...
+    fast[64] = fast[63]  # ... nor the first after it
     held = np.repeat(20.0 + np.arange(n // 10) / 64, 10)
-    half = np.repeat(20.0 + np.arange(n // 2 + 1) / 64, 2)[1:n + 1]  # changes at rows 1, 3, 5, ...
-    log = {"t": np.arange(n) * 1e-3, "T_w": fast, "T_p": held, "T_a": half}
-    f, periods = infer_fresh(log)
-    changed = np.concatenate(([True], fast[1:] != fast[:-1]))
-    assert (f[64:] & 1).all() and np.array_equal((f[:64] & 1) != 0, changed[:64])
-    assert not changed.all()  # the rule above is tested on equal readings, not only moving ones
+    steps = np.zeros(n)
+    steps[1:64:2] = 1.0 / 64  # rows 1, 3, ..., 63: 32 changes of 63
+    half = 20.0 + np.cumsum(steps) + np.where(np.arange(n) >= 64, np.arange(n) % 2 / 64, 0.0)
+    steps[63] = 0.0  # 31 changes of 63 ...
+    below = 20.0 + np.cumsum(steps) + np.where(np.arange(n) >= 64, np.arange(n) % 2 / 64, 0.0)
+    below[64:] = below[64]  # ... and none later, so "where it changed" shows as no bit
+    log = {"t": np.arange(n) * 1e-3, "T_w": fast, "T_p": held, "T_a": half, "T_w2": below}
+    chans = [("T_w", 1), ("T_p", 2), ("T_a", 4), ("T_w2", 8)]
+
+    def changes(x: np.ndarray) -> np.ndarray:
+        return np.concatenate(([True], x[1:] != x[:-1]))
+
+    assert changes(half)[1:64].sum() == 32 and changes(below)[1:64].sum() == 31
+    assert not changes(fast)[63] and not changes(fast)[64]  # the border rows below are tested
+    inf = FreshInference(chans)
+    f = inf.feed(log)
+    np.testing.assert_array_equal((f[:64] & 1) != 0, changes(fast)[:64])
+    assert (f[64:] & 1).all()
     np.testing.assert_array_equal((f & 2) != 0, np.arange(n) % 10 == 0)
-    # T_a changes on rows 1, 3, ..., 63 of 1..63: 32 of 63, at least half: every sample
-    assert (f[64:] & 4).all() and ((f[:64] & 4) != 0).sum() == 33
+    np.testing.assert_array_equal((f[:64] & 4) != 0, changes(half)[:64])
+    assert (f[64:] & 4).all()
+    np.testing.assert_array_equal((f & 8) != 0, changes(below))  # where it changed, all along
+    assert inf.periods == {"T_w": 1.0, "T_p": 10.0, "T_a": 1.0, "T_w2": 2.0}
+    f3, periods = infer_fresh(log)  # the one-patch channels, whole
     assert periods == {"T_w": 1.0, "T_p": 10.0, "T_a": 1.0}
-    for cuts in ([1, 2, 30], [63, 1], [64], [10, 90], [299]):
-        inf, parts, k = FreshInference(), [], 0
+    np.testing.assert_array_equal(f3, f & 7)
+    for cuts in ([0, 1, 2, 30], [63, 1], [64], [10, 90], [299]):
+        inf, parts, k = FreshInference(chans), [], 0
         for m in [*cuts, n]:
             parts.append(inf.feed({c: v[k:k + m] for c, v in log.items()}))
             k += m
         np.testing.assert_array_equal(np.concatenate(parts), f)
-    skin_bits = SkinFreshInference(SimpleNamespace(n_thermocouples=1)).feed(  # type: ignore[arg-type]
-        {c: v[:, None] for c, v in log.items() if c != "t"})
+    skin = SimpleNamespace(n_thermocouples=2)  # T_w2: a patch's second thermocouple, bit 8
+    two = {c: np.column_stack([v, v[::-1]]) for c, v in log.items() if c != "t"}
+    skin_bits = SkinFreshInference(skin).feed(two)  # type: ignore[arg-type]
     np.testing.assert_array_equal(skin_bits[:, 0], f)
+    rev = FreshInference(chans).feed({c: v[::-1] for c, v in log.items()})
+    np.testing.assert_array_equal(skin_bits[:, 1], rev)

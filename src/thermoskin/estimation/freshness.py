@@ -73,7 +73,8 @@ class FreshInference:
     (module doc). Its first rows, before that is known, are read by their changes alone.
 
     ``periods``: each channel's update period in samples, the median interval between the
-    bits of the first chunk (of a one-patch log; 1 = every sample)."""
+    bits of the first chunk that has rows (of a one-patch log; 1 = every sample; read from
+    that chunk alone, as the command line shows it, so a short first chunk reads it roughly)."""
 
     DECIDE_ROWS = 64
 
@@ -91,7 +92,7 @@ class FreshInference:
             out = column_with_changes(chunk, chunk["fresh"], self.channels, self._last)
         else:
             out = self._infer(chunk)
-        if not self.periods and out.ndim == 1:
+        if not self.periods and out.ndim == 1 and len(out):
             n = len(out)
             for col, bit in self.channels:
                 idx = np.flatnonzero(out & bit)
