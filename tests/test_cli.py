@@ -132,6 +132,8 @@ def test_run_writes_log_and_plot(tmp_path: Path) -> None:
     cols = read_log(log)
     assert {"q_i_hat", "contact", "q_i", "T_g"} <= set(cols)
     assert "2 touches scripted, 2 detected, 0 missed, 0 false alarms" in stdout
+    # the scenario's fingers are the simple model, which the characteriser may call objects: said
+    assert "what: the scenario's fingers are the paper's simple finger" in stdout
 
 
 def test_real_entry_point_no_traceback(tmp_path: Path) -> None:

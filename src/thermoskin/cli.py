@@ -12,7 +12,7 @@ import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 # isort: off
 import thermoskin._blas  # noqa: F401  (one BLAS thread: before numpy is loaded)
@@ -26,6 +26,9 @@ from thermoskin import __version__
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config, ConfigError, load_config
 from thermoskin.paths import PathError
+
+if TYPE_CHECKING:
+    from thermoskin.sim.scenarios import Scenario
 
 F = TypeVar("F", bound=Callable[..., Any])
 console = Console(highlight=False, soft_wrap=True)
@@ -155,6 +158,11 @@ def events_table(events: list[ContactEvent], title: str = "Detected contacts") -
     names = ("#", "onset s", "detected s", "release s", "duration s", "sign", "peak dq W", "mean dq W",
              "energy J", *(("what",) if what else ()))
     return narrow_table(title, names, rows, text=("what",))
+
+
+def _simple_fingers(sc: Scenario) -> bool:
+    """Does the scenario touch the skin with the paper's simple finger (no physical toucher)?"""
+    return any(tc.toucher is None for tc in sc.touches)
 
 
 def show_table(table: Table) -> None:
@@ -941,6 +949,11 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         _write_events(events_path, events)
         if events:
             show_table(events_table(events))
+            if not serial and any(e.kind for e in events) and _simple_fingers(sc):
+                console.print("what: the scenario's fingers are the paper's simple finger (a body held "
+                              "at its temperature), which the characteriser, made for people and "
+                              "objects as they are, may call an object; --scenario touchers has both "
+                              "(README: What touched the skin)")
         stopped = bool(summary.get("interrupted"))
         if n > 1 and not res.fault:
             if serial:
