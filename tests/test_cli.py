@@ -260,6 +260,29 @@ def test_events_table_keeps_numbers_whole_in_80_columns() -> None:
         assert "…" not in text
 
 
+def test_what_touched_is_printed_whole_in_any_terminal(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """In 80 columns the what-touched words came out cut ("glass-" and "eramic"): they go to a
+    table of their own there, and stay in the contacts table where they fit unbroken."""
+    from rich.console import Console
+
+    import thermoskin.cli as cli
+    from thermoskin.events import ContactEvent
+
+    ev = [ContactEvent(1115.042, 1115.14, 1116.982, 1.94, 1, 1.002, 0.66, 1.28, "hold", "object",
+                       "glass-ceramic", T_f_hat=55.3),
+          ContactEvent(24.061, 24.127, 26.47, 2.41, -1, -0.143, -0.078, -0.632, "tap", "human", "human")]
+    for width, tables in ((80, 2), (140, 1)):
+        c = Console(width=width, highlight=False, record=True)
+        monkeypatch.setattr(cli, "console", c)
+        cli.show_events(ev)
+        text = c.export_text()
+        assert max(len(line) for line in text.splitlines()) <= width
+        assert "hold object glass-ceramic 55.3C" in text and "tap human" in text  # whole, one line
+        assert "tap human human" not in text  # the material only where it says more
+        assert text.count("What touched") == (tables == 2), width
+        assert "1115.042" in text and "…" not in text
+
+
 def test_observe_says_when_it_compiles(sim_log: Path, tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """A cold cache (the first run after an install) is announced on stderr, once; a warm one
     is not."""

@@ -138,26 +138,64 @@ def _note_compile(where: str | tuple[str, ...], what: str = "the estimator",
                           f"{how_long}; cached for the next runs)")
 
 
-def events_table(events: list[ContactEvent], title: str = "Detected contacts") -> Table:
-    """The events as a rich table (heat flows signed: negative for heat out, a cold object);
-    a long list shows its first and last rows."""
+def _shown(events: list[ContactEvent], title: str) -> tuple[str, list[tuple[int, ContactEvent]]]:
+    """The rows a table shows (a long list: its first and last rows) and its title."""
     if len(events) > TABLE_ROWS:
         half = TABLE_ROWS // 2
         title = f"{title} (the first and last {half} of {len(events)}; all with --events)"
-        shown = list(enumerate(events[:half], 1)) + list(enumerate(events[-half:], len(events) - half + 1))
-    else:
-        shown = list(enumerate(events, 1))
-    what = any(e.kind for e in events)  # characterised (thermoskin.characterise)
+        tail = list(enumerate(events[-half:], len(events) - half + 1))
+        return title, list(enumerate(events[:half], 1)) + tail
+    return title, list(enumerate(events, 1))
+
+
+def _what(e: ContactEvent) -> str:
+    """What touched, in words: kind, toucher, material (where it says more than the toucher),
+    surface temperature; ``?`` where not identifiable."""
+    words = [e.kind, e.toucher or "?"]
+    if e.material != e.toucher:
+        words.append(e.material or "?")
+    if math.isfinite(e.T_f_hat):
+        words.append(f"{e.T_f_hat:.1f}C")
+    return " ".join(words)
+
+
+def events_table(events: list[ContactEvent], title: str = "Detected contacts",
+                 what: bool | None = None) -> Table:
+    """The events as a rich table (heat flows signed: negative for heat out, a cold object);
+    a long list shows its first and last rows. ``what``: a column of what touched (default:
+    where the events are characterised, :mod:`thermoskin.characterise`)."""
+    title, shown = _shown(events, title)
+    if what is None:
+        what = any(e.kind for e in events)
     rows = []
     for i, e in shown:
-        extra = ((f"{e.kind} {e.toucher or '?'} {e.material or '?'}"
-                  + (f" {e.T_f_hat:.1f}C" if math.isfinite(e.T_f_hat) else ""),) if what else ())
         rows.append((str(i), f"{e.onset:.3f}", f"{e.detected_at:.3f}", f"{e.release:.3f}",
                      f"{e.duration:.2f}", "+" if e.sign > 0 else "-", f"{e.peak_dq:.3f}",
-                     f"{e.mean_dq:.3f}", f"{e.energy:.3f}", *extra))
+                     f"{e.mean_dq:.3f}", f"{e.energy:.3f}", *((_what(e),) if what else ())))
     names = ("#", "onset s", "detected s", "release s", "duration s", "sign", "peak dq W", "mean dq W",
              "energy J", *(("what",) if what else ()))
     return narrow_table(title, names, rows, text=("what",))
+
+
+def show_events(events: list[ContactEvent], title: str = "Detected contacts") -> None:
+    """Print the events' table; where they are characterised, what touched in its column if the
+    terminal is wide enough for it unbroken, else in a table of its own below (an 80-column
+    terminal left it six characters: "glass-ceramic" came out "glass-" and "eramic")."""
+    if not any(e.kind for e in events):
+        show_table(events_table(events, title, what=False))
+        return
+    from rich.measure import Measurement
+
+    plain = events_table(events, title, what=False)
+    need = (Measurement.get(console, console.options, plain).maximum + 2
+            + max(len(_what(e)) for _, e in _shown(events, title)[1]))
+    if console.width >= need:
+        show_table(events_table(events, title, what=True))
+        return
+    show_table(plain)
+    _, shown = _shown(events, title)
+    show_table(narrow_table("What touched (docs/characterise.md)", ("#", "what"),
+                            [(str(i), _what(e)) for i, e in shown], text=("what",)))
 
 
 def _simple_fingers(sc: Scenario) -> bool:
@@ -273,7 +311,7 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     for w in res.warnings:
         click.echo(f"thermoskin: warning: {input_csv}: {w}", err=True)
     rates = ", ".join(f"{ch} every {res.periods[ch] * t_s * 1e3:.0f} ms" for ch in CHANNELS)
-    show_table(events_table(res.events))
+    show_events(res.events)
     console.print(f"{res.rows} samples at {1 / t_s:.0f} Hz ({rates}), {len(res.events)} contacts, "
                   f"{res.gaps} NaN samples held over; wrote {output_csv}"
                   + (f" and {events_path}" if events_path else ""))
@@ -948,7 +986,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             events = characterise_events(events, out, cfg)  # what touched
         _write_events(events_path, events)
         if events:
-            show_table(events_table(events))
+            show_events(events)
             if not serial and any(e.kind for e in events) and _simple_fingers(sc):
                 console.print("what: the scenario's fingers are the paper's simple finger (a body held "
                               "at its temperature), which the characteriser, made for people and "
@@ -1415,7 +1453,7 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
     except OSError as e:
         raise UserError(f"cannot write {output}: {e.strerror or e}") from None
     if cmp["events"]:
-        show_table(events_table(cmp["events"], title="Replayed contacts"))
+        show_events(cmp["events"], title="Replayed contacts")
     same = "identical to" if cmp["exact"] else "DIFFERENT from"
     console.print(f"replayed {cmp['samples']} samples: q_i_hat and contact {same} the live run "
                   f"(max |q_i_hat difference| {cmp['q_i_hat_max_abs_diff']:.3g} W, "
