@@ -15,10 +15,12 @@ The machine may be shared.
 ``--rate HZ``: thermocouple boards converting that many times a second (every channel, 3 %
 jitter; default: fresh every sample); ``--S-w``: the estimator's pipe-node noise (K²/s, kept
 where above a skin patch's own), as a config would set it; ``--no-fresh``: the log without its
-``fresh`` column (a lab's own logger), its readings found from the values.
+``fresh`` column (a lab's own logger), its readings found from the values; ``--flow-noise``:
+``skin_observe.FLOW_NOISE`` (0: none; it was fitted on ``forearm.toml``, and
+``benchmarks/skins/upper_arm.toml``, a skin it was not fitted on, checks it).
 
-    python benchmarks/skin_detection.py [--seeds 0,1,2] [--duration S] [--rate HZ] [--S-w X]
-        [--no-fresh] [--json]
+    python benchmarks/skin_detection.py [--skin F.toml] [--seeds 0,1,2] [--duration S] [--rate HZ]
+        [--S-w X] [--no-fresh] [--flow-noise X] [--json]
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from thermoskin import skin_observe
 from thermoskin.runtime.skin_loop import run_skin
 from thermoskin.sim.skin_scenarios import skin_scenario
 from thermoskin.skin import load_skin
@@ -87,8 +90,12 @@ def main() -> None:
     ap.add_argument("--rate", type=float, default=None, help="boards' rate, Hz (default: every sample)")
     ap.add_argument("--S-w", dest="S_w", type=float, default=None, help="estimator.S_w, K^2/s")
     ap.add_argument("--no-fresh", action="store_true", help="drop the log's fresh column")
+    ap.add_argument("--flow-noise", type=float, default=None,
+                    help=f"skin_observe.FLOW_NOISE (default {skin_observe.FLOW_NOISE:g}; 0: none)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
+    if a.flow_noise is not None:
+        skin_observe.FLOW_NOISE = a.flow_noise  # read by patch_config at each call
     base = load_skin(a.skin)
     if a.rate:
         p = 1.0 / a.rate
@@ -118,7 +125,7 @@ def main() -> None:
         if not a.json:
             print(json.dumps(runs[-1]))
     out = {"skin": Path(a.skin).name, "scenario": "multi", "rate_hz": a.rate, "S_w": a.S_w,
-           "fresh": not a.no_fresh,
+           "fresh": not a.no_fresh, "flow_noise": skin_observe.FLOW_NOISE,
            "seeds": len(runs),
            "touches": sum(r["touches"] for r in runs), "found": sum(r["found"] for r in runs),
            "false_on_touched": sum(r["false_on_touched"] for r in runs),
