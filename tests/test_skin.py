@@ -46,6 +46,14 @@ def test_forearm_example() -> None:
                                   "position_true", "fresh"]
 
 
+def test_the_benchmarks_held_out_skin_loads() -> None:
+    """benchmarks/skins/upper_arm.toml (skin_detection.py's check of FLOW_NOISE on a skin it was
+    not fitted on) stays a valid skin: a chain of six patches and a loop of three."""
+    skin = load_skin(ROOT / "benchmarks" / "skins" / "upper_arm.toml")
+    assert sorted(len(lp.patches) for lp in skin.loops) == [3, 6]
+    assert skin.patch("lat1").thermocouples == (0.03, 0.0)
+
+
 def test_single_example_is_the_papers_patch() -> None:
     a, b = load_skin(ROOT / "examples" / "single.toml"), single_skin()
     assert (ROOT / "examples" / "single.toml").read_text() == SINGLE
