@@ -283,6 +283,20 @@ def test_what_touched_is_printed_whole_in_any_terminal(monkeypatch) -> None:  # 
         assert "1115.042" in text and "…" not in text
 
 
+def test_observe_never_writes_over_its_input(sim_log: Path, tmp_path: Path) -> None:
+    """`-o` or `--events` naming the input log (by another path too) is refused, with one line,
+    and the log is left as it was (an events file over it would have lost the recording)."""
+    log = tmp_path / "in.csv"
+    log.write_bytes(sim_log.read_bytes())
+    before = log.read_bytes()
+    (tmp_path / "sub").mkdir()
+    for args in (("-o", str(log)), ("-o", str(tmp_path / "out.csv"), "--events", str(log)),
+                 ("-o", str(tmp_path / "sub" / ".." / "in.csv"))):
+        code, _, err = invoke("observe", str(log), *args)
+        assert code == 2 and "that is the input;" in err and len(err.strip().splitlines()) == 1, err
+        assert log.read_bytes() == before
+
+
 def test_observe_says_when_it_compiles(sim_log: Path, tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """A cold cache (the first run after an install) is announced on stderr, once; a warm one
     is not."""

@@ -67,13 +67,18 @@ def _config(path: Path | None, preset: str = "paper") -> Config:
 TABLE_ROWS = 40
 
 
-def _outputs(*items: tuple[str, Path | None, Any, str]) -> None:
-    """Check every output path before any work: ``(option, path, suffixes or None, what)``."""
+def _outputs(*items: tuple[str, Path | None, Any, str], inputs: tuple[Path, ...] = ()) -> None:
+    """Check every output path before any work: ``(option, path, suffixes or None, what)``; none
+    may be one of the ``inputs`` (writing it would destroy what is read)."""
     from thermoskin.paths import check_output
 
     for option, path, suffixes, what in items:
         if path is not None:
             check_output(path, option, suffixes, what)
+            for src in inputs:
+                if path.exists() and src.exists() and path.samefile(src):
+                    raise UserError(f"{option} {path}: that is the input; write the {what} "
+                                    "to another file")
 
 
 def _check_loop(cfg: Config) -> None:
@@ -290,7 +295,7 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     from thermoskin.pipeline import observe_file
 
     _outputs(("-o", output_csv, LOG_SUFFIXES, "log"), ("--events", events_path, (".csv",), "events file"),
-             ("--groups", groups_path, (".csv",), "groups file"))
+             ("--groups", groups_path, (".csv",), "groups file"), inputs=(input_csv,))
     cfg = _config(config_path)
     if skin_path is not None:
         _observe_skin(input_csv, output_csv, events_path, groups_path, skin_path, cfg)
@@ -1369,7 +1374,7 @@ def export(recording: Path, output: Path, ros2: bool) -> None:
         from thermoskin.runtime.ros2 import export_ros2 as do_export
     elif output.suffix.lower() == ".mcap":
         raise UserError(f"cannot export to {output}: an .mcap output needs --ros2 (ROS 2 messages)")
-    _outputs(("-o", output, (".mcap",) if ros2 else (".csv", ".parquet"), "output"))
+    _outputs(("-o", output, (".mcap",) if ros2 else (".csv", ".parquet"), "output"), inputs=(recording,))
     _recording(recording)
     info: dict[str, Any] = {}
     try:
