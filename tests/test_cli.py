@@ -295,6 +295,10 @@ def test_observe_never_writes_over_its_input(sim_log: Path, tmp_path: Path) -> N
         code, _, err = invoke("observe", str(log), *args)
         assert code == 2 and "that is the input;" in err and len(err.strip().splitlines()) == 1, err
         assert log.read_bytes() == before
+    # nor its log and its events into one file (the events table would replace the log)
+    same = tmp_path / "same.csv"
+    code, _, err = invoke("observe", str(log), "-o", str(same), "--events", str(same))
+    assert code == 2 and "is also given as -o" in err and not same.exists(), err
 
 
 def test_observe_says_when_it_compiles(sim_log: Path, tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]

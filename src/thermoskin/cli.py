@@ -68,17 +68,15 @@ TABLE_ROWS = 40
 
 
 def _outputs(*items: tuple[str, Path | None, Any, str], inputs: tuple[Path, ...] = ()) -> None:
-    """Check every output path before any work: ``(option, path, suffixes or None, what)``; none
-    may be one of the ``inputs`` (writing it would destroy what is read)."""
-    from thermoskin.paths import check_output
+    """Check every output path before any work: ``(option, path, suffixes or None, what)``; no
+    two at the same path, and none one of the ``inputs`` (writing it would destroy what is read)."""
+    from thermoskin.paths import check_output, distinct, not_an_input
 
     for option, path, suffixes, what in items:
         if path is not None:
             check_output(path, option, suffixes, what)
-            for src in inputs:
-                if path.exists() and src.exists() and path.samefile(src):
-                    raise UserError(f"{option} {path}: that is the input; write the {what} "
-                                    "to another file")
+            not_an_input(path, option, what, inputs)
+    distinct(*((option, path) for option, path, _, _ in items))
 
 
 def _check_loop(cfg: Config) -> None:
@@ -838,7 +836,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     a complete recording) and exit with 130, 143 and 129 (128 + the signal number).
     """
     from thermoskin.logio import read_log
-    from thermoskin.paths import LOG_SUFFIXES, distinct
+    from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.plotting import FORMATS, plot_log
     from thermoskin.runtime.closed_loop import COLUMNS, TRUTH, run_closed_loop
     from thermoskin.runtime.runlog import RunLog
@@ -868,8 +866,6 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     _outputs(("--log", log_path, LOG_SUFFIXES, "log"), ("--plot", plot_path, FORMATS, "plot"),
              ("--events", events_path, (".csv",), "events file"),
              ("--record", record_path, (".mcap",), "recording"))
-    distinct(("--log", log_path), ("--plot", plot_path), ("--events", events_path),
-             ("--record", record_path))
     probe = None
     if probe_amp is not None:
         from thermoskin.control.probe import SetpointProbe
@@ -1042,7 +1038,7 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     the loop goes (``skin_observe.SkinEstimator``), printed as they come and served live / recorded
     (``runtime/skin_topics.py``); at the end the positions and body contacts from the log
     (``observe_skin``, which gives the live contacts again), the layout picture beside the log."""
-    from thermoskin.paths import LOG_SUFFIXES, distinct
+    from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.sim.skin_scenarios import skin_scenario
     from thermoskin.skin import load_skin
     from thermoskin.skin_observe import SkinEstimator, board_warnings
@@ -1053,8 +1049,6 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
              ("--events", events_path, (".csv",), "events file"),
              ("--groups", groups_path, (".csv",), "groups file"),
              ("--record", record_path, (".mcap",), "recording"))
-    distinct(("--log", log_path), ("--plot", plot_path), ("--events", events_path), ("--groups", groups_path),
-             ("--record", record_path))
     cfg = _config(config_path)
     skin = load_skin(skin_path, cfg)
     if duration is not None:
@@ -1374,7 +1368,7 @@ def export(recording: Path, output: Path, ros2: bool) -> None:
         from thermoskin.runtime.ros2 import export_ros2 as do_export
     elif output.suffix.lower() == ".mcap":
         raise UserError(f"cannot export to {output}: an .mcap output needs --ros2 (ROS 2 messages)")
-    _outputs(("-o", output, (".mcap",) if ros2 else (".csv", ".parquet"), "output"), inputs=(recording,))
+    _outputs(("-o", output, (".mcap",) if ros2 else (".csv", ".parquet"), "output"))
     _recording(recording)
     info: dict[str, Any] = {}
     try:

@@ -103,6 +103,13 @@ def check_input(path: Path, what: str) -> Path:
     return p
 
 
+def not_an_input(path: Path, option: str, what: str, inputs: tuple[Path, ...]) -> None:
+    """Refuse an output at the path of one of the command's ``inputs`` (by any name for it)."""
+    for src in inputs:
+        if path.exists() and src.exists() and path.samefile(src):
+            raise PathError(f"{option} {path}: that is the input; write the {what} to another file")
+
+
 def distinct(*paths: tuple[str, Path | None]) -> None:
     """Refuse two outputs of one command at the same path (one would overwrite the other)."""
     seen: dict[Path, str] = {}
