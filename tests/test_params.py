@@ -262,3 +262,12 @@ def test_every_number_has_a_range_on_both_sides() -> None:
 def test_plausible_ranges_ordered() -> None:
     with pytest.raises(ConfigError, match=r"plausible\.T_w_min"):
         Config().replace(plausible={"T_w_min": 200.0})
+
+
+def test_range_messages_name_the_unit_only_where_there_is_one() -> None:
+    with pytest.raises(ConfigError) as e:
+        Config().replace(detector={"h_on": -3.0})
+    assert str(e.value).startswith("detector.h_on = -3.0 is out of range: must be > 0 and <= 1000 in ")
+    with pytest.raises(ConfigError) as e:
+        Config().replace(detector={"k_off": -3.0})
+    assert "must be >= 0 and <= 100 (sigma) in " in str(e.value)

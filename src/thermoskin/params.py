@@ -37,6 +37,11 @@ def _p(default: Any, unit: str, lo: float = -INF, hi: float = INF, *, lo_open: b
     return field(default=default, metadata=meta)
 
 
+def _unit_text(meta: dict[str, Any]) -> str:
+    """`` (unit)`` for a message, nothing for a unitless value."""
+    return f" ({meta['unit']})" if meta["unit"] else ""
+
+
 def _range_text(meta: dict[str, Any]) -> str:
     if meta["choices"]:
         return "one of " + ", ".join(repr(c) for c in meta["choices"])
@@ -68,17 +73,17 @@ class _Validated:
                 continue
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ConfigError(f"{key} = {value!r} is not a number: must be "
-                                  f"{_range_text(meta)} ({meta['unit']})")
+                                  f"{_range_text(meta)}{_unit_text(meta)}")
             v = float(value)
             is_int = isinstance(f.default, int) and not isinstance(f.default, bool)
             if is_int and not v.is_integer():
                 raise ConfigError(f"{key} = {value!r} is not a whole number: must be "
-                                  f"{_range_text(meta)} ({meta['unit']})")
+                                  f"{_range_text(meta)}{_unit_text(meta)}")
             lo, hi = meta["lo"], meta["hi"]
             bad = (not math.isfinite(v) or v > hi or v < lo or (meta["lo_open"] and v <= lo))
             if bad:
                 raise ConfigError(f"{key} = {value!r} is out of range: must be "
-                                  f"{_range_text(meta)} ({meta['unit']})")
+                                  f"{_range_text(meta)}{_unit_text(meta)}")
             object.__setattr__(self, f.name, int(v) if is_int else v)
 
 
