@@ -71,7 +71,7 @@ def test_a_skin_logs_changed_values_are_fresh_too() -> None:
     from types import SimpleNamespace
 
     from thermoskin.skin import tc_fresh_bit
-    from thermoskin.skin_observe import fresh_with_changes
+    from thermoskin.skin_observe import SkinFreshInference
 
     skin = SimpleNamespace(n_thermocouples=2)
     T_w = np.array([[20.0, 21.0], [20.0, 21.5], [20.5, 21.5], [20.5, 21.5]])
@@ -83,9 +83,10 @@ def test_a_skin_logs_changed_values_are_fresh_too() -> None:
     cols = {"T_w": T_w, "T_w2": T_w2, "T_p": T_p, "T_a": T_a}
     b2 = tc_fresh_bit(1)
     expect = np.array([[7 | b2, 7 | b2], [2, 1], [1, 0], [b2, 0]])  # row 0: no row before it
-    np.testing.assert_array_equal(fresh_with_changes(cols, skin, fresh), expect)  # type: ignore[arg-type]
-    last: dict[str, np.ndarray] = {}
-    parts = [fresh_with_changes({k: v[a:b] for k, v in cols.items()}, skin, fresh[a:b], last)  # type: ignore[arg-type]
+    whole = SkinFreshInference(skin).feed({**cols, "fresh": fresh})  # type: ignore[arg-type]
+    np.testing.assert_array_equal(whole, expect)
+    inf = SkinFreshInference(skin)  # type: ignore[arg-type]
+    parts = [inf.feed({**{k: v[a:b] for k, v in cols.items()}, "fresh": fresh[a:b]})
              for a, b in ((0, 1), (1, 4))]
     np.testing.assert_array_equal(np.vstack(parts), expect)
 

@@ -190,13 +190,12 @@ def show_events(events: list[ContactEvent], title: str = "Detected contacts") ->
     from rich.measure import Measurement
 
     plain = events_table(events, title, what=False)
-    need = (Measurement.get(console, console.options, plain).maximum + 2
-            + max(len(_what(e)) for _, e in _shown(events, title)[1]))
+    shown = _shown(events, title)[1]
+    need = Measurement.get(console, console.options, plain).maximum + 2 + max(len(_what(e)) for _, e in shown)
     if console.width >= need:
         show_table(events_table(events, title, what=True))
         return
     show_table(plain)
-    _, shown = _shown(events, title)
     show_table(narrow_table("What touched (docs/characterise.md)", ("#", "what"),
                             [(str(i), _what(e)) for i, e in shown], text=("what",)))
 

@@ -54,7 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
-from thermoskin.estimation.freshness import FreshInference, column_with_changes
+from thermoskin.estimation.freshness import FreshInference
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
@@ -216,14 +216,6 @@ def block_thermocouples(cols: Mapping[str, Array], skin: Skin) -> list[Array]:
     return out
 
 
-def fresh_with_changes(cols: Mapping[str, Array], skin: Skin, fresh: NDArray[np.int64],
-                       last: dict[str, Array] | None = None) -> NDArray[np.int64]:
-    """A skin log's ``fresh`` bits ``(m, P)`` with each thermocouple's bit set too where its value
-    changed (the single patch's rule, :func:`~thermoskin.estimation.freshness.column_with_changes`,
-    over the skin's channels). ``last``: each column's previous row (updated; None: none before)."""
-    return column_with_changes(cols, fresh, _channels(skin), last)
-
-
 def _channels(skin: Skin) -> list[tuple[str, int]]:
     """A skin log's read channels and their ``fresh`` bits."""
     chans = [("T_w", 1), ("T_p", 2), ("T_a", 4)]
@@ -268,8 +260,8 @@ class SkinBlock:
     fresh_in: NDArray[np.int64]
     changes: list[Change]
     fresh: NDArray[np.int64]
-    """The bits the block was estimated with: the log's (:func:`fresh_with_changes`), or read from
-    its values where it has none (:class:`SkinFreshInference`)."""
+    """The bits the block was estimated with (:class:`SkinFreshInference`): the log's with the
+    changes of its values, or read from its values where it has none."""
 
 
 class ReadingCounter:
@@ -314,14 +306,6 @@ class ReadingCounter:
         return 1.0 / (float((j * w).sum()) / float(w.sum()) * self.t_s)
 
 
-def log_fresh(cols: Mapping[str, Array], skin: Skin,
-              infer: SkinFreshInference | None = None) -> NDArray[np.int64]:
-    """A block's fresh bits ``(m, P)``: the log's own column with the changes of its values, or,
-    without the column, inferred from the values (``infer``, which carries what it learnt from the
-    blocks before, or a new :class:`SkinFreshInference`)."""
-    return (infer or SkinFreshInference(skin)).feed(cols)
-
-
 def log_boards_period(log: SkinLog, skin: Skin, t_s: float) -> float | None:
     """The pipe thermocouples' period read from ``log`` (s) where the config gives none
     (``sensor.period_T_w`` and ``period_T_p`` 0) and the log's boards read at most every 1.5
@@ -332,7 +316,7 @@ def log_boards_period(log: SkinLog, skin: Skin, t_s: float) -> float | None:
     if skin.cfg.sensor.period_T_w != 0.0 or skin.cfg.sensor.period_T_p != 0.0:
         return None
     rc = ReadingCounter(len(skin.patches), t_s)
-    rc.count(log_fresh(log.cols, skin))
+    rc.count(SkinFreshInference(skin).feed(log.cols))
     r = rc.rate
     return 1.0 / r if 0.0 < r <= 1.0 / (1.5 * t_s) else None
 
@@ -376,7 +360,7 @@ class SkinEstimator:
     def block(self, t: Array, cols: Mapping[str, Array]) -> SkinBlock:
         """Estimate the next block (class doc)."""
         m, P = len(t), self.P
-        fresh = log_fresh(cols, self.skin, self._infer)
+        fresh = self._infer.feed(cols)
         self._readings.count(fresh)
         T_in, fr = self.inlet.push(block_thermocouples(cols, self.skin), cols["T_p"], cols["v"],
                                    cols["T_a"], fresh)

@@ -116,7 +116,7 @@ class FreshInference:
                 if k0 + m >= D:
                     self._every[c] = n / (D - 1) >= EVERY_SAMPLE
             if c in self._every and k0 + m > D:
-                changed[max(D - k0, 0):] |= self._every[c][None] if changed.ndim > 1 else self._every[c]
+                changed[max(D - k0, 0):] |= self._every[c]  # per patch: broadcast over rows
             out |= np.where(changed, bit, 0)
             if m:
                 self._last[c] = x[-1].copy()
