@@ -11,6 +11,7 @@ from thermoskin import _numba_cache as nc
 
 
 def test_every_compiled_module_is_hashed() -> None:
+    import ast
     import re
 
     pkg = nc.HERE
@@ -22,7 +23,14 @@ def test_every_compiled_module_is_hashed() -> None:
     defined_in = {k for k, t in texts.items() for name in wrapped
                   if re.search(rf"^def {name}\(", t, re.M) and "@njit" not in t}
     assert wrapped and defined_in == set(nc.COMPILED_ELSEWHERE)
-    assert sorted(compiled + sorted(defined_in)) == sorted(nc.SOURCES)
+    # a constant (an upper-case name) a compiled module imports from another of the package
+    consts = {node.module.removeprefix("thermoskin.").replace(".", "/") + ".py" for k in compiled
+              for node in ast.walk(ast.parse(texts[k]))
+              if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("thermoskin.")
+              and any(a.name.isupper() for a in node.names)}
+    consts -= {k for k in compiled} | set(nc.COMPILED_ELSEWHERE)
+    assert consts == set(nc.CONSTANTS_FROM)
+    assert sorted(compiled + sorted(defined_in) + sorted(consts)) == sorted(nc.SOURCES)
 
 
 def _cache_dir(env: dict[str, str]) -> str:

@@ -24,10 +24,16 @@ COMPILED_ELSEWHERE = ("control/mpc.py", "physics/peltier.py", "sim/skin.py")
 the MPC's interval test, the tank's and the skin's own arithmetic), whose changes must renew
 its cache too (numba would keep the caller's stale copy)."""
 
+CONSTANTS_FROM = ("estimation/model.py", "events.py", "physics/finger.py", "sim/sensors.py")
+"""Modules whose constants (upper-case names) a compiled module imports: numba freezes a
+global's value into the machine code (the event record's layout, the onset threshold's rate
+tolerance, the noise block's length)."""
+
 SOURCES = ("estimation/kernel.py", "sweep/kernel.py", "sweep/qp.py", "sim/skin_plant.py",
-           "sim/board_bank.py", "skin_transport.py", "calibrate.py", *COMPILED_ELSEWHERE)
+           "sim/board_bank.py", "skin_transport.py", "calibrate.py", *COMPILED_ELSEWHERE,
+           *CONSTANTS_FROM)
 """Every module with compiled (``@njit``) code, relative to the package, and those of
-:data:`COMPILED_ELSEWHERE` (a test keeps it whole)."""
+:data:`COMPILED_ELSEWHERE` and :data:`CONSTANTS_FROM` (a test keeps it whole)."""
 
 PREFIX = "numba-"
 
@@ -78,3 +84,32 @@ def has_compiled(where: str) -> bool:
         return any(Path(d).glob(f"{folder}_*/{stem}-*.nbi"))
     except OSError:
         return True
+
+
+def skip_blas_probe() -> None:
+    """Load numba's array registry without its probe for BLAS, which imports ``scipy.linalg``.
+
+    Numba's first compiled call (a cached one too) imports ``numba.np.arraymath``, which at
+    import checks that ``scipy.linalg.cython_blas`` imports, only to choose how ``np.dot`` of
+    two vectors is compiled; that import is ``scipy.linalg`` whole, about 0.2 s of a short
+    ``observe`` (0.3 s with what scipy imports of numpy). scipy is a dependency of this package,
+    so the probe's answer is known: the module is imported here with the probe answering yes.
+    Numba's linear algebra (``numba.np.linalg``, none of it used here) keeps its own checks.
+    Call after ``import numba`` and before the first compiled call; harmless if numba has loaded
+    the registry already or is laid out otherwise."""
+    import sys
+
+    if "numba.np.arraymath" in sys.modules:
+        return
+    try:
+        import numba.np.linalg as nlinalg
+    except ImportError:  # another layout of numba: it probes as usual
+        return
+    probe = getattr(nlinalg, "ensure_blas", None)
+    if probe is None:
+        return
+    nlinalg.ensure_blas = lambda: None
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        nlinalg.ensure_blas = probe

@@ -41,6 +41,8 @@ import numba.core.options
 import numpy as np
 from numba import njit, prange
 
+from thermoskin._numba_cache import skip_blas_probe
+from thermoskin.estimation.model import RATE_TOL
 from thermoskin.events import (  # the event record's layout
     EV_DETECTED,
     EV_DURATION,
@@ -52,6 +54,8 @@ from thermoskin.events import (  # the event record's layout
     EV_SIGN,
     NEV,
 )
+
+skip_blas_probe()  # before the first compiled call: no scipy.linalg import
 
 # ---------------------------------------------------------------- state layout (one patch)
 X = 0          # x: T_w, T_g, q_i, T_p, dT_p (5)
@@ -65,6 +69,7 @@ NWARM = 39     # warm-up samples seen
 B = 40         # baseline of the q_i estimate, W
 KAPPA = 41     # scale of the innovations against their predicted standard deviation
 QPRI = 42      # the q_i estimate before this sample's readings, W
+RATEH = 43     # the reading rate the onset threshold HTH is for
 SIGN = 46      # sign of the contact (+1 heat in, -1 heat out)
 ONSET = 47
 DETECTED = 48
@@ -520,9 +525,16 @@ def _eq8(st, pr, Rw, T_w, T_p, T_a, iv):
 def _threshold(st, pr):
     """The onset threshold for the current reading rate: more readings a second are more
     chances of a false alarm, ``h = max(h_on + h_rate ln(readings/s), h_min)`` (no reading
-    yet: one a sample); the floor because a CUSUM alarms on noise about once in ``e^h``
+    yet: one a sample), renewed only when the rate has moved by more than
+    :data:`~thermoskin.estimation.model.RATE_TOL`
+    since (a board's rate jitters in its last bits at every reading; the logarithm was 7 % of a
+    sample); the floor because a CUSUM alarms on noise about once in ``e^h``
     readings (Lorden 1971), and a few readings a second each carry much evidence."""
     rate = st[RATE] if st[RATE] > 0.0 else 1.0 / pr[PR_TS]
+    rh = st[RATEH]
+    if rh > 0.0 and abs(rate - rh) <= RATE_TOL * rh:
+        return
+    st[RATEH] = rate
     h = pr[PR_H] + pr[PR_HSLOPE] * math.log(rate if rate > 1.0 else 1.0)
     st[HTH] = h if h > pr[PR_HMIN] else pr[PR_HMIN]
 

@@ -42,6 +42,7 @@ from numpy.typing import NDArray
 
 from thermoskin.params import Config
 from thermoskin.physics.convection import R_w as R_w_of
+from thermoskin.physics.expm import expm
 from thermoskin.physics.network import discretize
 
 Array = NDArray[np.float64]
@@ -50,11 +51,9 @@ NX = 5
 """Patch state size: ``T_w, T_g, q_i, T_p, r_p``."""
 I_TW, I_TG, I_Q, I_TP, I_DTP = range(NX)
 
-
-def _expm(M: Array) -> Array:
-    from scipy.linalg import expm
-
-    return np.asarray(expm(M))
+RATE_TOL = 1e-6
+"""The onset threshold follows the pipe readings' rate once the rate has moved by more than
+this (relative) since the threshold was set: it then moves by at most ``h_rate`` 1e-6."""
 
 
 def patch_matrices(cfg: Config, R_w: float, S_q: float | None = None) -> tuple[Array, Array, Array]:
@@ -99,7 +98,7 @@ def van_loan(A: Array, B: Array, S: Array, t_s: float) -> tuple[Array, Array, Ar
     F[:n, :n] = -A
     F[:n, n:] = S
     F[n:, n:] = A.T
-    G = _expm(F * t_s)
+    G = expm(F * t_s)
     Q = G[n:, n:].T @ G[:n, n:]
     Q = 0.5 * (Q + Q.T)
     return Phi, (Gam[:, 0] if B.ndim == 1 else Gam), Q

@@ -16,7 +16,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.estimation.model import I_DTP, I_Q, I_TG, I_TP, I_TW, ModelTables, build_tables
+from thermoskin.estimation.model import (
+    I_DTP,
+    I_Q,
+    I_TG,
+    I_TP,
+    I_TW,
+    RATE_TOL,
+    ModelTables,
+    build_tables,
+)
 from thermoskin.events import ContactEvent
 from thermoskin.observer import ThermalExchangeObserver
 from thermoskin.params import Config
@@ -80,6 +89,7 @@ class ReferenceEstimator:
         self.xa = np.zeros(2)
         self.Pa = np.zeros((2, 2))
         self.kappa, self.rate, self.t_last_w = 1.0, 0.0, -1e300
+        self.rate_h, self.h = 0.0, math.nan  # the onset threshold and the rate it is for
         self.t_fresh_w = -1e300  # the last pipe reading flagged fresh, NaN or not
         self.gap_run = 0
         self.iv_prev = 0
@@ -192,6 +202,7 @@ class ReferenceEstimator:
                 dt = t - self.t_last_w
                 if dt > 0:
                     self.rate = 1 / dt if self.rate == 0 else self.rate + 0.05 * (1 / dt - self.rate)
+                    self._threshold()
                 self.t_last_w = t
             else:
                 self.gap_run += 1
@@ -252,6 +263,17 @@ class ReferenceEstimator:
             c.mu = _unit_q()
         self.ready = True
         self.gap_run = 0
+        self._threshold()
+
+    def _threshold(self) -> None:
+        """``h = max(h_on + h_rate ln(readings/s), h_min)``, renewed when the rate has moved
+        by more than :data:`~thermoskin.estimation.model.RATE_TOL` (relative) since."""
+        d = self.cfg.detector
+        rate = self.rate if self.rate > 0 else 1 / self.t_s
+        if self.rate_h > 0 and abs(rate - self.rate_h) <= RATE_TOL * self.rate_h:
+            return
+        self.rate_h = rate
+        self.h = max(d.h_on + d.h_rate * math.log(max(rate, 1.0)), d.h_min)
 
     def _reset_cusums(self, t: float) -> None:
         for c in self.cusums:
@@ -273,8 +295,7 @@ class ReferenceEstimator:
             self.dq = q - self.b
             return 0
         if self.mode == "idle":
-            rate = self.rate if self.rate > 0 else 1 / self.t_s
-            h = max(d.h_on + d.h_rate * math.log(max(rate, 1.0)), d.h_min)  # the kernel caches it per reading
+            h = self.h
             if d.onset_glr and (gg > 0 or self.t_last_w == t):  # a pipe reading, for dating
                 if self.glr and t - self.glr_t0 < d.onset_glr_pool:
                     e = self.glr[-1]

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.params import SkinParams
+from thermoskin.physics.expm import expm
 
 Array = NDArray[np.float64]
 TF = tuple[Array, Array]
@@ -48,8 +49,6 @@ def discretize(A: Array, B: Array, t_s: float) -> tuple[Array, Array]:
 
     ``[[Phi, Gamma], [0, I]] = exp([[A, B], [0, 0]] t_s)`` (one matrix exponential).
     """
-    from scipy.linalg import expm
-
     A = np.atleast_2d(np.asarray(A, dtype=float))
     B2 = np.asarray(B, dtype=float).reshape(A.shape[0], -1)
     n, m = B2.shape

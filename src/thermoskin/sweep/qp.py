@@ -29,6 +29,10 @@ import math
 import numpy as np
 from numba import njit
 
+from thermoskin._numba_cache import skip_blas_probe
+
+skip_blas_probe()  # before the first compiled call: no scipy.linalg import
+
 MAXIT = 60
 TOL = 1e-12
 
