@@ -42,7 +42,7 @@ from thermoskin.estimation.freshness import infer_fresh
 from thermoskin.estimation.model import I_Q, I_TP
 from thermoskin.estimation.reference import ReferenceEstimator
 from thermoskin.params import Config, load_config
-from thermoskin.pipeline import observe, sample_interval
+from thermoskin.pipeline import loop_t_s, observe, sample_interval
 from thermoskin.sim.conditions import decimate, get_condition
 from thermoskin.sim.run import simulate
 
@@ -83,7 +83,7 @@ def _record(log: dict[str, np.ndarray], cfg: Config, k0: int, k1: int
             ) -> tuple[list[list[tuple[int, float, float, np.ndarray, bool]]], list[np.ndarray]]:
     """Run the filter over rows ``k0..k1`` (no detection); per row its updates and its Phi."""
     t = log["t"]
-    t_s = sample_interval(t)
+    t_s = loop_t_s(sample_interval(t), cfg)
     est = _Recorder(cfg, t_s)
     fresh = log["_fresh"]
     cmd = log.get("T_w_cmd")

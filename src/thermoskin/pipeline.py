@@ -33,7 +33,7 @@ from thermoskin.plausible import Cleaned, clean_log
 INPUT_COLUMNS = ("t", "T_w", "T_p", "v", "T_a")
 
 __all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "StreamResult", "coarse_log_warnings",
-           "last_known", "observe", "observe_file", "sample_interval", "switch_rows"]
+           "last_known", "loop_t_s", "observe", "observe_file", "sample_interval", "switch_rows"]
 
 #: The estimator's columns written by :func:`observe_file` (a log that had them keeps its own
 #: as ``*_live``).
@@ -70,7 +70,7 @@ def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None 
     """
     t = np.asarray(log["t"], dtype=float)
     if t_s is None:
-        t_s = _loop_t_s(sample_interval(t), cfg)
+        t_s = loop_t_s(sample_interval(t), cfg)
     check_interval(t_s)
     fresh, _ = infer_fresh(log)
     clean = clean_log(log, cfg)
@@ -126,9 +126,12 @@ def last_known(v: NDArray[np.float64], before: float = math.nan) -> float:
     return float(v[ok[-1]]) if len(ok) else before
 
 
-def _loop_t_s(t_s: float, cfg: Config) -> float:
-    """The log's interval, or the configured one where they agree within 0.1 %."""
-    return cfg.sampling.t_s if abs(t_s - cfg.sampling.t_s) <= 1e-3 * cfg.sampling.t_s else t_s
+def loop_t_s(t_s: float, cfg: Config) -> float:
+    """A log's sampling interval as the estimator takes it: the configured ``sampling.t_s``
+    where the log's is that within 0.1 % (the median of the differences of its times carries
+    their rounding; the live loop used the configured value), else the log's own."""
+    cfg_t_s = cfg.sampling.t_s
+    return cfg_t_s if abs(t_s - cfg_t_s) <= 1e-3 * cfg_t_s else float(t_s)
 
 
 @dataclass
@@ -183,7 +186,7 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
             warm_up(cfg)  # while the first chunks are read
             for chunk in chunks:
                 if est is None:
-                    t_s = _loop_t_s(sample_interval(chunk["t"]), cfg)
+                    t_s = loop_t_s(sample_interval(chunk["t"]), cfg)
                     check_interval(t_s)
                     est = TouchEstimator(cfg, t_s=t_s)
                 fresh = fresh_inf.feed(chunk)

@@ -58,6 +58,7 @@ from thermoskin.estimation.freshness import FreshInference
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
+from thermoskin.pipeline import loop_t_s
 from thermoskin.skin import NETWORK_KEYS, Skin, tc_fresh_bit
 from thermoskin.skin_inlet import InletStream
 from thermoskin.skin_log import SkinLog
@@ -231,14 +232,6 @@ class SkinFreshInference(FreshInference):
         super().__init__(_channels(skin))
 
 
-def loop_t_s(t_s: float, skin: Skin) -> float:
-    """A log's sampling interval as the estimator takes it: the configured ``sampling.t_s`` where the
-    log's is that within 0.1 % (the median of the differences of its times carries their rounding),
-    else the log's own (as the single patch's ``observe`` does)."""
-    cfg_t_s = skin.cfg.sampling.t_s
-    return cfg_t_s if abs(t_s - cfg_t_s) <= 1e-3 * cfg_t_s else float(t_s)
-
-
 @dataclass(frozen=True)
 class Change:
     """A contact flag's change on one patch: detected (``on``) or released, at the row's time ``t``;
@@ -306,17 +299,19 @@ class ReadingCounter:
         return 1.0 / (float((j * w).sum()) / float(w.sum()) * self.t_s)
 
 
-def log_boards_period(log: SkinLog, skin: Skin, t_s: float) -> float | None:
+def log_boards_period(log: SkinLog, skin: Skin, t_s: float,
+                      fresh: NDArray[np.int64] | None = None) -> float | None:
     """The pipe thermocouples' period read from ``log`` (s) where the config gives none
     (``sensor.period_T_w`` and ``period_T_p`` 0) and the log's boards read at most every 1.5
     rows (as :func:`patch_config` asks; a log at the loop's rate without bits, whose repeated
     readings look like a board of 1.1-1.3 rows, is not taken for slow boards); else None (the
     config's, as the live loop takes it). An estimate (a board's jitter): the run's own period
-    within a fraction of a percent."""
+    within a fraction of a percent. ``fresh``: the log's fresh bits where already inferred
+    (:class:`SkinFreshInference`)."""
     if skin.cfg.sensor.period_T_w != 0.0 or skin.cfg.sensor.period_T_p != 0.0:
         return None
     rc = ReadingCounter(len(skin.patches), t_s)
-    rc.count(SkinFreshInference(skin).feed(log.cols))
+    rc.count(SkinFreshInference(skin).feed(log.cols) if fresh is None else fresh)
     r = rc.rate
     return 1.0 / r if 0.0 < r <= 1.0 / (1.5 * t_s) else None
 
@@ -357,10 +352,13 @@ class SkinEstimator:
     def events(self) -> list[tuple[int, ContactEvent]]:
         return self.est.events
 
-    def block(self, t: Array, cols: Mapping[str, Array]) -> SkinBlock:
-        """Estimate the next block (class doc)."""
+    def block(self, t: Array, cols: Mapping[str, Array],
+              fresh: NDArray[np.int64] | None = None) -> SkinBlock:
+        """Estimate the next block (class doc); ``fresh``: its fresh bits where already inferred
+        (:func:`observe_skin`'s, once for the whole log), else inferred here."""
         m, P = len(t), self.P
-        fresh = self._infer.feed(cols)
+        if fresh is None:
+            fresh = self._infer.feed(cols)
         self._readings.count(fresh)
         T_in, fr = self.inlet.push(block_thermocouples(cols, self.skin), cols["T_p"], cols["v"],
                                    cols["T_a"], fresh)
@@ -408,10 +406,11 @@ class SkinEstimator:
 def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObservation:
     """Estimate, detect and locate on every patch of ``skin`` over ``log`` (module doc): the
     :class:`SkinEstimator` fed the whole log as one block."""
-    t_s = loop_t_s(log.t_s, skin)
-    period = log_boards_period(log, skin, t_s)
+    t_s = loop_t_s(log.t_s, skin.cfg)
+    bits = SkinFreshInference(skin).feed(log.cols)
+    period = log_boards_period(log, skin, t_s, bits)
     est = SkinEstimator(skin, t_s, period)
-    b = est.block(log.t, log.cols)
+    b = est.block(log.t, log.cols, bits)
     est.finish(float(log.t[-1]))
     out, T_in, fr, fresh = b.columns, b.T_in, b.fresh_in, b.fresh
     Y = thermocouples(log, skin)
