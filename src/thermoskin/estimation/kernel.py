@@ -250,9 +250,9 @@ def _update(st, pr, i, y, R):
         # evidence: the reading's sensitivity to a lasting change of q_i, g = P[i, q] / P[q, q]
         pqq = st[P + 12]
         g = st[P + 5 * i + 2] / pqq if pqq > 0.0 else 0.0
-        Se = kap * kap * S
-        st[SGE] += g * e / Se
-        st[SGG] += g * g / Se
+        gS = g / (kap * kap * S)  # one division for both
+        st[SGE] += gS * e
+        st[SGG] += gS * g
         # the innovations' scale: running median of |e| / sqrt(S) (0.6745 for a unit normal)
         if abs(e) > 0.6745 * kap * sS:
             st[KAPPA] = kap * pr[PR_UP]
@@ -283,20 +283,43 @@ def _update(st, pr, i, y, R):
     st[X + 2] += k2 * e
     st[X + 3] += k3 * e
     st[X + 4] += k4 * e
-    # P <- P - K P[i, :] with K = P[:, i]/S (symmetric): from a copy of row i
+    # P <- P - K P[i, :] with K = P[:, i]/S: P is symmetric here (the prediction leaves it so,
+    # and this update keeps it), so row i is column i and the gain k_a = r_a / S; the upper
+    # triangle is computed (15 products, not 25) and mirrored
     r0 = st[P + 5 * i]
     r1 = st[P + 5 * i + 1]
     r2 = st[P + 5 * i + 2]
     r3 = st[P + 5 * i + 3]
     r4 = st[P + 5 * i + 4]
-    for a_ in range(5):
-        ka = st[P + 5 * a_ + i] * inv  # row a_ is changed only below, after this read
-        base = P + 5 * a_
-        st[base] -= ka * r0
-        st[base + 1] -= ka * r1
-        st[base + 2] -= ka * r2
-        st[base + 3] -= ka * r3
-        st[base + 4] -= ka * r4
+    v = st[P] - k0 * r0
+    st[P] = v
+    v = st[P + 1] - k0 * r1
+    st[P + 1] = st[P + 5] = v
+    v = st[P + 2] - k0 * r2
+    st[P + 2] = st[P + 10] = v
+    v = st[P + 3] - k0 * r3
+    st[P + 3] = st[P + 15] = v
+    v = st[P + 4] - k0 * r4
+    st[P + 4] = st[P + 20] = v
+    v = st[P + 6] - k1 * r1
+    st[P + 6] = v
+    v = st[P + 7] - k1 * r2
+    st[P + 7] = st[P + 11] = v
+    v = st[P + 8] - k1 * r3
+    st[P + 8] = st[P + 16] = v
+    v = st[P + 9] - k1 * r4
+    st[P + 9] = st[P + 21] = v
+    v = st[P + 12] - k2 * r2
+    st[P + 12] = v
+    v = st[P + 13] - k2 * r3
+    st[P + 13] = st[P + 17] = v
+    v = st[P + 14] - k2 * r4
+    st[P + 14] = st[P + 22] = v
+    v = st[P + 18] - k3 * r3
+    st[P + 18] = v
+    v = st[P + 19] - k3 * r4
+    st[P + 19] = st[P + 23] = v
+    st[P + 24] = st[P + 24] - k4 * r4
 
 
 @njit(cache=True, inline="always")
