@@ -111,8 +111,8 @@ class Observation:
 
 
 def warm_up(cfg: Config) -> None:
-    """Load what estimation needs (scipy's matrix exponential, the compiled kernel from
-    numba's cache; about half a second) by running a two-sample estimate: a caller that has
+    """Load what estimation needs (numba, the compiled kernel from its cache, the water's
+    properties for the tables; about half a second) by running a two-sample estimate: a caller that has
     other work in flight meanwhile (``observe`` reading ahead) hides that time."""
     t_s = cfg.sampling.t_s
     x = np.full(2, 24.0)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -151,6 +151,21 @@ class StreamResult:
     """One line per column with implausible values or with no valid sample at all."""
 
 
+def _prepared(chunks: Iterable[dict[str, NDArray[np.float64]]], cfg: Config, fresh_inf: FreshInference
+              ) -> Iterator[tuple[dict[str, NDArray[np.float64]], NDArray[np.int64], Cleaned, int]]:
+    """Each chunk of a log with what the estimator needs of it besides the chunk: its fresh
+    bits, its cleaned columns and its pump switches; run in :func:`observe_file`'s reading
+    thread, beside the kernel (which releases the GIL), not before it."""
+    v_last = math.nan
+    for chunk in chunks:
+        fresh = fresh_inf.feed(chunk)
+        clean = clean_log(chunk, cfg)
+        v = clean.columns["v"]
+        n_sw = switch_rows(v, v_last)
+        v_last = last_known(v, v_last)
+        yield chunk, fresh, clean, n_sw
+
+
 def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg: Config,
                  progress: Callable[[int, int | None], None] | None = None, *,
                  characterise: bool = True) -> StreamResult:
@@ -174,7 +189,6 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
         t_last = 0.0
         t_s = math.nan
         n_switch = 0
-        v_last = math.nan
         counts: dict[str, int] = {}
         first: dict[str, float] = {}
         valid: dict[str, bool] = {}
@@ -182,23 +196,20 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
         events: list[ContactEvent] = []
         # read ahead and write behind in threads while the kernel (GIL released) estimates
         with (LogWriter(out, out_names, atomic=True) as writer, WriteBehind(writer) as behind,
-              prefetch(reader, depth=PREFETCH_CHUNKS) as chunks):
+              prefetch(_prepared(reader, cfg, fresh_inf), depth=PREFETCH_CHUNKS) as chunks):
             warm_up(cfg)  # while the first chunks are read
-            for chunk in chunks:
+            for chunk, fresh, clean, n_sw in chunks:
                 if est is None:
                     t_s = loop_t_s(sample_interval(chunk["t"]), cfg)
                     check_interval(t_s)
                     est = TouchEstimator(cfg, t_s=t_s)
-                fresh = fresh_inf.feed(chunk)
-                clean = clean_log(chunk, cfg)
                 for k, n in clean.counts.items():
                     first.setdefault(k, clean.first[k])
                     counts[k] = counts.get(k, 0) + n
                 for k in ("T_w", "T_p", "T_a", "v"):
                     valid[k] = valid.get(k, False) or k not in clean.no_valid
                 c = clean.columns
-                n_switch += switch_rows(c["v"], v_last)
-                v_last = last_known(c["v"], v_last)
+                n_switch += n_sw
                 cols, new = est.feed(c["t"], c["T_w"], c["T_p"], c["v"], c["T_a"],
                                      T_w_cmd=c.get("T_w_cmd"), fresh=fresh, drive=c.get("drive"))
                 if ch is not None:
