@@ -14,13 +14,15 @@ from thermoskin.params import load_config
 from thermoskin.physics.convection import R_w as R_w_of
 from thermoskin.physics.expm import expm
 
+SCALES = [1e-8, 1e-3, 0.01, 0.2, 0.9, 2.0, 5.0, 20.0, 300.0]
+
 
 @pytest.mark.parametrize("n", [1, 2, 3, 5, 10, 14])
-@pytest.mark.parametrize("scale", [1e-8, 1e-3, 0.01, 0.2, 0.9, 2.0, 5.0, 20.0, 300.0])
+@pytest.mark.parametrize("scale", SCALES)
 def test_against_scipy_every_degree(n: int, scale: float) -> None:
     """Random matrices whose norms fall in each Padé degree's range (3, 5, 7, 9) and beyond
     (13 with squarings): scipy's result to rounding (its own, amplified by the squarings)."""
-    rng = np.random.default_rng(n * 1000 + int(scale * 100))
+    rng = np.random.default_rng(n * 1000 + SCALES.index(scale))
     for _ in range(4):
         A = rng.normal(size=(n, n)) * scale / n
         ref = scipy_expm(A)
@@ -64,6 +66,28 @@ def test_bad_input() -> None:
         expm(np.zeros((2, 3)))
     with pytest.raises(ValueError, match="NaN"):
         expm(np.array([[np.nan]]))
+    with pytest.raises(ValueError, match="real"):
+        expm(np.array([[1j]]))
+
+
+@pytest.mark.parametrize("t_s", [0.02, 0.1, 0.5, 1.0])
+def test_van_loan_noise_over_long_intervals(t_s: float) -> None:
+    """``Q_d = int_0^t_s e^{A s} S e^{A' s} ds`` against a quadrature of scipy's exponentials,
+    and positive semi-definite, at the slow rates ``sampling.t_s`` allows (up to 1 s), where a
+    single Van Loan exponential cancelled (a negative eigenvalue at 0.5 s, 5e18 at 1 s)."""
+    from scipy.integrate import quad_vec
+
+    cfg = load_config()
+    for v in (0.0, 0.141):
+        A, B, S = patch_matrices(cfg, R_w_of(v, cfg.skin))
+        _, _, Q = van_loan(A, B, S, t_s)
+        def integrand(s: float, A: np.ndarray = A, S: np.ndarray = S) -> np.ndarray:
+            E = scipy_expm(A * s)
+            return E @ S @ E.T
+
+        ref, _ = quad_vec(integrand, 0.0, t_s, epsabs=1e-16, epsrel=1e-11)
+        assert np.abs(Q - ref).max() <= 1e-9 * np.abs(ref).max()
+        assert np.linalg.eigvalsh(Q).min() >= -1e-12 * np.abs(Q).max()
 
 
 def test_observe_imports_no_scipy_linalg(tmp_path) -> None:  # type: ignore[no-untyped-def]

@@ -120,3 +120,27 @@ def test_entry_points_without_reference_counting() -> None:
     for f in (kernel.step, kernel.run, kernel.step_many, kernel.step_many_parallel, kernel.run_rows,
               kernel.finish):
         assert f.targetoptions.get("_nrt") is False, f
+
+
+@pytest.mark.parametrize("period", [1, 7, 15, 100])
+def test_onset_threshold_follows_the_reading_rate(period: int) -> None:
+    """The onset threshold is ``max(h_on + h_rate ln(readings/s), h_min)`` at the pipe
+    thermocouple's actual rate (a reading every ``period`` rows of a 1 kHz log, as boards of
+    1000, 143, 67 and 10 Hz give; the last at the floor), computed here from the rate alone;
+    the kernel renews it only when the rate moves (``RATE_TOL``), so it agrees to that
+    tolerance, not exactly."""
+    import math
+
+    from thermoskin.estimation import kernel as K  # noqa: N812
+
+    cfg = load_config()
+    d = cfg.detector
+    n = 20_000
+    t = np.arange(n) * cfg.sampling.t_s
+    x = np.full(n, 24.0)
+    fresh = np.where(np.arange(n) % period == 0, 7, 6)
+    est = TouchEstimator(cfg)
+    est.feed(t, x, x, np.zeros(n), x, fresh=fresh)
+    rate = 1.0 / (period * cfg.sampling.t_s)
+    h = max(d.h_on + d.h_rate * math.log(rate), d.h_min)
+    assert est.st[K.HTH] == pytest.approx(h, abs=d.h_rate * 1e-5)

@@ -90,9 +90,10 @@ def skip_blas_probe() -> None:
     """Load numba's array registry without its probe for BLAS, which imports ``scipy.linalg``.
 
     Numba's first compiled call (a cached one too) imports ``numba.np.arraymath``, which at
-    import checks that ``scipy.linalg.cython_blas`` imports, only to choose how ``np.dot`` of
-    two vectors is compiled; that import is ``scipy.linalg`` whole, about 0.2 s of a short
-    ``observe`` (0.3 s with what scipy imports of numpy). scipy is a dependency of this package,
+    import checks that ``scipy.linalg.cython_blas`` imports, only to choose how it compiles
+    the inner products of ``np.correlate`` and ``np.convolve``; that import is
+    ``scipy.linalg`` whole, about 0.2 s of a short ``observe`` (0.3 s with what scipy imports
+    of numpy). scipy is a dependency of this package,
     so the probe's answer is known: the module is imported here with the probe answering yes.
     Numba's linear algebra (``numba.np.linalg``, none of it used here) keeps its own checks.
     Call after ``import numba`` and before the first compiled call; harmless if numba has loaded
@@ -111,5 +112,7 @@ def skip_blas_probe() -> None:
     nlinalg.ensure_blas = lambda: None
     try:
         import numba.np.arraymath  # noqa: F401
+    except ImportError:  # laid out otherwise: numba loads its registry (and probes) itself
+        pass
     finally:
         nlinalg.ensure_blas = probe

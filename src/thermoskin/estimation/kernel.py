@@ -283,9 +283,12 @@ def _update(st, pr, i, y, R):
     st[X + 2] += k2 * e
     st[X + 3] += k3 * e
     st[X + 4] += k4 * e
-    # P <- P - K P[i, :] with K = P[:, i]/S: P is symmetric here (the prediction leaves it so,
-    # and this update keeps it), so row i is column i and the gain k_a = r_a / S; the upper
-    # triangle is computed (15 products, not 25) and mirrored
+    # P <- P - K P[i, :] with K = P[:, i]/S: P is symmetric here, so row i is column i and the
+    # gain k_a = r_a / S; the upper triangle is computed (15 products, not 25) and mirrored.
+    # Symmetric because every change of P before an update keeps it so: _predict computes the
+    # upper triangle and mirrors it (it reads that triangle alone, which also wipes the last
+    # bits of asymmetry an onset's whole-state jump leaves, in _detect, between the updates
+    # and the prediction), this update mirrors, and the rest touch the diagonal only
     r0 = st[P + 5 * i]
     r1 = st[P + 5 * i + 1]
     r2 = st[P + 5 * i + 2]
