@@ -289,40 +289,13 @@ def _update(st, pr, i, y, R):
     # upper triangle and mirrors it (it reads that triangle alone, which also wipes the last
     # bits of asymmetry an onset's whole-state jump leaves, in _detect, between the updates
     # and the prediction), this update mirrors, and the rest touch the diagonal only
-    r0 = st[P + 5 * i]
-    r1 = st[P + 5 * i + 1]
-    r2 = st[P + 5 * i + 2]
-    r3 = st[P + 5 * i + 3]
-    r4 = st[P + 5 * i + 4]
-    v = st[P] - k0 * r0
-    st[P] = v
-    v = st[P + 1] - k0 * r1
-    st[P + 1] = st[P + 5] = v
-    v = st[P + 2] - k0 * r2
-    st[P + 2] = st[P + 10] = v
-    v = st[P + 3] - k0 * r3
-    st[P + 3] = st[P + 15] = v
-    v = st[P + 4] - k0 * r4
-    st[P + 4] = st[P + 20] = v
-    v = st[P + 6] - k1 * r1
-    st[P + 6] = v
-    v = st[P + 7] - k1 * r2
-    st[P + 7] = st[P + 11] = v
-    v = st[P + 8] - k1 * r3
-    st[P + 8] = st[P + 16] = v
-    v = st[P + 9] - k1 * r4
-    st[P + 9] = st[P + 21] = v
-    v = st[P + 12] - k2 * r2
-    st[P + 12] = v
-    v = st[P + 13] - k2 * r3
-    st[P + 13] = st[P + 17] = v
-    v = st[P + 14] - k2 * r4
-    st[P + 14] = st[P + 22] = v
-    v = st[P + 18] - k3 * r3
-    st[P + 18] = v
-    v = st[P + 19] - k3 * r4
-    st[P + 19] = st[P + 23] = v
-    st[P + 24] = st[P + 24] - k4 * r4
+    r = (st[P + 5 * i], st[P + 5 * i + 1], st[P + 5 * i + 2], st[P + 5 * i + 3], st[P + 5 * i + 4])
+    for a_ in range(5):
+        ka = r[a_] * inv
+        for b_ in range(a_, 5):
+            v = st[P + 5 * a_ + b_] - ka * r[b_]
+            st[P + 5 * a_ + b_] = v
+            st[P + 5 * b_ + a_] = v
 
 
 @njit(cache=True, inline="always")
