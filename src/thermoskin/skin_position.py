@@ -37,10 +37,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import NDArray
 
 from thermoskin.physics.convection import FlowResistance
+from thermoskin.physics.expm import expm
 from thermoskin.physics.spatial import contact_cells, spatial_state_space, spatial_steady_state
 from thermoskin.skin import Patch, Skin
 
@@ -114,7 +114,7 @@ class PatchLocator:
         aug[:n, :n] = A
         aug[:n, n:n + 2] = B[:, :2]
         aug[:n, n + 2:] = Bq
-        E = scipy.linalg.expm(aug * self.t_s)
+        E = expm(aug * self.t_s)
         got = (E[:n, :n], E[:n, n:n + 2], E[:n, n + 2:])
         self._mats[v] = got
         return got

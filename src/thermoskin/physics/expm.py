@@ -9,6 +9,8 @@ costs about 0.15 s, more than the rest of ``thermoskin observe`` on a short log;
 estimator's tables (:func:`thermoskin.physics.network.discretize`,
 :func:`thermoskin.estimation.model.van_loan`) need one exponential of a small matrix each.
 The tests hold it to scipy's on the model's matrices and on random ones of every norm.
+Estimation uses it (the tables, a skin's position fit); the simulator keeps scipy's, which
+it imports anyway for its larger spatial models.
 """
 
 from __future__ import annotations
