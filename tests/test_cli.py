@@ -404,3 +404,23 @@ def test_observe_skin_asks_for_the_estimators_only(tmp_path: Path, monkeypatch) 
         if missing is None:  # (with one missing, the lookup stops there)
             assert sorted(asked) == sorted(names)
         assert err.count("thermoskin: compiling the patches' estimators") == (missing is not None)
+
+
+def test_exit_freeze_still_finalises_garbage(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The command line freezes its objects at exit (a faster teardown), after one last
+    collection: an object in a reference cycle, garbage by then, is still finalised (its
+    ``__del__`` runs), as the interpreter's own teardown would have done."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "finalised.txt"
+    code = ("import thermoskin.cli\n"
+            "class Holder:\n"
+            "    def __del__(self):\n"
+            f"        with open({str(out)!r}, 'w') as f:\n"
+            "            f.write('done')\n"
+            "h = Holder()\n"
+            "h.self = h\n"
+            "del h\n")
+    subprocess.run([sys.executable, "-c", code], check=True)
+    assert out.read_text() == "done"

@@ -6,7 +6,9 @@ User errors (a bad log, a bad config, an unknown scenario) print one line,
 
 from __future__ import annotations
 
+import atexit
 import functools
+import gc
 import math
 import os
 import sys
@@ -29,6 +31,20 @@ from thermoskin.paths import PathError
 
 if TYPE_CHECKING:
     from thermoskin.sim.scenarios import Scenario
+
+
+
+def _freeze_at_exit() -> None:
+    """At exit, one collection (what is garbage by then is finalised, as the interpreter's own
+    teardown would do), then every object frozen (``gc.freeze``): the interpreter's teardown,
+    which otherwise collects again and again while it clears the modules and traverses every
+    object numba and llvmlite made each time, took 0.2 s of a 1 s ``observe`` of a short log;
+    now 0.05 s. Exit handlers all still run; the OS takes the memory back."""
+    gc.collect()
+    gc.freeze()
+
+
+atexit.register(_freeze_at_exit)
 
 F = TypeVar("F", bound=Callable[..., Any])
 console = Console(highlight=False, soft_wrap=True)
