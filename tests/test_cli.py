@@ -409,12 +409,15 @@ def test_observe_skin_asks_for_the_estimators_only(tmp_path: Path, monkeypatch) 
 def test_exit_freeze_still_finalises_garbage(tmp_path) -> None:  # type: ignore[no-untyped-def]
     """The command line freezes its objects at exit (a faster teardown), after one last
     collection: an object in a reference cycle, garbage by then, is still finalised (its
-    ``__del__`` runs), as the interpreter's own teardown would have done."""
+    ``__del__`` runs), as the interpreter's own teardown would have done. The command run
+    through ``main()`` (which registers the freeze), the garbage made after it."""
     import subprocess
     import sys
 
     out = tmp_path / "finalised.txt"
-    code = ("import thermoskin.cli\n"
+    code = ("import sys\n"
+            "from thermoskin.cli import main\n"
+            "main(['scenarios'], standalone_mode=False)\n"
             "class Holder:\n"
             "    def __del__(self):\n"
             f"        with open({str(out)!r}, 'w') as f:\n"
@@ -422,5 +425,30 @@ def test_exit_freeze_still_finalises_garbage(tmp_path) -> None:  # type: ignore[
             "h = Holder()\n"
             "h.self = h\n"
             "del h\n")
-    subprocess.run([sys.executable, "-c", code], check=True)
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
     assert out.read_text() == "done"
+
+
+def test_exit_freeze_only_for_the_command_line() -> None:
+    """Registered by the command line's ``main()``, not by importing the module (a program that
+    imports it keeps the interpreter's own exit)."""
+    import subprocess
+    import sys
+
+    probe = ("import atexit, sys\n"
+             "seen = []\n"
+             "real = atexit.register\n"
+             "def spy(f, *a, **k):\n"
+             "    seen.append(getattr(f, '__name__', ''))\n"
+             "    return real(f, *a, **k)\n"
+             "atexit.register = spy\n"
+             "import thermoskin.cli as c\n"
+             "print('import', '_freeze_at_exit' in seen)\n"
+             "sys.argv = ['thermoskin', 'scenarios']\n"
+             "try:\n"
+             "    c.main()\n"
+             "except SystemExit:\n"
+             "    pass\n"
+             "print('main', '_freeze_at_exit' in seen, file=sys.stderr)\n")
+    r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert "import False" in r.stdout and "main True" in r.stderr

@@ -209,3 +209,27 @@ def test_in_process_recording_replays_exactly(tmp_path: Path) -> None:
     np.testing.assert_array_equal(cols["q_i_hat"], res.columns["q_i_hat"])
     np.testing.assert_array_equal(cols["contact"], res.columns["contact"])
     assert [e.onset for e in cmp["events"]] == [e.onset for e in res.events]
+    assert cmp["agrees"]
+
+
+@pytest.mark.parametrize(("shift", "agrees"), [(1e-12, True), (1e-6, False)])
+def test_replay_agrees_to_1e9_watt(tmp_path: Path, monkeypatch, shift: float,  # type: ignore[no-untyped-def]
+                                   agrees: bool) -> None:
+    """A replay whose estimates differ from the recorded ones by rounding (another host's fused
+    multiply-adds: about 1e-12 W) agrees; by more than 1e-9 W it does not. Not exact either way."""
+    from thermoskin.runtime import record as R  # noqa: N812
+
+    cfg = Config()
+    rec = R.LoopRecorder(tmp_path / "r.mcap", cfg)
+    run_closed_loop(SCENARIOS["none"].with_duration(2.0), cfg, on_block=rec.write_rows, block=500)
+    rec.close()
+    real = R.to_columns
+
+    def shifted(*a, **k):  # type: ignore[no-untyped-def]
+        cols = real(*a, **k)
+        cols["q_i_hat"] = [x + shift for x in cols["q_i_hat"]]
+        return cols
+
+    monkeypatch.setattr(R, "to_columns", shifted)
+    _, cmp = R.replay(tmp_path / "r.mcap")
+    assert not cmp["exact"] and cmp["agrees"] is agrees
