@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from thermoskin.estimation.freshness import infer_fresh
-from thermoskin.estimation.model import I_Q, I_TP
+from thermoskin.estimation.model import I_DTP, I_Q, I_TP
 from thermoskin.estimation.reference import ReferenceEstimator
 from thermoskin.params import Config, load_config
 from thermoskin.pipeline import loop_t_s, observe, sample_interval
@@ -71,7 +71,7 @@ class _Recorder(ReferenceEstimator):
         if i == I_TP and abs(e) > self.cfg.estimator.tank_jump * self.kappa * math.sqrt(S):
             P = P.copy()  # the tank's manoeuvre branch: no evidence, the gain of the widened P
             P[I_TP, I_TP] += e * e
-            P[4, 4] += (e / self.cfg.estimator.tank_jump_s) ** 2
+            P[I_DTP, I_DTP] += (e / self.cfg.estimator.tank_jump_s) ** 2
             S = P[i, i] + self.R
             evidence = False
         # the evidence is weighed as the detector weighs it: by the innovations' learnt scale

@@ -33,7 +33,6 @@ if TYPE_CHECKING:
     from thermoskin.sim.scenarios import Scenario
 
 
-
 def _freeze_at_exit() -> None:
     """At the command's exit, one collection (what is garbage by then is finalised), then every
     object frozen (``gc.freeze``): the interpreter's teardown, which otherwise collects again and
@@ -45,6 +44,7 @@ def _freeze_at_exit() -> None:
     a program that merely imports this module."""
     gc.collect()
     gc.freeze()
+
 
 F = TypeVar("F", bound=Callable[..., Any])
 console = Console(highlight=False, soft_wrap=True)
@@ -205,15 +205,14 @@ def show_events(events: list[ContactEvent], title: str = "Detected contacts") ->
         return
     from rich.measure import Measurement
 
-    plain = events_table(events, title, what=False)
-    shown = _shown(events, title)[1]
-    need = Measurement.get(console, console.options, plain).maximum + 2 + max(len(_what(e)) for _, e in shown)
-    if console.width >= need:
-        show_table(events_table(events, title, what=True))
+    full = events_table(events, title, what=True)
+    wide = console.options.update_width(10_000)  # measured unclamped: the width it needs unbroken
+    if Measurement.get(console, wide, full).maximum <= console.width:
+        show_table(full)
         return
-    show_table(plain)
+    show_table(events_table(events, title, what=False))
     show_table(narrow_table("What touched (docs/characterise.md)", ("#", "what"),
-                            [(str(i), _what(e)) for i, e in shown], text=("what",)))
+                            [(str(i), _what(e)) for i, e in _shown(events, title)[1]], text=("what",)))
 
 
 def _simple_fingers(sc: Scenario) -> bool:

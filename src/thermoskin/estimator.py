@@ -112,8 +112,8 @@ class Observation:
 
 def warm_up(cfg: Config) -> None:
     """Load what estimation needs (numba, the compiled kernel from its cache, the water's
-    properties for the tables; about half a second) by running a two-sample estimate: a caller that has
-    other work in flight meanwhile (``observe`` reading ahead) hides that time."""
+    properties for the tables; about half a second) by running a two-sample estimate: a caller
+    that has other work in flight meanwhile (``observe`` reading ahead) hides that time."""
     t_s = cfg.sampling.t_s
     x = np.full(2, 24.0)
     TouchEstimator(cfg).feed(np.array([0.0, t_s]), x, x, np.zeros(2), x, T_w_cmd=x)

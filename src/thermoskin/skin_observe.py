@@ -54,7 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
-from thermoskin.estimation.freshness import FreshInference
+from thermoskin.estimation.freshness import CHANNEL_BITS, FreshInference
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
 from thermoskin.patches import PatchEstimators
@@ -219,8 +219,7 @@ def block_thermocouples(cols: Mapping[str, Array], skin: Skin) -> list[Array]:
 
 def _channels(skin: Skin) -> list[tuple[str, int]]:
     """A skin log's read channels and their ``fresh`` bits."""
-    chans = [("T_w", 1), ("T_p", 2), ("T_a", 4)]
-    return chans + [(f"T_w{j}", tc_fresh_bit(j - 1)) for j in range(2, skin.n_thermocouples + 1)]
+    return [*CHANNEL_BITS, *((f"T_w{j}", tc_fresh_bit(j - 1)) for j in range(2, skin.n_thermocouples + 1))]
 
 
 class SkinFreshInference(FreshInference):

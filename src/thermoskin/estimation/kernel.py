@@ -532,10 +532,10 @@ def _threshold(st, pr):
     """The onset threshold for the current reading rate: more readings a second are more
     chances of a false alarm, ``h = max(h_on + h_rate ln(readings/s), h_min)`` (no reading
     yet: one a sample), renewed only when the rate has moved by more than
-    :data:`~thermoskin.estimation.model.RATE_TOL`
-    since (a board's rate jitters in its last bits at every reading; the logarithm was 7 % of a
-    sample); the floor because a CUSUM alarms on noise about once in ``e^h``
-    readings (Lorden 1971), and a few readings a second each carry much evidence."""
+    :data:`~thermoskin.estimation.model.RATE_TOL` since (a board's rate jitters in its last bits
+    at every reading; the logarithm was 7 % of a sample); the floor because a CUSUM alarms on
+    noise about once in ``e^h`` readings (Lorden 1971), and a few readings a second each carry
+    much evidence."""
     rate = st[RATE] if st[RATE] > 0.0 else 1.0 / pr[PR_TS]
     rh = st[RATEH]
     if rh > 0.0 and abs(rate - rh) <= RATE_TOL * rh:
