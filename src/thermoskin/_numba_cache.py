@@ -95,9 +95,9 @@ def skip_blas_probe() -> None:
     ``scipy.linalg`` whole, about 0.2 s of a short ``observe`` (0.3 s with what scipy imports
     of numpy). scipy is a dependency of this package, so the probe's answer is known: the
     module is imported here with the probe answering yes. Numba's linear algebra
-    (``numba.np.linalg``, none of it used here) keeps its own checks. Call after ``import
-    numba`` and before the first compiled call; harmless if numba has loaded the registry
-    already or is laid out otherwise."""
+    (``numba.np.linalg``, none of it used here) keeps its own checks. Called by
+    :mod:`thermoskin._jit`, through which every compiled module imports numba; harmless if
+    numba has loaded the registry already or is laid out otherwise."""
     import sys
 
     if "numba.np.arraymath" in sys.modules:

@@ -102,15 +102,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from thermoskin._numba_cache import skip_blas_probe
+from thermoskin._jit import njit
 from thermoskin.params import Config, to_toml
 from thermoskin.physics.convection import R_w as R_w_model
 from thermoskin.physics.network import state_space
-
-skip_blas_probe()  # before the first compiled call: no scipy.linalg import
 
 Array = NDArray[np.float64]
 

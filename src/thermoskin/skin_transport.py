@@ -36,17 +36,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
-from thermoskin._numba_cache import skip_blas_probe
+from thermoskin._jit import njit
 from thermoskin.params import SkinParams
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.network import discretize, state_space
 from thermoskin.physics.spatial import spatial_state_space
 from thermoskin.skin import Skin
-
-skip_blas_probe()  # before the first compiled call: no scipy.linalg import
 
 Array = NDArray[np.float64]
 

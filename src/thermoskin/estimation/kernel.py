@@ -39,9 +39,8 @@ import math
 
 import numba.core.options
 import numpy as np
-from numba import njit, prange
 
-from thermoskin._numba_cache import skip_blas_probe
+from thermoskin._jit import njit, prange
 from thermoskin.estimation.model import RATE_TOL
 from thermoskin.events import (  # the event record's layout
     EV_DETECTED,
@@ -54,8 +53,6 @@ from thermoskin.events import (  # the event record's layout
     EV_SIGN,
     NEV,
 )
-
-skip_blas_probe()  # before the first compiled call: no scipy.linalg import
 
 # ---------------------------------------------------------------- state layout (one patch)
 X = 0          # x: T_w, T_g, q_i, T_p, dT_p (5)
@@ -222,6 +219,8 @@ _CONTRACT = {"contract"}
 _FAST: dict[str, object] = {"cache": True, "fastmath": _CONTRACT}
 if hasattr(numba.core.options.DefaultOptions, "_nrt"):
     _FAST["_nrt"] = False
+_inline = njit(cache=True, inline="always", fastmath=_CONTRACT)
+"""The decorator of the sample step's parts: inlined into the entry points that call them."""
 
 
 @njit(cache=True)
@@ -239,7 +238,7 @@ def new_state() -> np.ndarray:
     return st
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _update(st, pr, i, y, R):
     """Scalar measurement of state ``i``; adds its evidence about a change of ``q_i``."""
     S = st[P + 6 * i] + R
@@ -304,7 +303,7 @@ def _update(st, pr, i, y, R):
             st[P + 5 * b_ + a_] = v
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _predict(st, F, G, QQ, u, w):
     """``x = Phi x + Gamma [u, w]``, ``P = Phi P Phi' + Q``.
 
@@ -374,7 +373,7 @@ def _predict(st, F, G, QQ, u, w):
     st[P + 24] = n44
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _ambient(st, pr, t, y, fresh, R, idx):
     """Update the ambient filter with a fresh air reading (if any).
 
@@ -412,13 +411,13 @@ _TINY = float(np.finfo(np.float64).tiny)
 """The smallest normal float64; below it (subnormal numbers) arithmetic is many times slower."""
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _ftz(x):
     """``x``, or 0 where it is subnormal (``0 < |x| < tiny``); NaN stays NaN."""
     return 0.0 if 0.0 < abs(x) < _TINY else x
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _ambient_predict(st, Fa, Qa):
     a0, a1 = st[XA], st[XA + 1]
     st[XA] = Fa[0, 0] * a0 + Fa[0, 1] * a1
@@ -439,7 +438,7 @@ def _ambient_predict(st, Fa, Qa):
     st[PA + 3] = m10 * f10 + m11 * f11 + Qa[1, 1]
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _init(st, pr, T_w, T_p, T_a):
     """Start from the first valid readings: the network's no-touch sheet, no touch, still tank."""
     R = pr[PR_RT]
@@ -469,7 +468,7 @@ def _init(st, pr, T_w, T_p, T_a):
     _threshold(st, pr)
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _eq8(st, pr, Rw, T_w, T_p, T_a, iv):
     """The paper's thermal exchange observer (eq. 8) with its ``q_ag`` correction, one sample.
 
@@ -527,7 +526,7 @@ def _eq8(st, pr, Rw, T_w, T_p, T_a, iv):
     st[QIH] = (y1 - y2) + (T_w - T_a) * pr[PR_IRAG]
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _threshold(st, pr):
     """The onset threshold for the current reading rate: more readings a second are more
     chances of a false alarm, ``h = max(h_on + h_rate ln(readings/s), h_min)`` (no reading
@@ -545,7 +544,7 @@ def _threshold(st, pr):
     st[HTH] = h if h > pr[PR_HMIN] else pr[PR_HMIN]
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _mu_reset(st, j):
     """CUSUM ``j``'s step signature for a step of ``q_i`` now: all of it still to be learnt."""
     m = MU + NMU * j
@@ -554,7 +553,7 @@ def _mu_reset(st, j):
     st[m + 2] = 1.0
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _mu_predict(st, F):
     """The step signatures through the model, ``mu <- Phi mu`` (rows 2 and 4 of ``Phi`` are unit rows)."""
     # Phi's rows read once (the stores below could be to the same memory, for all the compiler
@@ -570,7 +569,7 @@ def _mu_predict(st, F):
         st[m + 3] = c0 * u0 + c1 * u1 + c2 * u2 + c3 * u3 + c4 * u4
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _cusums_reset(st, t):
     """Every onset CUSUM back to zero at ``t``."""
     for j in range(NCU):
@@ -582,7 +581,7 @@ def _cusums_reset(st, t):
         _mu_reset(st, j)
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _end(st, t_release, ev):
     n = st[COUNT]
     sg = st[SIGN]
@@ -604,7 +603,7 @@ def _end(st, t_release, ev):
     st[RUN] = 0.0
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _between(st, t_zero, t):
     """A change seen first after the reading at ``t_zero``: half a reading interval later
     (it came somewhere before the next reading), not after ``t``."""
@@ -613,7 +612,7 @@ def _between(st, t_zero, t):
     return tc if tc < t else t
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _glr_push(st, pr, t, sge, sgg):
     """Keep a pipe reading's time and evidence ``(g e/S, g²/S)`` in the ring buffer: pooled
     into the newest entry if that began less than ``PR_GPOOL`` ago, else in a new entry (the
@@ -635,7 +634,7 @@ def _glr_push(st, pr, t, sge, sgg):
         st[GCNT] += 1.0
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _glr_time(st, t_zero, sg, sum_ge, sum_gg):
     """The change time of a step of sign ``sg`` by the generalised likelihood ratio over it
     (Willsky and Jones 1976; Basseville and Nikiforov 1993, sec. 2.4): the time ``tau`` after
@@ -668,7 +667,7 @@ def _glr_time(st, t_zero, sg, sum_ge, sum_gg):
     return best_t
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _median_in_place(a, lo, m):
     """The median of ``a[lo:lo + m]``, as ``np.median`` gives it (NaN if any is NaN), sorting
     that part of ``a`` in place (insertion sort: ``m`` is at most :data:`NWB`, once a patch);
@@ -687,7 +686,7 @@ def _median_in_place(a, lo, m):
     return a[h] if m % 2 == 1 else (a[h - 1] + a[h]) / 2.0
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _detect(st, pr, t, ev):
     """The detector's sample; returns the step-result bits."""
     q = st[Q]
@@ -889,7 +888,7 @@ def _detect(st, pr, t, ev):
     return C_CONTACT
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _switch_correction(st, pr, Rw, iv_old, iv):
     """A log coarser than the loop: the pump switched (table row ``iv_old`` to ``iv``) somewhere
     in the last interval, not at its end; the water brought (T_p - T_w)(1/R_w,new - 1/R_w,old)
@@ -899,7 +898,7 @@ def _switch_correction(st, pr, Rw, iv_old, iv):
     st[P] += (pr[PR_VSW] * dT) ** 2
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
               ev):
     """One sample of one patch; returns the step-result bits (contact, started, ended).
@@ -1019,7 +1018,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                      fresh, ev)
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _keep_event(events, ne, ev):
     """``events[ne] = ev``, element by element (a row view would need reference counting)."""
     for j in range(NEV):
@@ -1048,7 +1047,7 @@ def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
     return ne
 
 
-@njit(cache=True, inline="always", fastmath=_CONTRACT)
+@_inline
 def _outputs(st, out, k):
     out[0, k] = st[QIH]
     out[1, k] = st[DQ]

@@ -14,13 +14,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
-from thermoskin._numba_cache import skip_blas_probe
+from thermoskin._jit import njit
 from thermoskin.sim.sensors import BLOCK, Board
-
-skip_blas_probe()  # before the first compiled call: no scipy.linalg import
 
 Array = NDArray[np.float64]
 JITTER_CHUNK = 64

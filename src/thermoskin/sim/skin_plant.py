@@ -67,10 +67,9 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg
-from numba import njit
 from numpy.typing import NDArray
 
-from thermoskin._numba_cache import skip_blas_probe
+from thermoskin._jit import njit
 from thermoskin.params import SkinParams
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.finger import T_F_IDLE
@@ -86,8 +85,6 @@ from thermoskin.sim.board_bank import BoardBank
 from thermoskin.sim.sensors import Board
 from thermoskin.sim.skin_scenarios import SkinScenario, contact_arrays
 from thermoskin.skin import Skin, tc_fresh_bit
-
-skip_blas_probe()  # before the first compiled call: no scipy.linalg import
 
 Array = NDArray[np.float64]
 

@@ -36,16 +36,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
 
-from thermoskin._numba_cache import skip_blas_probe
+from thermoskin._jit import njit, prange
 from thermoskin.control.mpc import interval_ok
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.physics.peltier import rk4_pair, tank_linear
 from thermoskin.sim.skin import zoh_scalars
 from thermoskin.sweep.qp import box_qp
-
-skip_blas_probe()  # before the first compiled call: no scipy.linalg import
 
 # the plant's own arithmetic, compiled here (one source for the plant and the batch)
 _tank_linear = njit(inline="always")(tank_linear)

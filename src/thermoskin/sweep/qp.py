@@ -27,11 +27,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from thermoskin._numba_cache import skip_blas_probe
-
-skip_blas_probe()  # before the first compiled call: no scipy.linalg import
+from thermoskin._jit import njit
 
 MAXIT = 60
 TOL = 1e-12
