@@ -354,3 +354,44 @@ def test_killed_run_keeps_the_contacts_that_had_ended(tmp_path: Path) -> None:
     for k, a in (("onset", off[0].onset), ("detected", off[0].detected_at), ("release", off[0].release),
                  ("peak_dq", off[0].peak_dq), ("mean_dq", off[0].mean_dq)):
         assert abs(float(r[k]) - a) <= 1e-9, (k, r[k], a)
+
+
+@pytest.mark.parametrize("how", ["live", "device", "skin"])
+def test_run_that_cannot_start_keeps_the_previous_outputs(tmp_path: Path, how: str) -> None:
+    """A run refused at its start (a live address that is not one, a device that does not
+    answer) exits 2 and leaves the files of an earlier run at its paths as they were (they
+    were moved aside while it started, not truncated or removed), with nothing left aside."""
+    args = {"live": ["--live", ":abc"], "device": ["--device", "serial:///dev/null"],
+            "skin": ["--skin", str(Path(__file__).parents[1] / "examples" / "forearm.toml"), "--live", ":abc"]}
+    names = ("k.csv", "k.png", "k_ev.csv", "k.mcap")
+    for n in names:
+        (tmp_path / n).write_text(f"an earlier run's {n}\n")
+    r = subprocess.run([*CMD, "run", "--duration", "2", "--log", "k.csv", "--events", "k_ev.csv",
+                        "--record", "k.mcap", *args[how]], cwd=tmp_path, capture_output=True, text=True,
+                       env=ENV, timeout=300)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.startswith("thermoskin: error:") and len(r.stderr.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(names)
+    for n in names:
+        assert (tmp_path / n).read_text() == f"an earlier run's {n}\n"
+
+
+def test_replaced_outputs_go_once_the_run_wrote(tmp_path: Path) -> None:
+    """:class:`thermoskin.paths.Replaced`: the earlier files are back where the run wrote nothing,
+    gone where it wrote; a path with no earlier file is left to the run."""
+    from thermoskin.paths import Replaced
+
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    a.write_text("old a")
+    rep = Replaced(a, b, None)
+    assert not a.exists() and (tmp_path / ".a.csv.previous").read_text() == "old a"
+    a.write_text("header only")
+    b.write_text("new b")
+    rep.close(wrote=False)
+    assert a.read_text() == "old a" and b.read_text() == "new b"
+    rep = Replaced(a, b)
+    a.write_text("new a")
+    b.write_text("newer b")
+    rep.close(wrote=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.csv", "b.csv"]
+    assert a.read_text() == "new a" and b.read_text() == "newer b"

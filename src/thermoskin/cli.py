@@ -914,7 +914,10 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                   + (", " if serial else f" ({len(sc.touches)} touches), ")
                   + f"T_w_cmd {cmd_txt}, {sc.duration:g} s at {1 / cfg.sampling.t_s:.0f} Hz")
     names = [k for k in COLUMNS if not serial or k not in TRUTH]
+    from thermoskin.paths import Replaced
+
     stop = StopRequest().install()
+    previous = Replaced(log_path, plot_path, events_path, record_path)
     try:
         recorder = None
         if record_path is not None:
@@ -1025,6 +1028,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         console.print(f"{n * cfg.sampling.t_s:g} s in {res.wall_s:.1f} s "
                       f"({res.realtime_factor:.1f}x real time); {wrote}")
     finally:
+        previous.close(wrote=log_path.exists())  # no log: no sample written
         stop.restore()
     if res.fault:
         t_f, t_safe = summary.get("t_fault", math.nan), summary.get("t_safe", math.nan)
@@ -1082,11 +1086,15 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
         click.echo(f"thermoskin: warning: {w}", err=True)
     _note_compile(skin_kernels(skin), "the skin's plant and the estimator", "about a minute")
     est = SkinEstimator(skin, cfg.sampling.t_s)
+    from thermoskin.paths import Replaced
+
     stop = StopRequest().install()
+    previous = Replaced(log_path, plot_path, events_path, groups_path, record_path)
     try:
         _run_skin_loop(skin, sc, cfg, est, stop, log_path, plot_path, events_path, groups_path,
                        record_path, live_addr, live_rate, live_wait)
     finally:
+        previous.close(wrote=log_path.exists())  # no log: no sample written
         stop.restore()
     if stop.is_set():
         why = f"stopped by {stop.name}" if stop.signum else "interrupted"

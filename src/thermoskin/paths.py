@@ -120,3 +120,30 @@ def distinct(*paths: tuple[str, Path | None]) -> None:
         if key in seen:
             raise PathError(f"{option} {p} is also given as {seen[key]}: give each output its own file")
         seen[key] = option
+
+
+class Replaced:
+    """Files of an earlier run at the paths a run is about to write as it goes, moved aside
+    (to a hidden sibling ``.NAME.previous``) before it opens its own: :meth:`close` removes
+    them once the run wrote samples, and puts them back where it wrote none (no device
+    answered, a live address refused, ...), so a run that fails to start loses nothing.
+    A run killed outright (SIGKILL) leaves them aside, not lost."""
+
+    def __init__(self, *paths: Path | None) -> None:
+        self.aside: list[tuple[Path, Path]] = []
+        for p in paths:
+            if p is not None and p.is_file():
+                a = p.with_name(f".{p.name}.previous")
+                os.replace(p, a)
+                self.aside.append((p, a))
+
+    def close(self, wrote: bool) -> None:
+        """The run is over: it ``wrote`` samples (its files stand) or not (the earlier ones
+        come back in place of what it left)."""
+        for p, a in self.aside:
+            with contextlib.suppress(OSError):
+                if wrote:
+                    a.unlink()
+                else:
+                    os.replace(a, p)
+        self.aside = []
