@@ -255,6 +255,13 @@ def test_results_of_another_sweep_are_not_touched(tmp_path: Path) -> None:
     r = CliRunner().invoke(main, ["sweep", str(f), "-o", str(out)])
     assert r.exit_code == 2 and "holds other columns" in r.output
     assert out.read_bytes() == before
+    # the same columns, other points: its merge would have kept this sweep's points alone
+    f.write_text(f.read_text().replace('\nmetrics = ["tracking_rms_K"]', "")
+                 .replace('"skin.R_g" = [8.0, 12.0]', '"skin.R_g" = [9.0, 12.0]'))
+    r = CliRunner().invoke(main, ["sweep", str(f), "-o", str(out)])
+    assert r.exit_code == 2 and "holds 6 point(s) that are not in this sweep" in r.output, r.output
+    assert len(r.output.strip().splitlines()) == 1
+    assert out.read_bytes() == before
 
 
 def test_dask_local_cluster_equals_local(tmp_path: Path) -> None:

@@ -1542,7 +1542,8 @@ def reproduce(out_dir: Path, only: str | None) -> None:
 @main.command()
 @click.argument("sweep_toml", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
-              help="RESULTS.parquet: one row per point (kept and resumed if it exists).")
+              help="RESULTS.parquet: one row per point (resumed if it exists; refused if it holds other "
+                   "points or columns than this sweep's).")
 @click.option("--dask", "dask_address", default=None,
               help="Run the chunks on a Dask cluster: its scheduler ADDRESS (tcp://host:8786), "
                    "or 'local' for a local cluster (pip install 'thermoskin[dask]').")

@@ -58,6 +58,19 @@ def done_hashes(out: Path) -> set[str]:
     return done
 
 
+def check_points(out: Path, points: set[str]) -> None:
+    """Refuse (one-line ``SweepError``) an ``out`` or parts holding points that are not this
+    sweep's (another sweep with the same columns, or this one edited): the merge keeps only
+    this sweep's points, so theirs would be lost."""
+    from thermoskin.sweep.spec import SweepError
+
+    other = done_hashes(out) - points
+    if other:
+        raise SweepError(f"-o {out}: holds {len(other)} point(s) that are not in this sweep (another "
+                         "sweep's, or this one's before an edit), which its merge would drop; choose "
+                         "another output or move that one away")
+
+
 def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> pa.Table:
     return pa.table({c: [r.get(c) for r in rows] for c in columns})
 
