@@ -157,3 +157,67 @@ def test_config_written_by_a_failed_run_is_untouched(work: Path) -> None:
     code, _, _ = invoke("run", "--duration", "1", "--config", "cw.toml", "--log", "keep.csv")
     assert code == 2 and (work / "keep.csv").read_bytes() == before
     assert read_log(work / "keep.csv", required=("t",))["t"].tolist() == [0.0, 1.0]
+
+
+def _disk_full(*_: object, **__: object) -> None:
+    import errno
+
+    raise OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_full_disk_is_one_line_and_keeps_the_earlier_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A disk that fills while a log is written: one line naming the file, exit 2, and the
+    earlier file at that path (an atomic writer's) left as it was; the same for a config."""
+    import thermoskin.logio.stream as stream
+    from thermoskin.atomic import write_text
+    from thermoskin.params import load_config, save_config
+
+    src = tmp_path / "in.csv"
+    r = CliRunner().invoke(main, ["simulate", "--duration", "3", "-o", str(src)])
+    assert r.exit_code == 0, r.output
+    out = tmp_path / "out.csv"
+    out.write_text("an earlier output\n")
+    monkeypatch.setattr(stream, "write_rows", _disk_full)
+    r = CliRunner().invoke(main, ["observe", str(src), "-o", str(out)])
+    assert r.exit_code == 2, r.output
+    lines = r.stderr.strip().splitlines()
+    assert lines[-1] == f"thermoskin: error: cannot write {out}: No space left on device", r.stderr
+    assert "Traceback" not in r.output and out.read_text() == "an earlier output\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv", "out.csv"]
+    cfg = tmp_path / "c.toml"
+    save_config(load_config(), cfg)
+    before = cfg.read_bytes()
+    monkeypatch.setattr(Path, "write_text", _disk_full)
+    with pytest.raises(OSError):
+        save_config(load_config(), cfg)
+    with pytest.raises(OSError):
+        write_text(cfg, "x")
+    assert cfg.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == [
+        "c.toml", "in.csv", "out.csv"]
+
+
+def test_storage_errors_are_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An OSError of the file system's (full, read-only, a drive gone) reaching the command
+    line is one line with the file it names and exit 2; any other OSError is not swallowed."""
+    import errno
+
+    import thermoskin.cli as cli
+
+    def boom(code: int):  # type: ignore[no-untyped-def]
+        @cli._user_errors
+        def f() -> None:
+            raise OSError(code, os.strerror(code), "/mnt/usb/run.mcap")
+        return f
+
+    r = CliRunner().invoke(click_command(boom(errno.ENOSPC)))
+    assert r.exit_code == 2
+    assert r.stderr.strip() == ("thermoskin: error: cannot write /mnt/usb/run.mcap: No space left on "
+                                "device; what was written before is kept")
+    r = CliRunner().invoke(click_command(boom(errno.ENOENT)))
+    assert r.exit_code == 1 and isinstance(r.exception, FileNotFoundError)
+
+
+def click_command(f):  # type: ignore[no-untyped-def]
+    import click
+
+    return click.command()(f)

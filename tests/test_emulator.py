@@ -282,6 +282,28 @@ def test_stale_link_replaced_and_file_refused(tmp_path: Path) -> None:
     assert link.read_text() == "not a link"
 
 
+def test_link_in_use_is_not_taken_over(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A second emulator on the link of a running one refuses (exit 2, one line) and leaves the
+    first one reachable; once the first is gone, its stale link is taken."""
+    link = tmp_path / "dev"
+    first = PtyEmulator(link, DeviceCore(Config(), SCENARIOS["none"]))
+    first.open_link()
+    try:
+        assert main(str(link), "none", verbose=False) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "which is open (another emulator?)" in err[0]
+        assert os.readlink(link) == first.slave_name
+    finally:
+        first.close_link()
+    link.symlink_to(first.slave_name)  # as a killed emulator leaves it: its pty is gone
+    second = PtyEmulator(link, DeviceCore(Config(), SCENARIOS["none"]))
+    second.open_link()
+    try:
+        assert os.readlink(link) == second.slave_name
+    finally:
+        second.close_link()
+
+
 def test_main_rejects_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(str(tmp_path / "l"), "no-such-scenario") == 2
     assert "unknown scenario" in capsys.readouterr().err

@@ -105,6 +105,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thermoskin._jit import njit
+from thermoskin.atomic import atomic_path, write_text
 from thermoskin.params import Config, to_toml
 from thermoskin.physics.convection import R_w as R_w_model
 from thermoskin.physics.network import state_space
@@ -237,8 +238,8 @@ def make_blocks(log: Mapping[str, ArrayLike], t_s: float, usable: NDArray[np.boo
     The inputs ``T_p`` and ``T_a`` are first smoothed by centred moving means of ``smooth`` s
     (tank and air are slow; their sensor noise, fed into the model, would bias the fit).
     """
-    m = max(1, round(t_fit / t_s))
     v = np.asarray(log["v"], dtype=float)
+    m = max(1, min(round(t_fit / t_s), len(v)))  # a block is at most the whole log
     v_modes = np.unique(v[usable])
     min_len = max(2, round(MIN_STRETCH_S / t_s))
     T_w = np.asarray(log["T_w"], dtype=float)
@@ -844,7 +845,7 @@ def save(cal: Calibration, path: str | Path, source: str = "") -> Path:
     """Write :func:`to_toml_text` to ``path`` (a config ``load_config`` reads)."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(to_toml_text(cal, source), encoding="utf-8")
+    write_text(p, to_toml_text(cal, source))  # whole or not at all
     return p
 
 
@@ -908,5 +909,6 @@ def plot_fit(cal: Calibration, path: str | Path, title: str = "") -> Path:
     fig.suptitle(title or f"thermoskin calibrate: residual rms {cal.rms * 1e3:.2f} mK")
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, format="png")
+    with atomic_path(out) as tmp:
+        fig.savefig(tmp, format="png")
     return out

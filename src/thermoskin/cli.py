@@ -7,6 +7,7 @@ User errors (a bad log, a bad config, an unknown scenario) print one line,
 from __future__ import annotations
 
 import atexit
+import errno
 import functools
 import gc
 import math
@@ -51,6 +52,10 @@ console = Console(highlight=False, soft_wrap=True)
 err_console = Console(stderr=True, highlight=False, soft_wrap=True)
 
 
+#: The file system refusing a write (full, over quota, read-only, a drive gone): the user's to fix.
+STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EFBIG})
+
+
 class UserError(Exception):
     """Any other user error with a one-line message."""
 
@@ -71,6 +76,13 @@ def _user_errors(fn: F) -> F:
         except KeyboardInterrupt:
             click.echo("thermoskin: interrupted", err=True)
             sys.exit(130)
+        except OSError as e:
+            if e.errno not in STORAGE_ERRNOS:
+                raise
+            where = f" {e.filename}" if e.filename else ""
+            click.echo(f"thermoskin: error: cannot write{where}: {e.strerror}; what was written "
+                       "before is kept", err=True)
+            sys.exit(2)
 
     return wrapper  # type: ignore[return-value]
 
@@ -562,6 +574,10 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
     from thermoskin import calibrate as cal_mod
     from thermoskin.logio import read_log
 
+    _outputs(("-o", output_toml, (".toml",), "fitted config"),
+             ("-o", output_toml.with_suffix(".png"), (".png",), "fit figure"), inputs=(log_path,))
+    if t_fit is not None and not (math.isfinite(t_fit) and t_fit >= 0):
+        raise UserError(f"--t-fit {t_fit} must be >= 0 s (0: every sample)")
     cfg = _config(config_path)
     truth = _config(truth_path) if truth_path is not None else None
     names = cal_mod.DEFAULT_PARAMS if params is None else tuple(
@@ -616,7 +632,7 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
                                title=f"thermoskin calibrate {log_path.name}: residual rms "
                                      f"{res.rms * 1e3:.2f} mK")
     except OSError as e:
-        raise UserError(f"cannot write {output_toml}: {e.strerror or e}") from None
+        raise UserError(f"cannot write {e.filename or output_toml}: {e.strerror or e}") from None
     console.print(f"wrote {output_toml} and {png}")
 
 
@@ -950,10 +966,17 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 except OSError as e:
                     raise UserError(f"cannot write {events_path}: {e.strerror or e}") from None
 
+            from thermoskin.logio import LogError
+
             def on_block(block: dict[str, Any]) -> None:
-                runlog.write(block)  # type: ignore[union-attr]
-                if recorder is not None:
-                    recorder.write_rows(block)
+                try:
+                    runlog.write(block)  # type: ignore[union-attr]
+                    if recorder is not None:
+                        recorder.write_rows(block)
+                except (LogError, OSError) as e:  # a full disk, a drive gone: stop (safe state)
+                    msg = str(e) if isinstance(e, LogError) else f"cannot write: {e.strerror or e}"
+                    raise UserError(f"{msg}; the run stopped there (a device in its safe state), "
+                                    "its outputs keep what was written before") from None
 
             def on_event(e: ContactEvent) -> None:
                 if evstream is not None:

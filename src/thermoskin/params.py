@@ -600,5 +600,7 @@ def to_toml(cfg: Config) -> str:
 
 
 def save_config(cfg: Config, path: str | Path) -> None:
-    """Write ``cfg`` as TOML."""
-    Path(path).write_text(to_toml(cfg), encoding="utf-8")
+    """Write ``cfg`` as TOML, whole or not at all (a full disk leaves an earlier file as it was)."""
+    from thermoskin.atomic import write_text
+
+    write_text(path, to_toml(cfg))

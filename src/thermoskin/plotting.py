@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from thermoskin.atomic import atomic_path
+
 Array = NDArray[np.float64]
 
 #: At most about this many points are drawn per line (min/max decimation above it).
@@ -211,7 +213,8 @@ def plot_run(
 
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, format=out.suffix[1:].lower() if out.suffix.lower() in FORMATS else "png")
+    with atomic_path(out) as tmp:  # whole or not at all
+        fig.savefig(tmp, format=out.suffix[1:].lower() if out.suffix.lower() in FORMATS else "png")
     return out
 
 

@@ -21,6 +21,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+from thermoskin.atomic import atomic_path
 from thermoskin.skin import Skin
 
 MM = 1000.0
@@ -138,5 +139,6 @@ def plot_layout(skin: Skin, contacts: Iterable[Any] = (), path: str | Path | Non
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), fontsize=7, ncol=1, frameon=False)
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path)
+        with atomic_path(path) as tmp:  # whole or not at all
+            fig.savefig(tmp, format=Path(path).suffix[1:].lower() or "png")
     return fig

@@ -375,13 +375,16 @@ class PtyEmulator:
     # -- link ------------------------------------------------------------------------------
     def open_link(self) -> None:
         """Open the pty pair (raw mode) and point the link at its slave side."""
+        link = self.link
+        if link.exists() and not link.is_symlink():
+            raise FileExistsError(f"{link} exists and is not a symbolic link; not replacing it")
+        if link.is_symlink() and link.exists():  # a pty's node exists only while it is open
+            raise FileExistsError(f"{link} points to {os.readlink(link)}, which is open (another "
+                                  "emulator?); not taking it over: stop that one or choose another --link")
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)
         os.set_blocking(self._master, False)
         self.slave_name = os.ttyname(self._slave)
-        link = self.link
-        if link.exists() and not link.is_symlink():
-            raise FileExistsError(f"{link} exists and is not a symbolic link; not replacing it")
         tmp = link.with_name(f".{link.name}.{os.getpid()}.tmp")
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()

@@ -260,7 +260,8 @@ class LogWriter:
             return
         self.rows += n_rows
         if self._sink is not None:
-            self._sink.write(cols)
+            with self._storage():
+                self._sink.write(cols)
             return
         self._buf.append(cols)
         self._buffered += n_rows
@@ -269,27 +270,38 @@ class LogWriter:
 
     def flush(self) -> None:
         """Hand the buffered rows to the OS (CSV) or write them as a row group (Parquet)."""
-        if self._sink is not None:
-            self._sink.flush()
-            return
-        self._last_flush = time.monotonic()
-        if not self._buffered or self._fd is None:
-            return
-        buf, self._buf, self._buffered = self._buf, [], 0
-        cols = buf[0] if len(buf) == 1 else [np.concatenate(c) for c in zip(*buf, strict=True)]
-        write_rows(self._fd, self.names, cols)
+        with self._storage():
+            if self._sink is not None:
+                self._sink.flush()
+                return
+            self._last_flush = time.monotonic()
+            if not self._buffered or self._fd is None:
+                return
+            buf, self._buf, self._buffered = self._buf, [], 0
+            cols = buf[0] if len(buf) == 1 else [np.concatenate(c) for c in zip(*buf, strict=True)]
+            write_rows(self._fd, self.names, cols)
+
+    @contextlib.contextmanager
+    def _storage(self) -> Iterator[None]:
+        """The file system's refusal (a full disk, a quota, a device gone) as one line naming the
+        log (:class:`LogError`): what was flushed before stays."""
+        try:
+            yield
+        except OSError as e:
+            raise LogError(f"cannot write {self.path}: {e.strerror or e}") from None
 
     def close(self) -> Path:
         """Flush, close and (``atomic``) rename into place; returns the log's path."""
         if self.closed:
             return self.path
         try:
-            if self._sink is not None:
-                self._sink.close()
-            else:
-                self.flush()
-            if self.fsync or self.atomic:
-                _fsync(self._target if self._fd is None else self._fd)
+            with self._storage():
+                if self._sink is not None:
+                    self._sink.close()
+                else:
+                    self.flush()
+                if self.fsync or self.atomic:
+                    _fsync(self._target if self._fd is None else self._fd)
         except BaseException:
             self._discard()
             raise

@@ -506,6 +506,8 @@ def run_realtime(spec: LoopSpec, *, on_rows: Callable[[dict[str, NDArray[np.floa
                 hdr[1] = 1
         drain()
     finally:
+        if summary is None:  # left on an error here (a log that cannot be written): the loop
+            hdr[1] = 1       # stops at once, the device in its safe state, not at its duration
         if proc.pid is not None:
             proc.join(5.0)
         if proc.pid is not None and proc.is_alive():

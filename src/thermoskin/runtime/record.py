@@ -238,8 +238,9 @@ class _Appender:
     file with ``os.write`` (one call for a chunk and its index, short writes resumed), so
     the file only ever grows by whole records."""
 
-    def __init__(self, fd: int) -> None:
+    def __init__(self, fd: int, path: str | os.PathLike[str] | None = None) -> None:
         self.fd = fd
+        self.path = path  # named by an error
         self.pos = 0  # bytes in the file
         self.buf = bytearray()
 
@@ -255,7 +256,10 @@ class _Appender:
 
     def commit(self) -> None:
         while self.buf:
-            n = os.write(self.fd, self.buf)
+            try:
+                n = os.write(self.fd, self.buf)
+            except OSError as e:  # a full disk: the file keeps its whole records so far
+                raise OSError(e.errno, e.strerror, self.path) from None
             del self.buf[:n]
             self.pos += n
 
@@ -311,7 +315,7 @@ class Recorder:
         except OSError as e:
             self.closed = True
             raise RecordingError(f"cannot record to {self.path}: {e.strerror or e}") from None
-        self._out = _Appender(self._fd)
+        self._out = _Appender(self._fd, self.path)
         self._writer: Writer | None = None
         if guard_signals:
             _GUARD.add(self)

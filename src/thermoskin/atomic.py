@@ -1,0 +1,36 @@
+"""Files written whole or not at all: a temporary file beside the target, renamed over it.
+
+A full disk, a kill or an error while writing leaves the earlier file at the path as it was
+(and no temporary file, unless killed outright). For what is written at once (a config, a
+plot); logs and recordings, written as they go, have their own writers (``logio``,
+``runtime.record``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """A temporary path beside ``path`` to write to; renamed over ``path`` when the block ends
+    without error, removed otherwise. A writer that picks its format by the extension must be
+    told it (the temporary path ends in ``.tmp``)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def write_text(path: str | os.PathLike[str], text: str) -> None:
+    """``Path(path).write_text(text)`` (UTF-8), whole or not at all."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
