@@ -67,6 +67,9 @@ def work(tmp_path: Path) -> Path:
     write_log(tmp_path / "tiny_dt.csv", {"t": np.arange(n) * 1e-12, "T_w": np.full(n, 24.0),
                                          "T_p": np.full(n, 25.0), "v": np.full(n, 0.141),
                                          "T_a": np.full(n, 20.0)})
+    write_log(tmp_path / "skin.csv", {"t": np.repeat(t, 2), "patch": np.tile([0.0, 1.0], n),
+                                      "T_w": np.full(2 * n, 24.0), "T_p": np.full(2 * n, 25.0),
+                                      "v": np.full(2 * n, 0.141), "T_a": np.full(2 * n, 20.0)})
     cwd = Path.cwd()
     os.chdir(tmp_path)
     try:
@@ -110,13 +113,21 @@ CASES = [
     (["export", "a_dir", "-o", "x.csv"], "is a directory"),
     (["replay", "a_dir", "-o", "x.csv"], "is a directory"),
     (["reproduce", "--out", "a_file"], "is a file, not a folder"),
+    # a skin's long-format log where one patch's is read
+    (["observe", "skin.csv", "-o", "o.csv"], "a skin's log (its 'patch' column"),
+    (["plot", "skin.csv"], "observe reads it with --skin"),
+    # calibrate: its outputs and options checked before the fit
+    (["calibrate", "log.csv", "-o", "f.txt"], "must end in .toml"),
+    (["calibrate", "log.csv", "-o", "a_dir.toml"], "is a directory"),
+    (["calibrate", "log.csv", "-o", "f.toml", "--t-fit", "-1"], "--t-fit -1.0 must be >= 0 s"),
 ]
 
 
 @pytest.mark.parametrize(("args", "needle"), CASES, ids=[" ".join(a)[:60] for a, _ in CASES])
 def test_bad_input_one_line_exit_2_nothing_written(work: Path, args: list[str], needle: str | None) -> None:
-    if args[-1] == "a_dir.csv":
-        (work / "a_dir.csv").mkdir()
+    for a in ("a_dir.csv", "a_dir.toml"):
+        if a in args:
+            (work / a).mkdir()
     before = tree(work)
     code, out, err = invoke(*args)
     assert code == 2, (args, out, err)

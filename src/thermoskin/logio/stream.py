@@ -94,8 +94,12 @@ class LogReader:
             raise LogError(f"{p}: cannot read: {exc.strerror or exc}") from exc
         self.names: list[str] = self._src.names
         self.n_rows: int | None = self._src.n_rows
+        required = tuple(required)
         try:
             missing_columns(p, self.names, required, "line 1: " if self.format == "csv" else "")
+            if "patch" in self.names and "patch" not in required:
+                raise LogError(f"{p}: a skin's log (its 'patch' column: one row per sample and "
+                               "patch), not one patch's: observe reads it with --skin SKIN.toml")
         except LogError:
             self.close()
             raise
