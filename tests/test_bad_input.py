@@ -176,7 +176,8 @@ def _disk_full(*_: object, **__: object) -> None:
     raise OSError(errno.ENOSPC, "No space left on device")
 
 
-def test_full_disk_is_one_line_and_keeps_the_earlier_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_full_disk_is_one_line_and_keeps_the_earlier_output(tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
     """A disk that fills while a log is written: one line naming the file, exit 2, and the
     earlier file at that path (an atomic writer's) left as it was; the same for a config."""
     import thermoskin.logio.stream as stream

@@ -361,8 +361,9 @@ def test_run_that_cannot_start_keeps_the_previous_outputs(tmp_path: Path, how: s
     """A run refused at its start (a live address that is not one, a device that does not
     answer) exits 2 and leaves the files of an earlier run at its paths as they were (they
     were moved aside while it started, not truncated or removed), with nothing left aside."""
+    forearm = Path(__file__).parents[1] / "examples" / "forearm.toml"
     args = {"live": ["--live", ":abc"], "device": ["--device", "serial:///dev/null"],
-            "skin": ["--skin", str(Path(__file__).parents[1] / "examples" / "forearm.toml"), "--live", ":abc"]}
+            "skin": ["--skin", str(forearm), "--live", ":abc"]}
     names = ("k.csv", "k.png", "k_ev.csv", "k.mcap")
     for n in names:
         (tmp_path / n).write_text(f"an earlier run's {n}\n")

@@ -125,3 +125,28 @@ def test_a_log_coarser_than_the_loop_with_a_switching_pump_is_warned_about(tmp_p
         w.write(slow)
     res = observe_file(path, tmp_path / "out.csv", CFG, characterise=False)
     assert res.warnings == warn
+
+
+def test_a_stuck_pipe_thermocouple_is_warned_about(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """A T_w that never moves (a stuck or disconnected thermocouple) gets a warning naming it,
+    in memory and streamed; the same log as read by 10 Hz boards (held 100 ms) gets none."""
+    from thermoskin.logio import write_log
+    from thermoskin.pipeline import observe_file, stuck_warnings
+
+    log = simulate(SCENARIOS["one-finger"].with_duration(12.0), CFG)
+    log = {k: log[k] for k in ("t", "T_w", "T_p", "v", "T_a")}
+    boards = dict(log)
+    for k in ("T_w", "T_p", "T_a"):  # each reading held for 100 samples
+        boards[k] = np.repeat(log[k][::100], 100)[: len(log["t"])]
+    warn: list[str] = []
+    observe(boards, CFG, warnings=warn)
+    assert not any("stuck" in w for w in warn), warn
+    stuck = dict(log, T_w=np.full(len(log["t"]), 24.03125))
+    observe(stuck, CFG, warnings=warn)
+    assert [w for w in warn if "stuck" in w] == [
+        "T_w changes only every 12 s (thermocouple boards update at 5 Hz or faster): a stuck or "
+        "disconnected thermocouple? the estimates and contacts rest on it"]
+    write_log(tmp_path / "stuck.csv", stuck)
+    res = observe_file(tmp_path / "stuck.csv", tmp_path / "out.csv", CFG)
+    assert sum("T_w changes only every 12 s" in w for w in res.warnings) == 1
+    assert stuck_warnings({"T_w": 1999.0, "T_p": 2001.0}, 1e-3) == [stuck_warnings({"T_p": 2001.0}, 1e-3)[0]]
