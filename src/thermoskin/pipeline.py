@@ -33,7 +33,8 @@ from thermoskin.plausible import Cleaned, clean_log
 INPUT_COLUMNS = ("t", "T_w", "T_p", "v", "T_a")
 
 __all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "StreamResult", "coarse_log_warnings",
-           "last_known", "loop_t_s", "observe", "observe_file", "sample_interval", "switch_rows"]
+           "last_known", "loop_t_s", "observe", "observe_file", "sample_interval", "stuck_warnings",
+           "switch_rows"]
 
 #: The estimator's columns written by :func:`observe_file` (a log that had them keeps its own
 #: as ``*_live``).
@@ -72,12 +73,13 @@ def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None 
     if t_s is None:
         t_s = loop_t_s(sample_interval(t), cfg)
     check_interval(t_s)
-    fresh, _ = infer_fresh(log)
+    fresh, periods = infer_fresh(log)
     clean = clean_log(log, cfg)
     log = clean.columns
     if warnings is not None:
         warnings.extend(clean.warnings(cfg))
         warnings.extend(coarse_log_warnings(t_s, cfg, len(t), switch_rows(log["v"])))
+        warnings.extend(stuck_warnings(periods, t_s))
     est = TouchEstimator(cfg, t_s=t_s)
     res = est.run(t, log["T_w"], log["T_p"], log["v"], log["T_a"],
                   T_w_cmd=log.get("T_w_cmd"), fresh=fresh, drive=log.get("drive"))
@@ -107,6 +109,25 @@ def coarse_log_warnings(t_s: float, cfg: Config, rows: int, switch_rows: int) ->
                    f"{100.0 * switch_rows / rows:.0f} % of its rows: when in a row it switched is "
                    "not logged, so those rows tell little about a touch; a light touch (one "
                    "fingertip) may be found late or missed (log at the loop's rate to keep them)")
+    return out
+
+
+#: A pipe thermocouple whose readings change less often than this looks stuck or disconnected
+#: (boards update at 5 Hz or faster; the noise moves a working one's reading at once), s.
+STUCK_S = 2.0
+
+
+def stuck_warnings(periods: dict[str, float], t_s: float) -> list[str]:
+    """A line per pipe channel (``T_w``, ``T_p``) whose update period (``periods``, in samples of
+    ``t_s``, as :class:`~thermoskin.estimation.freshness.FreshInference` finds it from runs of
+    repeated values) is over :data:`STUCK_S`: the estimates rest on a reading that does not move."""
+    out = []
+    for ch in ("T_w", "T_p"):
+        p = periods.get(ch, 1.0) * t_s
+        if p > STUCK_S:
+            out.append(f"{ch} changes only every {p:.3g} s (thermocouple boards update at 5 Hz or "
+                       "faster): a stuck or disconnected thermocouple? the estimates and contacts "
+                       "rest on it")
     return out
 
 
@@ -249,4 +270,5 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
                         duration_s=rows * t_s,
                         warnings=Cleaned(columns={}, rejected=np.zeros(0, bool), counts=counts, first=first,
                                          no_valid=[k for k, ok in valid.items() if not ok]).warnings(cfg)
-                        + coarse_log_warnings(t_s, cfg, rows, n_switch))
+                        + coarse_log_warnings(t_s, cfg, rows, n_switch)
+                        + stuck_warnings(fresh_inf.periods, t_s))
