@@ -59,6 +59,7 @@ def work(tmp_path: Path) -> Path:
     (tmp_path / "cw.toml").write_text("[skin]\nC_w = 1e300\n")
     (tmp_path / "ts.toml").write_text("[sampling]\nt_s = 1e-12\n")
     (tmp_path / "euler.toml").write_text("[sampling]\nt_s = 0.1\n")
+    (tmp_path / "safety.toml").write_text("[safety]\nT_p_min = 40.0\n")  # a check across fields
     n = 400
     t = np.arange(n) * 1e-3
     write_log(tmp_path / "log.csv", {"t": t, "T_w": np.full(n, 24.0), "T_p": np.full(n, 25.0),
@@ -84,7 +85,8 @@ CASES = [
     (["simulate", "--duration", "1", "--config", "ts.toml", "-o", "s.csv"], "sampling.t_s = 1e-12"),
     (["observe", "log.csv", "-o", "o.csv", "--config", "cw.toml"], "skin.C_w"),
     (["run", "--duration", "1", "--config", "euler.toml"], "too long for the MPC's model"),
-    (["observe", "tiny_dt.csv", "-o", "o.csv"], "sampled every 1e-12 s"),
+    (["observe", "tiny_dt.csv", "-o", "o.csv"], "tiny_dt.csv is sampled every 1e-12 s"),
+    (["run", "--duration", "1", "--config", "safety.toml"], "safety.T_p_max = 40.0 in safety.toml"),
     # a directory given as a config
     (["run", "--duration", "1", "--config", "a_dir"], "is a directory"),
     (["simulate", "--duration", "1", "--config", "a_dir", "-o", "s.csv"], "is a directory"),

@@ -538,7 +538,10 @@ def _merge(base: Config, data: dict[str, Any], source: str) -> Config:
             sections[name] = dataclasses.replace(getattr(base, name), **table)
         except ConfigError as e:
             raise ConfigError(f"{e} in {source}") from None
-    return dataclasses.replace(base, **sections)
+    try:  # the checks across sections
+        return dataclasses.replace(base, **sections)
+    except ConfigError as e:
+        raise ConfigError(f"{e} in {source}") from None
 
 
 def read_toml(path: str | Path, what: str, error: type[ConfigError] | None = None) -> dict[str, Any]:

@@ -222,7 +222,7 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
             for chunk, fresh, clean, n_sw in chunks:
                 if est is None:
                     t_s = loop_t_s(sample_interval(chunk["t"]), cfg)
-                    check_interval(t_s)
+                    check_interval(t_s, str(path))
                     est = TouchEstimator(cfg, t_s=t_s)
                 for k, n in clean.counts.items():
                     first.setdefault(k, clean.first[k])
