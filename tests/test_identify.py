@@ -109,6 +109,9 @@ def test_errors():
         identify({**d, "T_a": np.full(600, 20.0)}, t_model=1.0, with_T_a=True)
     with pytest.raises(IdentifyError, match="criterion"):
         identify(d, criterion="xyz")
+    # a drive logged in other units (percent, volts) would fit a gain off by that factor
+    with pytest.raises(IdentifyError, match=r"'drive' is outside \[-1, 1\] in 600 row"):
+        identify({**d, "drive": d["drive"] * 100.0 + 2.0}, t_model=1.0)
 
 
 def test_written_model_is_a_config_the_controller_uses(tmp_path, peltier_log):

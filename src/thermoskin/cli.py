@@ -518,7 +518,7 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
     try:
         model = fit(log, t_model=t_model)
     except IdentifyError as e:
-        raise UserError(str(e)) from None
+        raise UserError(f"{log_csv}: {e}") from None
     from thermoskin.params import PeltierModelParams
 
     use = "feedforward"
@@ -673,9 +673,9 @@ def simulate(scenario: str | None, duration: float | None, config_path: Path | N
     _outputs(("-o", output_csv, LOG_SUFFIXES, "log"))
     cfg = _config(config_path)
     if skin_path is not None:
-        _simulate_skin(skin_path, scenario or "multi", duration, cfg, output_csv)
+        _simulate_skin(skin_path, "multi" if scenario is None else scenario, duration, cfg, output_csv)
         return
-    scenario = scenario or "fingers"
+    scenario = "fingers" if scenario is None else scenario
     if scenario == EXCITATION:
         from thermoskin.sim.excitation import simulate_excitation
 

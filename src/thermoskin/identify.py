@@ -359,6 +359,12 @@ def _check_log(log: Mapping[str, ArrayLike], with_T_a: bool) -> tuple[Array, Arr
     if np.any(dt <= 0):
         raise IdentifyError(f"column 't' is not strictly increasing (at row {int(np.argmax(dt <= 0)) + 1})")
     u = cols["drive"]
+    out = np.abs(u) > 1.0 + 1e-9
+    if out.any():  # the drive is the Peltier's duty, -1 to 1 (plausible.drive_min/max)
+        i = int(np.argmax(out))
+        raise IdentifyError(f"column 'drive' is outside [-1, 1] in {int(out.sum())} row(s), first "
+                            f"{u[i]:g} at t = {t[i]:g} s: the drive is the Peltier's duty (-1 to 1); "
+                            "a log with the drive in other units would give a wrong gain")
     if np.ptp(u) <= 1e-9 * max(1.0, float(np.max(np.abs(u)))):
         raise IdentifyError(f"drive has no excitation (constant {u[0]:g} over the log); "
                             "identify from a log with a varying drive (thermoskin excitation)")
