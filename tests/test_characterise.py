@@ -153,3 +153,37 @@ def test_annotated_events_table(tmp_path: Path) -> None:
     assert rows[0]["T_f_hat"] == "" and rows[0]["G_hat"] == ""  # not identifiable
     assert float(rows[0]["p_human"]) == e.p_human
     assert rows[1]["kind"] == "" and rows[1]["p_human"] == ""  # not characterised
+
+
+def test_bins_are_the_means_of_their_samples_whatever_the_chunks() -> None:
+    """:class:`thermoskin.characterise.Bins`: each 50 ms bin is the mean of its finite samples
+    (computed here by grouping the samples in plain Python), a bin with a signal all NaN is
+    left out, and any chunking of the same samples gives the same bins, bit for bit."""
+    from thermoskin.characterise import BIN_S, Bins
+
+    rng = np.random.default_rng(5)
+    n = 3000
+    t = np.arange(n) * 1e-3 + 0.0123
+    x = [rng.normal(0.1, 0.05, n), 24.0 + rng.normal(0.0, 0.02, n), 20.0 + rng.normal(0.0, 0.02, n)]
+    x[0][rng.random(n) < 0.05] = np.nan  # NaN samples are left out
+    x[1][680:750] = np.nan  # all of bin 14 (0.70-0.75 s) in T_w: that bin goes
+    groups: dict[int, list[list[float]]] = {}
+    for i in range(n):
+        groups.setdefault(math.floor(t[i] / BIN_S + 1e-9), [[], [], []])
+        for j in range(3):
+            if math.isfinite(x[j][i]):
+                groups[math.floor(t[i] / BIN_S + 1e-9)][j].append(float(x[j][i]))
+    expect = {k: [math.fsum(v) / len(v) for v in g] for k, g in groups.items() if all(g)}
+    runs = []
+    for cuts in ([], [1, 49, 50, 51, 1234, 2999], sorted(rng.choice(np.arange(1, n), 40, replace=False))):
+        b = Bins()
+        for s, e in zip([0, *cuts], [*cuts, n], strict=True):
+            b.feed(t[s:e], x[0][s:e], x[1][s:e], x[2][s:e])
+        b.finish()
+        runs.append((list(b.idx), list(b.q), list(b.w), list(b.a)))
+    assert runs[0] == runs[1] == runs[2]  # bit for bit
+    idx, q, w, a = runs[0]
+    assert idx == sorted(expect) and len(idx) == len(groups) - 1 and 14 not in idx
+    got = np.array([q, w, a]).T
+    want = np.array([expect[k] for k in idx])
+    assert np.allclose(got, want, rtol=1e-14, atol=1e-15)

@@ -420,8 +420,10 @@ class Character:
 
 # --------------------------------------------------------------------------------- binning
 class Bins:
-    """Per-sample signals averaged over :data:`BIN_S` bins as they come (exact sums, so any
-    chunking of the same samples gives the same bins): ``dq_i_hat``, ``T_w``, ``T_a``.
+    """Per-sample signals averaged over :data:`BIN_S` bins as they come: ``dq_i_hat``, ``T_w``,
+    ``T_a``. A bin's samples are summed together once it is complete (the open bin's are held
+    over to the next chunk), so any chunking of the same samples gives the same bins, bit for
+    bit; a bin counts where each signal has a finite sample in it (NaNs are left out).
 
     ``horizon_s``: bins older than this behind the newest are dropped.
     """
@@ -433,16 +435,18 @@ class Bins:
         self.w: list[float] = []
         self.a: list[float] = []
         self._open = -1
-        self._buf: tuple[list[float], list[float], list[float]] = ([], [], [])
+        self._held: tuple[Array, ...] = ()  # the open bin's samples: dq, T_w, T_a
 
-    def _close(self) -> None:
-        bq, bw, ba = self._buf
-        if self._open >= 0 and bq and bw and ba:
-            self.idx.append(self._open)
-            self.q.append(math.fsum(bq) / len(bq))
-            self.w.append(math.fsum(bw) / len(bw))
-            self.a.append(math.fsum(ba) / len(ba))
-        self._buf = ([], [], [])
+    def _add(self, k: NDArray[np.int64], cols: list[Array]) -> None:
+        """Complete bins: ``k`` each sample's bin, one run per bin, in order."""
+        starts = np.concatenate(([0], np.flatnonzero(np.diff(k)) + 1))
+        fins = [np.isfinite(x) for x in cols]
+        n = [np.add.reduceat(f.astype(np.int64), starts) for f in fins]
+        sums = [np.add.reduceat(np.where(f, x, 0.0), starts) for x, f in zip(cols, fins, strict=True)]
+        ok = (n[0] > 0) & (n[1] > 0) & (n[2] > 0)
+        self.idx.extend(k[starts][ok].tolist())
+        for out, sm, c in zip((self.q, self.w, self.a), sums, n, strict=True):
+            out.extend((sm[ok] / c[ok]).tolist())
 
     def feed(self, t: Array, dq: Array, T_w: Array, T_a: Array) -> None:
         """The next samples (``t`` increasing; NaN values are left out of their bin)."""
@@ -450,18 +454,15 @@ class Bins:
         if not len(t):
             return
         k = np.floor(t / BIN_S + 1e-9).astype(np.int64)
-        cuts = np.flatnonzero(np.diff(k)) + 1
-        starts = np.concatenate(([0], cuts))
-        ends = np.concatenate((cuts, [len(t)]))
         cols = [np.asarray(x, dtype=float) for x in (dq, T_w, T_a)]
-        for s, e in zip(starts.tolist(), ends.tolist(), strict=True):
-            kb = int(k[s])
-            if kb != self._open:
-                self._close()
-                self._open = kb
-            for buf, x in zip(self._buf, cols, strict=True):
-                seg = x[s:e]
-                buf.extend(seg[np.isfinite(seg)].tolist())
+        if self._held:  # the open bin's samples first: a bin is summed whole
+            k = np.concatenate((np.full(len(self._held[0]), self._open, dtype=np.int64), k))
+            cols = [np.concatenate((h, x)) for h, x in zip(self._held, cols, strict=True)]
+        last = int(np.searchsorted(k, k[-1]))  # the newest bin may go on in the next chunk
+        if last > 0:
+            self._add(k[:last], [x[:last] for x in cols])
+        self._open = int(k[-1])
+        self._held = tuple(x[last:].copy() for x in cols)
         if len(self.idx) > self.horizon + 1000:
             cut = len(self.idx) - self.horizon
             for lst in (self.idx, self.q, self.w, self.a):
@@ -480,7 +481,9 @@ class Bins:
 
     def finish(self) -> None:
         """Close the open bin (the end of a log)."""
-        self._close()
+        if self._held and len(self._held[0]):
+            self._add(np.full(len(self._held[0]), self._open, dtype=np.int64), list(self._held))
+        self._held = ()
         self._open = -1
 
 
