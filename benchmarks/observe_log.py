@@ -7,7 +7,7 @@ process's own, from ``wait4``) are reported as medians. The peer is polars alone
 file and writing the same columns plus two (what ``observe`` adds, less the estimation).
 Prints one JSON line.
 
-    python benchmarks/observe_log.py [--hours 1] [--runs 3] [--memory-hours 4,8] [--json]
+    python benchmarks/observe_log.py [--hours 1] [--runs 3] [--memory-hours 4,8] [--events] [--json]
 """
 
 from __future__ import annotations
@@ -61,6 +61,8 @@ def main() -> None:
     ap.add_argument("--hours", type=float, default=1.0)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--memory-hours", default="4,8", help="longer logs: observe's peak memory only")
+    ap.add_argument("--events", action="store_true",
+                    help="also observe with --events (what touched: its 50 ms bins and each contact)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     from thermoskin.params import load_config
@@ -77,15 +79,20 @@ def main() -> None:
         for fmt in ("csv", "parquet"):
             src = d / f"log.{fmt}"
             make_log(src, a.hours, base)
-            ours, peer = [], []
+            ours, peer, evs = [], [], []
             for _ in range(a.runs):
                 ours.append(timed([*tool, "observe", str(src), "-o", str(d / f"o.{fmt}")]))
                 peer.append(timed([sys.executable, "-c", PEER, str(src), str(d / f"p.{fmt}")]))
+                if a.events:
+                    evs.append(timed([*tool, "observe", str(src), "-o", str(d / f"o.{fmt}"),
+                                      "--events", str(d / "ev.csv")])[0])
             ow, om = np.median([x[0] for x in ours]), np.median([x[1] for x in ours])
             pw, pm = np.median([x[0] for x in peer]), np.median([x[1] for x in peer])
             res[fmt] = {"observe_s": round(float(ow), 2), "polars_s": round(float(pw), 2),
                         "ratio": round(float(ow / pw), 2), "observe_peak_mib": round(float(om)),
                         "polars_peak_mib": round(float(pm)), "file_mib": round(src.stat().st_size / 2**20)}
+            if evs:
+                res[fmt]["observe_events_s"] = round(float(np.median(evs)), 2)
             print(fmt, res[fmt], file=sys.stderr, flush=True)
             src.unlink()
         for h in (float(x) for x in a.memory_hours.split(",") if x):

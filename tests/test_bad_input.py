@@ -225,8 +225,8 @@ def test_storage_errors_are_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
 
     r = CliRunner().invoke(click_command(boom(errno.ENOSPC)))
     assert r.exit_code == 2
-    assert r.stderr.strip() == ("thermoskin: error: cannot write /mnt/usb/run.mcap: No space left on "
-                                "device; what was written before is kept")
+    assert r.stderr.strip() == ("thermoskin: error: /mnt/usb/run.mcap: No space left on device (the "
+                                "file system); what was written before is kept")
     r = CliRunner().invoke(click_command(boom(errno.ENOENT)))
     assert r.exit_code == 1 and isinstance(r.exception, FileNotFoundError)
 
@@ -235,3 +235,20 @@ def click_command(f):  # type: ignore[no-untyped-def]
     import click
 
     return click.command()(f)
+
+
+def test_atomic_write_keeps_a_link_and_the_permissions(tmp_path: Path) -> None:
+    """:func:`thermoskin.atomic.write_text` through a symbolic link rewrites its target (the link
+    stays a link) and keeps the earlier file's permissions."""
+    from thermoskin.atomic import write_text
+
+    target = tmp_path / "configs" / "skin.toml"
+    target.parent.mkdir()
+    target.write_text("old")
+    os.chmod(target, 0o600)
+    link = tmp_path / "current.toml"
+    link.symlink_to(target)
+    write_text(link, "new")
+    assert link.is_symlink() and target.read_text() == "new"
+    assert target.stat().st_mode & 0o777 == 0o600
+    assert sorted(p.name for p in target.parent.iterdir()) == ["skin.toml"]

@@ -284,24 +284,32 @@ def test_stale_link_replaced_and_file_refused(tmp_path: Path) -> None:
 
 def test_link_in_use_is_not_taken_over(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A second emulator on the link of a running one refuses (exit 2, one line) and leaves the
-    first one reachable; once the first is gone, its stale link is taken."""
+    first one reachable; once the first is gone, its stale link is taken, even where its pty's
+    number now belongs to another terminal."""
     link = tmp_path / "dev"
     first = PtyEmulator(link, DeviceCore(Config(), SCENARIOS["none"]))
     first.open_link()
     try:
         assert main(str(link), "none", verbose=False) == 2
         err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and "which is open (another emulator?)" in err[0]
+        assert len(err) == 1 and "is served by another emulator" in err[0]
         assert os.readlink(link) == first.slave_name
     finally:
         first.close_link()
-    link.symlink_to(first.slave_name)  # as a killed emulator leaves it: its pty is gone
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # link and lock gone
+    # as a killed emulator leaves it: its link, its lock file (no longer held), and its pty
+    # number perhaps taken by another terminal meanwhile
+    other_master, other_slave = os.openpty()
+    link.symlink_to(os.ttyname(other_slave))
+    (tmp_path / ".dev.lock").write_text("")
     second = PtyEmulator(link, DeviceCore(Config(), SCENARIOS["none"]))
     second.open_link()
     try:
         assert os.readlink(link) == second.slave_name
     finally:
         second.close_link()
+        os.close(other_master)
+        os.close(other_slave)
 
 
 def test_main_rejects_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -396,3 +396,38 @@ def test_replaced_outputs_go_once_the_run_wrote(tmp_path: Path) -> None:
     rep.close(wrote=True)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.csv", "b.csv"]
     assert a.read_text() == "new a" and b.read_text() == "newer b"
+    # a move that fails (another user's file in a shared folder): what was moved comes back
+    from thermoskin.paths import PathError
+
+    real = os.replace
+
+    def refuse_b(src, dst):  # type: ignore[no-untyped-def]
+        if Path(src) == b:
+            raise PermissionError(1, "Operation not permitted")
+        return real(src, dst)
+
+    import thermoskin.paths as paths_mod
+
+    paths_mod.os.replace = refuse_b  # type: ignore[assignment]
+    try:
+        with pytest.raises(PathError, match=r"cannot move the earlier .*b.csv aside"):
+            Replaced(a, b)
+    finally:
+        paths_mod.os.replace = real  # type: ignore[assignment]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.csv", "b.csv"]
+    assert a.read_text() == "new a"
+
+
+def test_a_run_of_no_sample_keeps_the_earlier_outputs(tmp_path: Path) -> None:
+    """:func:`thermoskin.logio.has_rows` (what decides): a header alone is no sample."""
+    from thermoskin.logio import has_rows, write_log
+
+    assert not has_rows(tmp_path / "none.csv")
+    (tmp_path / "h.csv").write_text("t,T_w\n")
+    assert not has_rows(tmp_path / "h.csv")
+    (tmp_path / "r.csv").write_text("t,T_w\n0.0,24.0\n")
+    assert has_rows(tmp_path / "r.csv")
+    write_log(tmp_path / "r.parquet", {"t": np.zeros(0), "T_w": np.zeros(0)})
+    assert not has_rows(tmp_path / "r.parquet")
+    write_log(tmp_path / "s.parquet", {"t": np.zeros(3), "T_w": np.zeros(3)})
+    assert has_rows(tmp_path / "s.parquet")

@@ -17,12 +17,15 @@ from pathlib import Path
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """A temporary path beside ``path`` to write to; renamed over ``path`` when the block ends
-    without error, removed otherwise. A writer that picks its format by the extension must be
+    without error (an earlier file's permissions kept; a symbolic link's target rewritten, the
+    link kept), removed otherwise. A writer that picks its format by the extension must be
     told it (the temporary path ends in ``.tmp``)."""
-    path = Path(path)
+    path = Path(os.path.realpath(path))  # a symbolic link: its target is what is rewritten
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         yield tmp
+        if path.exists():  # the earlier file's permissions stay
+            os.chmod(tmp, path.stat().st_mode & 0o7777)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):

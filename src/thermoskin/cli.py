@@ -7,6 +7,7 @@ User errors (a bad log, a bad config, an unknown scenario) print one line,
 from __future__ import annotations
 
 import atexit
+import contextlib
 import errno
 import functools
 import gc
@@ -79,9 +80,9 @@ def _user_errors(fn: F) -> F:
         except OSError as e:
             if e.errno not in STORAGE_ERRNOS:
                 raise
-            where = f" {e.filename}" if e.filename else ""
-            click.echo(f"thermoskin: error: cannot write{where}: {e.strerror}; what was written "
-                       "before is kept", err=True)
+            where = f"{e.filename}: " if e.filename else ""
+            click.echo(f"thermoskin: error: {where}{e.strerror} (the file system); what was "
+                       "written before is kept", err=True)
             sys.exit(2)
 
     return wrapper  # type: ignore[return-value]
@@ -930,10 +931,11 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                   + (", " if serial else f" ({len(sc.touches)} touches), ")
                   + f"T_w_cmd {cmd_txt}, {sc.duration:g} s at {1 / cfg.sampling.t_s:.0f} Hz")
     names = [k for k in COLUMNS if not serial or k not in TRUTH]
+    from thermoskin.logio import has_rows
     from thermoskin.paths import Replaced
 
-    stop = StopRequest().install()
     previous = Replaced(log_path, plot_path, events_path, record_path)
+    stop = StopRequest().install()
     try:
         recorder = None
         if record_path is not None:
@@ -1004,15 +1006,14 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                                           on_block=on_block, stop=stop, probe=probe)
             if recorder is not None:
                 _record_end(recorder, res)
-        finally:
-            if evstream is not None:
-                evstream.close()
-            if recorder is not None:
-                recorder.close()
-            if runlog is not None:
-                runlog.close()
-                if runlog.rows == 0:  # nothing ran: no log at all rather than a header
-                    log_path.unlink(missing_ok=True)
+        finally:  # each output closed whatever the others do (a full disk under one of them)
+            with contextlib.ExitStack() as closing:
+                if runlog is not None:
+                    closing.callback(_close_log, runlog, log_path)
+                if recorder is not None:
+                    closing.callback(recorder.close)
+                if evstream is not None:
+                    closing.callback(evstream.close)
             if res is None and recorder is not None and getattr(recorder, "rows", 1) == 0:
                 record_path.unlink(missing_ok=True)  # type: ignore[union-attr]
         summary = res.summary
@@ -1051,7 +1052,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         console.print(f"{n * cfg.sampling.t_s:g} s in {res.wall_s:.1f} s "
                       f"({res.realtime_factor:.1f}x real time); {wrote}")
     finally:
-        previous.close(wrote=log_path.exists())  # no log: no sample written
+        previous.close(wrote=has_rows(log_path))  # no sample on disk: the earlier files back
         stop.restore()
     if res.fault:
         t_f, t_safe = summary.get("t_fault", math.nan), summary.get("t_safe", math.nan)
@@ -1069,6 +1070,14 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         click.echo(f"thermoskin: {why} at t = {n * cfg.sampling.t_s:.3f} s; the device is in its "
                    f"safe state; {', '.join(outs[:-1])} and {outs[-1]} written", err=True)
         sys.exit(stop.exit_code)
+
+
+def _close_log(runlog: Any, path: Path) -> None:
+    """Close a run's log (a :class:`~thermoskin.runtime.runlog.RunLog`); a log that got no sample
+    goes (no header alone)."""
+    runlog.close()
+    if runlog.rows == 0:
+        path.unlink(missing_ok=True)
 
 
 def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, config_path: Path | None,
@@ -1109,15 +1118,16 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
         click.echo(f"thermoskin: warning: {w}", err=True)
     _note_compile(skin_kernels(skin), "the skin's plant and the estimator", "about a minute")
     est = SkinEstimator(skin, cfg.sampling.t_s)
+    from thermoskin.logio import has_rows
     from thermoskin.paths import Replaced
 
-    stop = StopRequest().install()
     previous = Replaced(log_path, plot_path, events_path, groups_path, record_path)
+    stop = StopRequest().install()
     try:
         _run_skin_loop(skin, sc, cfg, est, stop, log_path, plot_path, events_path, groups_path,
                        record_path, live_addr, live_rate, live_wait)
     finally:
-        previous.close(wrote=log_path.exists())  # no log: no sample written
+        previous.close(wrote=has_rows(log_path))  # no sample on disk: the earlier files back
         stop.restore()
     if stop.is_set():
         why = f"stopped by {stop.name}" if stop.signum else "interrupted"
@@ -1193,7 +1203,8 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
         for sink, _ in sinks:
             sink.close()
     if res.n < 2:  # stopped before two samples: nothing to estimate from
-        console.print(f"{res.n} samples; wrote {log_path}")
+        console.print(f"{res.n} samples; wrote {log_path}" if res.n else
+                      "no sample: an earlier run's files at these paths are kept as they were")
         return
     obs = observe_skin(read_skin_log(log_path, skin), skin)
     live = sorted(((i, e) for i, e in est.events), key=lambda x: (x[1].onset, x[0]))

@@ -134,7 +134,12 @@ class Replaced:
         for p in paths:
             if p is not None and p.is_file():
                 a = p.with_name(f".{p.name}.previous")
-                os.replace(p, a)
+                try:
+                    os.replace(p, a)
+                except OSError as e:  # put back what was moved; nothing is written
+                    self.close(wrote=False)
+                    raise PathError(f"cannot move the earlier {p} aside (to {a.name}) while the run "
+                                    f"starts: {e.strerror or e}") from None
                 self.aside.append((p, a))
 
     def close(self, wrote: bool) -> None:

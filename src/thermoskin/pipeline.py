@@ -113,8 +113,9 @@ def coarse_log_warnings(t_s: float, cfg: Config, rows: int, switch_rows: int) ->
 
 
 #: A pipe thermocouple whose readings change less often than this looks stuck or disconnected
-#: (boards update at 5 Hz or faster; the noise moves a working one's reading at once), s.
-STUCK_S = 2.0
+#: (boards update at 5 Hz or faster, and a working one's noise moves its reading at once, unless
+#: its steps are coarse against the noise and the water steady), s.
+STUCK_S = 10.0
 
 
 def stuck_warnings(periods: dict[str, float], t_s: float) -> list[str]:
@@ -126,8 +127,8 @@ def stuck_warnings(periods: dict[str, float], t_s: float) -> list[str]:
         p = periods.get(ch, 1.0) * t_s
         if p > STUCK_S:
             out.append(f"{ch} changes only every {p:.3g} s (thermocouple boards update at 5 Hz or "
-                       "faster): a stuck or disconnected thermocouple? the estimates and contacts "
-                       "rest on it")
+                       "faster): a stuck or disconnected thermocouple, or one too coarse or without "
+                       "noise to show its updates? the estimates and contacts rest on it")
     return out
 
 

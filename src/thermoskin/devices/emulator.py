@@ -3,7 +3,8 @@
 ``thermoskin device-emulator --link PATH [--scenario NAME] [--fault KIND@SECONDS]
 [--tc-period S] [--jitter S] [--truth TRUTH.csv]`` (or ``python -m
 thermoskin.devices.emulator``) opens a pty pair, makes ``PATH`` a symbolic link to the
-slave side (a stale link is replaced, the link is removed on exit) and waits
+slave side (a stale link is replaced, the link is removed on exit; a link another emulator
+serves, known by the lock ``.LINK.lock`` it holds beside it, is refused) and waits
 for a HELLO. Its clock starts at the first HELLO; from then on, every ``t_s`` (1 ms, paced
 by the wall clock with absolute deadlines) it
 
@@ -367,6 +368,7 @@ class PtyEmulator:
         self._out = bytearray()
         self._master = -1
         self._slave = -1
+        self._lock = -1  # held on .LINK.lock while the link is ours
         self.slave_name = ""
 
     def stop(self) -> None:
@@ -378,9 +380,18 @@ class PtyEmulator:
         link = self.link
         if link.exists() and not link.is_symlink():
             raise FileExistsError(f"{link} exists and is not a symbolic link; not replacing it")
-        if link.is_symlink() and link.exists():  # a pty's node exists only while it is open
-            raise FileExistsError(f"{link} points to {os.readlink(link)}, which is open (another "
-                                  "emulator?); not taking it over: stop that one or choose another --link")
+        # one emulator per link: a lock beside it, held while it serves (the OS lets it go when
+        # the emulator dies, however: a killed one's link is then stale and taken over)
+        import fcntl
+
+        lock = os.open(link.with_name(f".{link.name}.lock"), os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(lock)
+            raise FileExistsError(f"{link} is served by another emulator; not taking it over: stop "
+                                  "that one or choose another --link") from None
+        self._lock = lock
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)
         os.set_blocking(self._master, False)
@@ -397,11 +408,14 @@ class PtyEmulator:
         with contextlib.suppress(OSError):
             if self.link.is_symlink() and os.readlink(self.link) == self.slave_name:
                 self.link.unlink()
-        for fd in (self._master, self._slave):
+        if self._lock >= 0:
+            with contextlib.suppress(OSError):
+                self.link.with_name(f".{self.link.name}.lock").unlink()
+        for fd in (self._master, self._slave, self._lock):
             if fd >= 0:
                 with contextlib.suppress(OSError):
                     os.close(fd)
-        self._master = self._slave = -1
+        self._master = self._slave = self._lock = -1
 
     # -- I/O -------------------------------------------------------------------------------
     def _read(self) -> None:

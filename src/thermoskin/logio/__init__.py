@@ -57,6 +57,7 @@ __all__ = [
     "LogWriter",
     "WriteBehind",
     "check_time",
+    "has_rows",
     "log_format",
     "nan_allowed",
     "partial_last_line",
@@ -93,6 +94,27 @@ def read_log(
     if len(chunks) == 1:
         return chunks[0]
     return {n: np.concatenate([c[n] for c in chunks]) for n in names}
+
+
+def has_rows(path: str | os.PathLike[str]) -> bool:
+    """Whether the log at ``path`` holds a sample (a row after the header on disk; for Parquet,
+    its footer's row count, and True for one without a readable footer: a writer killed, its
+    row groups perhaps recoverable). False where there is no file."""
+    p = Path(path)
+    if not p.is_file():
+        return False
+    if log_format(p) == "csv":
+        with open(p, "rb") as fh:
+            head = fh.read(1 << 20)
+        nl = head.find(b"\n")
+        return nl >= 0 and bool(head[nl + 1 :].strip())
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        return pq.ParquetFile(p).metadata.num_rows > 0
+    except (pa.ArrowInvalid, OSError):
+        return p.stat().st_size > 0
 
 
 def partial_last_line(path: str | os.PathLike[str]) -> bool:
