@@ -200,7 +200,7 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
     False leaves the events' character fields empty."""
     from thermoskin.logio import LogReader, LogWriter, WriteBehind, prefetch
 
-    with LogReader(path, required=INPUT_COLUMNS, live=True) as reader:
+    with LogReader(path, required=INPUT_COLUMNS, live=True, one_patch=True) as reader:
         names = list(reader.names)
         live = [k for k in OUTPUT_COLUMNS if k in names]
         out_names = [f"{k}_live" if k in live else k for k in names] + list(OUTPUT_COLUMNS)

@@ -78,6 +78,7 @@ def read_log(
     *,
     uniform: bool = True,
     live: bool = False,
+    one_patch: bool = False,
 ) -> dict[str, Array]:
     """Read a whole log into ``{column: float64 array}`` (in the file's column order).
 
@@ -85,10 +86,12 @@ def read_log(
     ``NaN``, ``NA``, empty) is accepted; by default the ``T_*`` and ``v`` columns.
     ``uniform=False`` accepts jitter in ``t`` (still strictly increasing); ``live=True``
     leaves out a CSV's last line if it has no line end yet (a log still being written, or
-    whose writer was killed). Raises :class:`LogError` on any user error. See
-    :class:`LogReader` for long logs.
+    whose writer was killed). ``one_patch=True`` refuses a skin's long-format log (a
+    ``patch`` column: one row per sample and patch) with one line saying so. Raises
+    :class:`LogError` on any user error. See :class:`LogReader` for long logs.
     """
-    with LogReader(path, required, nan_columns, uniform=uniform, live=live) as reader:
+    with LogReader(path, required, nan_columns, uniform=uniform, live=live,
+                   one_patch=one_patch) as reader:
         chunks = list(reader)
         names = reader.names
     if len(chunks) == 1:

@@ -60,6 +60,8 @@ class LogReader:
 
     ``live=True`` reads a CSV that may still be being written (or whose writer was killed):
     a last line without its line end is left out instead of read as a cut row.
+    ``one_patch=True``: a skin's long-format log (a ``patch`` column) is refused at once, in
+    one line saying what it is (the single patch's commands read logs this way).
 
     Attributes: ``names`` (column order of the file), ``n_rows`` (Parquet: from the footer;
     CSV: None until read to the end), ``rows`` (rows given so far), ``t_s`` (the first
@@ -75,6 +77,7 @@ class LogReader:
         uniform: bool = True,
         chunk_rows: int = CHUNK_ROWS,
         live: bool = False,
+        one_patch: bool = False,
     ) -> None:
         self.path = p = Path(path)
         self.format = log_format(p)
@@ -94,10 +97,9 @@ class LogReader:
             raise LogError(f"{p}: cannot read: {exc.strerror or exc}") from exc
         self.names: list[str] = self._src.names
         self.n_rows: int | None = self._src.n_rows
-        required = tuple(required)
         try:
             missing_columns(p, self.names, required, "line 1: " if self.format == "csv" else "")
-            if "patch" in self.names and "patch" not in required:
+            if one_patch and "patch" in self.names:
                 raise LogError(f"{p}: a skin's log (its 'patch' column: one row per sample and "
                                "patch), not one patch's: observe reads it with --skin SKIN.toml")
         except LogError:
