@@ -187,3 +187,35 @@ def test_bins_are_the_means_of_their_samples_whatever_the_chunks() -> None:
     got = np.array([q, w, a]).T
     want = np.array([expect[k] for k in idx])
     assert np.allclose(got, want, rtol=1e-14, atol=1e-15)
+
+
+def test_box_moments_equal_quadrature_for_every_component_at_once() -> None:
+    """``_box_moments`` (Stein's lemma on the softened box) against a dense quadrature of
+    ``N(m, v)`` times ``B(x)``, with the boxes of several components broadcast against a grid of
+    ``(m, v)``, as the posterior calls it."""
+    from scipy.special import ndtr
+
+    from thermoskin.characterise import _box_moments
+
+    rng = np.random.default_rng(3)
+    m = rng.normal(30.0, 8.0, (2, 4))
+    v = np.exp(rng.normal(0.0, 1.5, (2, 4)))
+    lo = np.array([10.0, 28.0, 45.0])[:, None, None]
+    hi = np.array([20.0, 36.0, 70.0])[:, None, None]
+    s = 0.7
+    lM0, mean, var = _box_moments(m, v, lo, hi, s)
+    assert lM0.shape == mean.shape == var.shape == (3, 2, 4)
+    for c in range(3):
+        for i in range(2):
+            for j in range(4):
+                sd = math.sqrt(v[i, j])
+                x = np.linspace(m[i, j] - 12 * sd, m[i, j] + 12 * sd, 200_001)
+                w = np.exp(-0.5 * (x - m[i, j]) ** 2 / v[i, j]) / math.sqrt(2 * math.pi * v[i, j])
+                w = w * (ndtr((x - lo[c, 0, 0]) / s) - ndtr((x - hi[c, 0, 0]) / s))
+                M0 = np.trapezoid(w, x)
+                if M0 < 1e-12:  # far outside the box: the weight is nil, the moments a fallback
+                    continue
+                mu = np.trapezoid(w * x, x) / M0
+                assert math.exp(lM0[c, i, j]) == pytest.approx(M0, rel=1e-6)
+                assert mean[c, i, j] == pytest.approx(mu, rel=1e-7, abs=1e-7)
+                assert var[c, i, j] == pytest.approx(np.trapezoid(w * (x - mu) ** 2, x) / M0, rel=1e-5)

@@ -347,40 +347,51 @@ def _log_diff_ndtr(x: Array, y: Array) -> Array:
     return la + np.log1p(-np.exp(np.minimum(lb - la, -1e-300)))
 
 
-def _box_moments(m: Array, v: Array, lo: float, hi: float, s: float
+def _edge_moments(z: Array, m: Array, v: Array, r: Array, right: bool) -> tuple[Array, Array]:
+    """``E[X Φ(z')]`` and ``E[X² Φ(z')]`` for ``X ~ N(m, v)`` and one softened edge (``z`` as in
+    :func:`_box_moments`, ``r = sqrt(v + s²)``): ``Φ((X - c)/s)``, or with ``right`` its
+    complement ``Φ(-(X - c)/s)`` (accurate where ``z`` is large), by the same lemma."""
+    from scipy.special import ndtr
+
+    phi = np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi)
+    tilt = phi / r * (m - v * z / r)
+    if right:
+        Pc = ndtr(-z)
+        e1 = m * Pc - v * phi / r
+        return e1, m * e1 + v * (Pc - tilt)
+    Ph = ndtr(z)
+    e1 = m * Ph + v * phi / r
+    return e1, m * e1 + v * (Ph + tilt)
+
+
+def _box_moments(m: Array, v: Array, lo: float | Array, hi: float | Array, s: float
                  ) -> tuple[Array, Array, Array]:
-    """For ``X ~ N(m, v)`` and the box ``[lo, hi]`` softened by ``N(0, s²)``,
+    """For ``X ~ N(m, v)`` and the box ``[lo, hi]`` softened by ``N(0, s²)`` (elementwise:
+    every argument but ``s`` may be an array, broadcast together),
     ``B(x) = Φ((x - lo)/s) - Φ((x - hi)/s)``: ``ln E[B(X)]``, and the mean and variance of
     ``X`` weighted by ``B`` (Stein's lemma: ``E[X Φ((X - c)/s)] = m Φ(z) + v φ(z)/r`` with
     ``r = sqrt(v + s²)``, ``z = (m - c)/r``; ``E[X² Φ] = m E[X Φ] + v (Φ(z) + φ(z)/r (m - v z/r))``)."""
-    from scipy.special import ndtr
 
+    m, v, lo, hi = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (m, v, lo, hi)))
     r = np.sqrt(v + s * s)
     z_lo, z_hi = (m - lo) / r, (m - hi) / r
     lM0 = _log_diff_ndtr(z_lo, z_hi)
-
-    def parts(z: Array, right: bool) -> tuple[Array, Array]:
-        """``E[X Φ(±(X - c)/s)]`` and ``E[X² Φ(±(X - c)/s)]``: ``+`` as in the doc; ``-``
-        (the complement, accurate where ``z`` is large) by the same lemma."""
-        phi = np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi)
-        tilt = phi / r * (m - v * z / r)
-        if right:
-            Pc = ndtr(-z)
-            e1 = m * Pc - v * phi / r
-            return e1, m * e1 + v * (Pc - tilt)
-        Ph = ndtr(z)
-        e1 = m * Ph + v * phi / r
-        return e1, m * e1 + v * (Ph + tilt)
-
-    right = z_hi > 0.0  # both edges left of m: Φ(z_lo) - Φ(z_hi) = Φ(-z_hi) - Φ(-z_lo)
-    e1_lo, e2_lo = parts(z_lo, False)
-    e1_hi, e2_hi = parts(z_hi, False)
-    c1_lo, c2_lo = parts(z_lo, True)
-    c1_hi, c2_hi = parts(z_hi, True)
+    # E[B X] and E[B X²] as differences over the two edges, each element by the side that is
+    # accurate there: both edges left of m (z_hi > 0), Φ(z_lo) - Φ(z_hi) = Φ(-z_hi) - Φ(-z_lo)
+    # and the complements' moments (the same lemma with Φ(-(X - c)/s)); else Φ itself
+    right = z_hi > 0.0
+    d1 = np.empty_like(m)
+    d2 = np.empty_like(m)
+    for sel, rt in ((~right, False), (right, True)):
+        if not sel.any():
+            continue
+        ms, vs, rs = m[sel], v[sel], r[sel]
+        (a1, a2), (b1, b2) = (_edge_moments(z[sel], ms, vs, rs, rt) for z in (z_lo, z_hi))
+        d1[sel], d2[sel] = (b1 - a1, b2 - a2) if rt else (a1 - b1, a2 - b2)
     M0 = np.exp(lM0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(right, c1_hi - c1_lo, e1_lo - e1_hi) / M0
-        var = np.where(right, c2_hi - c2_lo, e2_lo - e2_hi) / M0 - mean ** 2
+        mean = d1 / M0
+        var = d2 / M0 - mean ** 2
     # far outside the box the differences cancel: the weight is nil there anyway
     bad = ~np.isfinite(mean) | ~np.isfinite(var) | (M0 < 1e-12)
     mean = np.where(bad, np.clip(m, lo, hi), mean)
@@ -563,12 +574,13 @@ def estimate(tau: Array, q: Array, T_x: Array, T_x0: float, tau_det: float, T_ro
     logw = np.empty((len(comps), len(KAPPA), len(G1)))
     T1 = np.empty_like(logw)
     T2 = np.empty_like(logw)
-    for c, comp in enumerate(comps):
-        lo, hi = t0_box(comp, T_room)
-        lM0, mean, var = _box_moments(mu, v, lo, hi, T0_SMOOTH)
-        logw[c] = base + lM0 - math.log(hi - lo) + pg.lp_gk[c] + math.log(comp.share)
-        T1[c] = mean
-        T2[c] = var + mean * mean
+    box = np.array([t0_box(comp, T_room) for comp in comps])  # every component at once
+    lo, hi = box[:, 0, None, None], box[:, 1, None, None]
+    lM0, mean, var = _box_moments(mu[None], v[None], lo, hi, T0_SMOOTH)
+    share = np.log([comp.share for comp in comps])[:, None, None]
+    logw[:] = base[None] + lM0 - np.log(hi - lo) + pg.lp_gk + share
+    T1[:] = mean
+    T2[:] = var + mean * mean
     logw -= logw.max()
     W = np.exp(logw)
     W /= W.sum()
