@@ -264,7 +264,7 @@ EVENTS_OPT = click.option("--events", "events_path", type=click.Path(path_type=P
                                "and what touched: kind,toucher,material,p_human,G_hat,G_sd,T_f_hat,"
                                "T_f_sd,effusivity_hat (empty where not identifiable; "
                                "docs/characterise.md). `observe` characterises the contacts only "
-                               "for this file (about 15 ms a contact).")
+                               "for this file (about 14 ms a contact).")
 
 
 def _write_events(path: Path | None, events: list[ContactEvent]) -> None:

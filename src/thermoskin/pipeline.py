@@ -196,7 +196,7 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
     input's own estimates renamed ``*_live``, then ``q_i_hat, dq_i_hat, contact, gap``.
     Implausible values are dropped per chunk as :func:`observe` drops them (a log still being
     written, or cut by a kill, is read to its last whole line). ``characterise``: say what
-    touched, per contact as it closes (:mod:`thermoskin.characterise`; about 15 ms a contact);
+    touched, per contact as it closes (:mod:`thermoskin.characterise`; about 14 ms a contact);
     False leaves the events' character fields empty."""
     from thermoskin.logio import LogReader, LogWriter, WriteBehind, prefetch
 
