@@ -431,3 +431,6 @@ def test_a_run_of_no_sample_keeps_the_earlier_outputs(tmp_path: Path) -> None:
     assert not has_rows(tmp_path / "r.parquet")
     write_log(tmp_path / "s.parquet", {"t": np.zeros(3), "T_w": np.zeros(3)})
     assert has_rows(tmp_path / "s.parquet")
+    cut = (tmp_path / "s.parquet").read_bytes()[:-100]  # its close failed: no footer, unreadable
+    (tmp_path / "cut.parquet").write_bytes(cut)
+    assert not has_rows(tmp_path / "cut.parquet")

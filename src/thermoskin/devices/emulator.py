@@ -4,7 +4,7 @@
 [--tc-period S] [--jitter S] [--truth TRUTH.csv]`` (or ``python -m
 thermoskin.devices.emulator``) opens a pty pair, makes ``PATH`` a symbolic link to the
 slave side (a stale link is replaced, the link is removed on exit; a link another emulator
-serves, known by the lock ``.LINK.lock`` it holds beside it, is refused) and waits
+serves, known by the lock it holds on the file ``.LINK.lock`` beside it, is refused) and waits
 for a HELLO. Its clock starts at the first HELLO; from then on, every ``t_s`` (1 ms, paced
 by the wall clock with absolute deadlines) it
 
@@ -380,8 +380,10 @@ class PtyEmulator:
         link = self.link
         if link.exists() and not link.is_symlink():
             raise FileExistsError(f"{link} exists and is not a symbolic link; not replacing it")
-        # one emulator per link: a lock beside it, held while it serves (the OS lets it go when
-        # the emulator dies, however: a killed one's link is then stale and taken over)
+        # one emulator per link: a lock on a file beside it, held while it serves (the OS lets
+        # it go when the emulator dies, however: a killed one's link is then stale and taken
+        # over). The file stays: removed, a second emulator could lock the removed one while a
+        # third locks a new one
         import fcntl
 
         lock = os.open(link.with_name(f".{link.name}.lock"), os.O_RDWR | os.O_CREAT, 0o644)
@@ -392,6 +394,15 @@ class PtyEmulator:
             raise FileExistsError(f"{link} is served by another emulator; not taking it over: stop "
                                   "that one or choose another --link") from None
         self._lock = lock
+        try:
+            self._open_pty()
+        except BaseException:
+            self.close_link()
+            raise
+
+    def _open_pty(self) -> None:
+        """The pty pair (raw mode) and the link pointed at its slave side."""
+        link = self.link
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)
         os.set_blocking(self._master, False)
@@ -408,9 +419,6 @@ class PtyEmulator:
         with contextlib.suppress(OSError):
             if self.link.is_symlink() and os.readlink(self.link) == self.slave_name:
                 self.link.unlink()
-        if self._lock >= 0:
-            with contextlib.suppress(OSError):
-                self.link.with_name(f".{self.link.name}.lock").unlink()
         for fd in (self._master, self._slave, self._lock):
             if fd >= 0:
                 with contextlib.suppress(OSError):

@@ -100,9 +100,9 @@ def read_log(
 
 
 def has_rows(path: str | os.PathLike[str]) -> bool:
-    """Whether the log at ``path`` holds a sample (a row after the header on disk; for Parquet,
-    its footer's row count, and True for one without a readable footer: a writer killed, its
-    row groups perhaps recoverable). False where there is no file."""
+    """Whether the log at ``path`` holds a sample that can be read back (a row after the header
+    on disk; for Parquet, its footer's row count: one without a readable footer, its writer
+    killed or its close failed, cannot be read). False where there is no file."""
     p = Path(path)
     if not p.is_file():
         return False
@@ -117,7 +117,7 @@ def has_rows(path: str | os.PathLike[str]) -> bool:
     try:
         return pq.ParquetFile(p).metadata.num_rows > 0
     except (pa.ArrowInvalid, OSError):
-        return p.stat().st_size > 0
+        return False
 
 
 def partial_last_line(path: str | os.PathLike[str]) -> bool:
