@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from thermoskin.estimation.freshness import infer_fresh
-from thermoskin.estimation.model import I_DTP, I_Q, I_TP
+from thermoskin.estimation.model import I_Q
 from thermoskin.estimation.reference import ReferenceEstimator
 from thermoskin.params import Config, load_config
 from thermoskin.pipeline import loop_t_s, observe, sample_interval
@@ -60,30 +60,12 @@ NUISANCE_S = 1.0  # evidence used before the earliest candidate, to pin the stat
 
 
 class _Recorder(ReferenceEstimator):
-    """The reference filter with detection off, recording each scalar update: state read,
-    innovation, its variance times the learnt scale squared, gain, whether it is evidence."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        self.updates: list[tuple[int, float, float, np.ndarray, bool]] = []
+    """The reference filter with detection off, recording each scalar update (its
+    ``updates``: state read, innovation, its variance times the learnt scale squared, gain,
+    whether it is evidence; the evidence is weighed as the detector weighs it)."""
 
     def _detect(self, t: float, ge: float, gg: float) -> int:
         return 0  # never a contact: the filter never jumps and keeps its no-touch noise
-
-    def _update(self, i: int, y: float) -> tuple[float, float]:
-        S = self.P[i, i] + self.R
-        e = y - self.x[i]
-        P = self.P
-        evidence = True
-        if i == I_TP and abs(e) > self.cfg.estimator.tank_jump * self.kappa * math.sqrt(S):
-            P = P.copy()  # the tank's manoeuvre branch: no evidence, the gain of the widened P
-            P[I_TP, I_TP] += e * e
-            P[I_DTP, I_DTP] += (e / self.cfg.estimator.tank_jump_s) ** 2
-            S = P[i, i] + self.R
-            evidence = False
-        # the evidence is weighed as the detector weighs it: by the innovations' learnt scale
-        self.updates.append((i, e, self.kappa**2 * S, P[:, i] / S, evidence))
-        return super()._update(i, y)
 
 
 def _record(log: dict[str, np.ndarray], cfg: Config, k0: int, k1: int

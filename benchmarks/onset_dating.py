@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from thermoskin.estimation.freshness import infer_fresh
-from thermoskin.estimation.model import I_DTP, I_Q, I_TP
+from thermoskin.estimation.model import I_Q
 from thermoskin.estimation.reference import ReferenceEstimator, _Cusum
 from thermoskin.params import Config, load_config
 from thermoskin.pipeline import loop_t_s, sample_interval
@@ -44,31 +44,16 @@ class SignatureDating(ReferenceEstimator):
         super().__post_init__()
         self.hist: deque[tuple[float, list[Any], np.ndarray | None]] = deque(
             maxlen=max(10, int(self.window_s / self.t_s)))
-        self._cur: list[tuple[int, float, float, np.ndarray, bool]] = []
         self._t = 0.0
 
-    def _update(self, i: int, y: float) -> tuple[float, float]:
-        S = self.P[i, i] + self.R
-        e = y - self.x[i]
-        P = self.P
-        evidence = True
-        if i == I_TP and abs(e) > self.cfg.estimator.tank_jump * self.kappa * math.sqrt(S):
-            P = P.copy()  # the tank's manoeuvre: no evidence, the gain of the widened P
-            P[I_TP, I_TP] += e * e
-            P[I_DTP, I_DTP] += (e / self.cfg.estimator.tank_jump_s) ** 2
-            S = P[i, i] + self.R
-            evidence = False
-        self._cur.append((i, e, self.kappa**2 * S, P[:, i] / S, evidence))
-        return super()._update(i, y)
-
     def step(self, t: float, *args: Any, **kw: Any) -> int:
-        self._cur, self._t = [], t
+        self.updates, self._t = [], t  # this sample's scalar updates, recorded by the filter
         code = super().step(t, *args, **kw)
-        self.hist.append((t, self._cur, self.tables.Phi[self.iv_prev]))
+        self.hist.append((t, self.updates, self.tables.Phi[self.iv_prev]))
         return code
 
     def _glr_time(self, c: _Cusum, sg: float) -> float:
-        rows = [h for h in self.hist if h[0] > c.t_zero] + [(self._t, self._cur, None)]
+        rows = [h for h in self.hist if h[0] > c.t_zero] + [(self._t, self.updates or [], None)]
         idx = [-1] + [j for j, r in enumerate(rows[:-1]) if r[1]]  # after c.t_zero or a reading
         times = [c.t_zero] + [rows[j][0] for j in idx[1:]]
         n = len(idx)

@@ -97,6 +97,7 @@ class ReferenceEstimator:
         self.tpl = np.zeros((2, max(1, self.cfg.estimator.switch_bins)))
         self.cmd = math.nan
         self.armed, self.n_in = False, 0
+        self.updates: list[tuple[int, float, float, Array, bool]] | None = None
         self.mode, self.n_seen, self.warm = "warm", 0, []
         self.b = 0.0
         self.cusums = [_Cusum(d.dq_design), _Cusum(-d.dq_design),
@@ -112,21 +113,26 @@ class ReferenceEstimator:
 
     # ---------------------------------------------------------------- the filter
     def _update(self, i: int, y: float) -> tuple[float, float]:
-        """Scalar update of state ``i``; returns the evidence ``(g e / S, g² / S)``."""
+        """Scalar update of state ``i``; returns the evidence ``(g e / S, g² / S)``. Where
+        :attr:`updates` is a list, each update is appended to it as ``(i, e, κ² S, K,
+        evidence)`` (the benchmarks that date touches from the filter's own updates)."""
         S = self.P[i, i] + self.R
         e = y - self.x[i]
         sS = math.sqrt(S)
+        k2 = self.kappa**2
         ge = gg = 0.0
-        if i == I_TP and abs(e) > self.cfg.estimator.tank_jump * self.kappa * sS:
+        evidence = not (i == I_TP and abs(e) > self.cfg.estimator.tank_jump * self.kappa * sS)
+        if not evidence:  # the tank manoeuvres: its slope let go, no evidence about q_i
             self.P[I_TP, I_TP] += e * e
             self.P[I_DTP, I_DTP] += (e / self.cfg.estimator.tank_jump_s) ** 2
             S = self.P[i, i] + self.R
         else:
             g = self.P[i, I_Q] / self.P[I_Q, I_Q] if self.P[I_Q, I_Q] > 0 else 0.0
-            Se = self.kappa**2 * S
-            ge, gg = g * e / Se, g * g / Se
+            ge, gg = g * e / (k2 * S), g * g / (k2 * S)
             self.kappa *= self.up if abs(e) > 0.6745 * self.kappa * sS else self.down
         K = self.P[:, i] / S
+        if self.updates is not None:
+            self.updates.append((i, e, k2 * S, K, evidence))
         for c in self.cusums:  # the step signatures: mu <- (I - K H) mu
             c.mu = c.mu - K * c.mu[i]
         self.x = self.x + K * e
