@@ -252,3 +252,21 @@ def test_atomic_write_keeps_a_link_and_the_permissions(tmp_path: Path) -> None:
     assert link.is_symlink() and target.read_text() == "new"
     assert target.stat().st_mode & 0o777 == 0o600
     assert sorted(p.name for p in target.parent.iterdir()) == ["skin.toml"]
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["observe"], "Missing argument 'INPUT_CSV'. (see main observe --help)"),
+    (["observe", "x.csv"], "Missing option '-o' / '--output'."),
+    (["observe", "x.csv", "-o", "y.csv", "--bogus"], "No such option '--bogus'"),
+    (["simulate", "--duration", "abc", "-o", "x.csv"], "'abc' is not a valid float"),
+    (["nosuch"], "No such command 'nosuch'."),
+])
+def test_usage_errors_are_one_line_exit_2(args: list[str], needle: str) -> None:
+    """click's own usage errors (a missing argument or option, an unknown one, a value of the
+    wrong type, an unknown command) are one line and exit 2, as every other user error;
+    ``--help`` and ``--version`` still exit 0."""
+    code, _, err = invoke(*args)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("thermoskin: error: ") and needle in lines[0], err
+    assert invoke("observe", "--help")[0] == 0 and invoke("--version")[0] == 0

@@ -278,7 +278,36 @@ def _write_events(path: Path | None, events: list[ContactEvent]) -> None:
         raise UserError(f"cannot write {path}: {e.strerror or e}") from None
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+_NO_ARGS: Any = getattr(click.exceptions, "NoArgsIsHelpError", ())  # click >= 8.2
+
+
+class _Commands(click.Group):
+    """The command group, whose usage errors (a missing argument, an unknown option, a value
+    that is not a number) are one line and exit 2, as every other user error."""
+
+    def main(self, *args: Any, **kwargs: Any) -> Any:  # type: ignore[override]
+        if kwargs.get("standalone_mode", True) is False:  # a caller handling click's errors
+            return super().main(*args, **kwargs)
+        try:
+            rv = super().main(*args, **{**kwargs, "standalone_mode": False})
+        except click.UsageError as e:
+            if isinstance(e, _NO_ARGS):  # `thermoskin` alone: the help, as click gives it
+                e.show()
+                sys.exit(e.exit_code)
+            where = e.ctx.command_path if e.ctx is not None else "thermoskin"
+            msg = " ".join(e.format_message().split())
+            click.echo(f"thermoskin: error: {msg} (see {where} --help)", err=True)
+            sys.exit(2)
+        except click.ClickException as e:
+            e.show()
+            sys.exit(e.exit_code)
+        except click.Abort:
+            click.echo("thermoskin: interrupted", err=True)
+            sys.exit(130)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
+@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="thermoskin")
 def main() -> None:
     """Thermoskin: touch sensing on a soft thermal robot skin (thermal exchange observer)."""
