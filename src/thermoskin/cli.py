@@ -1005,7 +1005,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                     if recorder is not None:
                         recorder.write_rows(block)
                 except (LogError, OSError) as e:  # a full disk, a drive gone: stop (safe state)
-                    msg = str(e) if isinstance(e, LogError) else f"cannot write: {e.strerror or e}"
+                    msg = (str(e) if isinstance(e, LogError) else
+                           f"cannot write {e.filename or 'the recording'}: {e.strerror or e}")
                     raise UserError(f"{msg}; the run stopped there (a device in its safe state), "
                                     "its outputs keep what was written before") from None
 

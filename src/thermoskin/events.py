@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thermoskin.atomic import atomic_path
+
 #: Columns of the detector's events: s, s, s, s, +1/-1, W, W, J.
 DETECTION_COLUMNS = ("onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq", "energy")
 #: Columns saying what touched: text, text, text, 1, W/K, W/K, °C, K, W s^0.5/(m² K).
@@ -157,8 +159,7 @@ def write_events(path: str | os.PathLike[str], events: Sequence[ContactEvent]) -
     p = Path(path)
     fmt = log_format(p)
     p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_name(f".{p.name}.tmp{os.getpid()}")
-    try:
+    with atomic_path(p) as tmp:  # whole or not at all
         if fmt == "csv":
             with open(tmp, "w", newline="", encoding="utf-8") as fh:
                 w = csv.writer(fh, lineterminator="\n")
@@ -175,8 +176,4 @@ def write_events(path: str | os.PathLike[str], events: Sequence[ContactEvent]) -
                       else pa.array(cols[k], type=pa.float64(), mask=~np.isfinite(cols[k]))
                       for k in EVENT_COLUMNS]
             pq.write_table(pa.Table.from_arrays(arrays, names=list(EVENT_COLUMNS)), tmp)
-        os.replace(tmp, p)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return p

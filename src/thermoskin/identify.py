@@ -227,11 +227,11 @@ class ArxModel:
 
 def save_model(model: ArxModel, path: str | os.PathLike[str], use: str = "feedforward") -> Path:
     """Write the model as a config file (:meth:`ArxModel.to_toml`), atomically; returns the path."""
+    from thermoskin.atomic import write_text
+
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_name(f".{p.name}.tmp")
-    tmp.write_text(model.to_toml(use), encoding="utf-8")
-    os.replace(tmp, p)
+    write_text(p, model.to_toml(use))
     return p
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from thermoskin.atomic import atomic_path
 from thermoskin.logio import LogError, log_format
 from thermoskin.skin import Skin
 
@@ -162,7 +163,6 @@ def write_table(path: str | os.PathLike[str], columns: dict[str, NDArray[np.gene
     """A small table with text columns (events, groups) as CSV, written atomically; floats in their
     shortest round-trip form, NaN as an empty field."""
     import csv
-    import tempfile
 
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
@@ -174,15 +174,9 @@ def write_table(path: str | os.PathLike[str], columns: dict[str, NDArray[np.gene
             return "" if math.isnan(x) else repr(float(x))
         return str(x)
 
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", newline="", encoding="utf-8") as f:
-            w = csv.writer(f, lineterminator="\n")
-            w.writerow(names)
-            for r in range(n):
-                w.writerow([cell(columns[c][r]) for c in names])
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(p) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(names)
+        for r in range(n):
+            w.writerow([cell(columns[c][r]) for c in names])
     return p

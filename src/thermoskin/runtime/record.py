@@ -42,6 +42,7 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
+from thermoskin.atomic import atomic_path
 from thermoskin.devices.base import Sample
 from thermoskin.runtime.mcap_scan import RecordingReport, ScanError, Scanner
 
@@ -684,12 +685,10 @@ def _write_csv(out: Path, cols: dict[str, Column]) -> Path:
 
     names = list(cols)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.tmp")
-    with open(tmp, "w", encoding="utf-8", newline="") as fh:
+    with atomic_path(out) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
         fh.write(",".join(head(k) for k in names) + "\n")
         for row in zip(*(cols[k] for k in names), strict=True):
             fh.write(",".join(cell(k, v) for k, v in zip(names, row, strict=True)) + "\n")
-    os.replace(tmp, out)
     return out
 
 

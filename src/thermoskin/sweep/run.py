@@ -98,8 +98,8 @@ def run_sweep(sw: Sweep, out: Path, *, dask: str | None = None,
     t0 = time.perf_counter()
     cols = sw.columns()
     store.check_columns(out, cols)
-    store.check_points(out, {p.hash for p in sw.points})
     done = store.done_hashes(out)
+    store.check_points(out, done, {p.hash for p in sw.points})
     todo_pts = [p for p in sw.points if p.hash not in done]
     total = len(sw.points)
     skipped = total - len(todo_pts)

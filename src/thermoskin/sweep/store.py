@@ -10,7 +10,6 @@ the merge sorts the rows by point index and removes the parts.
 from __future__ import annotations
 
 import hashlib
-import os
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
@@ -18,6 +17,8 @@ from typing import Any
 
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from thermoskin.atomic import atomic_path
 
 
 def parts_dir(out: Path) -> Path:
@@ -58,13 +59,13 @@ def done_hashes(out: Path) -> set[str]:
     return done
 
 
-def check_points(out: Path, points: set[str]) -> None:
-    """Refuse (one-line ``SweepError``) an ``out`` or parts holding points that are not this
-    sweep's (another sweep with the same columns, or this one edited): the merge keeps only
-    this sweep's points, so theirs would be lost."""
+def check_points(out: Path, done: set[str], points: set[str]) -> None:
+    """Refuse (one-line ``SweepError``) an ``out`` or parts holding points (``done``, from
+    :func:`done_hashes`) that are not this sweep's (another sweep with the same columns, or
+    this one edited): the merge keeps only this sweep's points, so theirs would be lost."""
     from thermoskin.sweep.spec import SweepError
 
-    other = done_hashes(out) - points
+    other = done - points
     if other:
         raise SweepError(f"-o {out}: holds {len(other)} point(s) that are not in this sweep (another "
                          "sweep's, or this one's before an edit), which its merge would drop; choose "
@@ -76,9 +77,8 @@ def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> pa.Table:
 
 
 def _write_atomic(table: pa.Table, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
 
 
 def write_part(out: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> Path:
