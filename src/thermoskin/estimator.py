@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.model import ModelTables, build_tables
+from thermoskin.estimation.redate import Redater
 from thermoskin.events import ContactEvent
 from thermoskin.observer import ThermalExchangeObserver
 from thermoskin.params import Config
@@ -142,7 +143,7 @@ class TouchEstimator:
         self.tables = build_tables(self.cfg, self.t_s, v_values)
         tb = self.tables
         Rw = np.array([self._R_w(v) for v in tb.v_values])
-        self._tabs = (tb.Phi, tb.Gam, tb.Q_idle, tb.Q, tb.Phi_a, tb.Q_a, Rw)
+        self._tabs = self.tabs = (tb.Phi, tb.Gam, tb.Q_idle, tb.Q, tb.Phi_a, tb.Q_a, Rw)
         self._iv = {v: i for i, v in enumerate(tb.v_values)}
         self.pr = kernel_params(self.cfg, tb, self._eq8)
 
@@ -172,6 +173,7 @@ class TouchEstimator:
         """Everything afresh; disarmed until the set-point is held (if there is one)."""
         self.st = K.new_state()
         self.events: list[ContactEvent] = []
+        self._redater = Redater(self.cfg, self.t_s) if self.cfg.detector.redate_hz > 0 else None
         self.contact = 0
         self.started = self.ended = False
 
@@ -221,15 +223,27 @@ class TouchEstimator:
                       self._ev)
         self.started = bool(code & K.C_STARTED)
         self.ended = bool(code & K.C_ENDED)
-        if self.ended:
-            self.events.append(ContactEvent.from_kernel(self._ev))
+        rd = self._redater
+        if rd is None:
+            if self.ended:
+                self.events.append(ContactEvent.from_kernel(self._ev))
+        else:
+            rd.push((t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh))
+            if self.started or self.ended or t >= rd.due:
+                self.events.extend(rd.on_row(
+                    self, rd.n - 1, t, self.st[K.ONSET] if self.started else math.nan,
+                    ContactEvent.from_kernel(self._ev) if self.ended else None))
         self.contact = code & K.C_CONTACT
         return self.contact
 
     def finish(self, t: float) -> None:
         """End a contact still open at ``t`` (the end of a run or a log)."""
+        rd = self._redater
+        if rd is not None:
+            self.events.extend(rd.flush(self))
         if K.finish(self.st, t, self._ev):
-            self.events.append(ContactEvent.from_kernel(self._ev))
+            e = ContactEvent.from_kernel(self._ev)
+            self.events.append(e if rd is None else rd.redate(self, e, rd.n - 1, math.inf))
             self.contact = 0
 
     # -- arrays -----------------------------------------------------------------------------
@@ -247,17 +261,47 @@ class TouchEstimator:
         fr = (np.full(n, 7, dtype=np.int64) if fresh is None
               else np.ascontiguousarray(fresh, dtype=np.int64))
         iv = self.rows_of(v)
-        out = np.empty((8, n))
+        rd = self._redater
+        out = np.empty((8 if rd is None else 10, n))
         events = np.empty((max(16, n // 50), K.NEV))
         ne = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out, events,
                    self._ev)
         new = [ContactEvent.from_kernel(events[i]) for i in range(min(ne, len(events)))]
+        if rd is not None:
+            new = self._redate_chunk(rd, new, (t, T_w, T_p, T_a, cmd, iv, drv, fr), out)
         self.events.extend(new)
         self.contact = int(self.st[K.CONTACT])
         cols = {"q_i_hat": out[0], "dq_i_hat": out[1], "sd": out[3],
                 "contact": out[4].astype(np.int8), "gap": out[5].astype(np.int8),
                 "T_g_hat": out[6], "cov_qg": out[7]}
         return cols, new
+
+    def _redate_chunk(self, rd: Redater, ended: list[ContactEvent], block: tuple[Array, ...],
+                      out: Array) -> list[ContactEvent]:
+        """The chunk's rows where a contact started or ended, or the waiting one fell due, in
+        order, as :meth:`step` hands them to the re-dating one sample at a time."""
+        t = block[0]
+        codes = out[8].astype(np.int64)
+        marks = np.flatnonzero(codes & (K.C_STARTED | K.C_ENDED))
+        n0 = rd.n
+        it = iter(ended)
+        written: list[ContactEvent] = []
+        pos, im = 0, 0
+        while True:
+            while im < len(marks) and marks[im] < pos:
+                im += 1
+            k = int(marks[im]) if im < len(marks) else len(t)
+            if rd.pending is not None:
+                k = min(k, pos + int(np.searchsorted(t[pos:], rd.due, side="left")))
+            if k >= len(t):
+                break
+            c = int(codes[k])
+            written.extend(rd.on_row(self, n0 + k, float(t[k]),
+                                     float(out[9, k]) if c & K.C_STARTED else math.nan,
+                                     next(it) if c & K.C_ENDED else None, block, n0))
+            pos = k + 1
+        rd.push_block(block)
+        return written
 
     def run(self, t: Array, T_w: Array, T_p: Array, v: Array, T_a: Array,
             T_w_cmd: Array | None = None, fresh: Any = None, drive: Array | None = None) -> Observation:

@@ -137,7 +137,9 @@ GCNT = GHEAD + 1        # entries held (at most NGB)
 GT0 = GHEAD + 2         # time of the first reading pooled in the newest entry, s
 GBUF = GHEAD + 3        # NGB entries of 3: time of the last reading pooled, sums of g e/S, g^2/S
 NGB = 256
-NSTATE = GBUF + 3 * NGB
+UREC = GBUF + 3 * NGB  # traced (PR_TRACE): this sample's pipe and tank updates, NUR fields each:
+NUR = 9                # made (1/0), innovation e, kappa^2 S, evidence (1/0), the gain K (5)
+NSTATE = UREC + 2 * NUR
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -197,7 +199,8 @@ PR_HLO = 57      # the weak-step CUSUMs fire only this far above the onset thres
 PR_GLR = 58      # 1: an onset is dated by the GLR over the change time; 0: at the CUSUM's last zero
 PR_GPOOL = 59    # a buffer entry pools the readings less than this after its first, s
 PR_HMIN = 60     # the onset threshold's floor
-NPARAM = 61
+PR_TRACE = 61    # 1: no detection; each update is recorded in the state (UREC), for the re-dating
+NPARAM = 62
 
 
 # step result bits
@@ -271,6 +274,17 @@ def _update(st, pr, i, y, R):
     k2 = st[P + 10 + i] * inv
     k3 = st[P + 15 + i] * inv
     k4 = st[P + 20 + i] * inv
+    if pr[PR_TRACE] != 0.0:  # the re-dating's detection-free filter keeps the update
+        u = UREC if i == 0 else UREC + NUR
+        st[u] = 1.0
+        st[u + 1] = e
+        st[u + 2] = kap * kap * S
+        st[u + 3] = 0.0 if (i == 3 and abs(e) > pr[PR_CMAN] * kap * sS) else 1.0
+        st[u + 4] = k0
+        st[u + 5] = k1
+        st[u + 6] = k2
+        st[u + 7] = k3
+        st[u + 8] = k4
     # each onset CUSUM's step signature: what remains in the estimate's error of a step of
     # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu; read only by an
     # onset's whole-state jump, so not kept without it (a skin's patches: a fifth of a sample;
@@ -933,6 +947,7 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     gap = st[E8GAP] > 0.0
     st[GAP] = 1.0 if gap else 0.0
     st[SGE] = st[SGG] = 0.0
+    st[UREC] = st[UREC + NUR] = 0.0
     st[QPRI] = st[X + 2]
     if st[READY] == 0.0:
         if gap:
@@ -996,7 +1011,7 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     code = 0
     if gap:  # a NaN reading: hold the detector (and a contact) over it
         code = C_CONTACT if st[MODE] == INCONTACT else 0
-    elif st[ARMED] != 0.0:
+    elif st[ARMED] != 0.0 and pr[PR_TRACE] == 0.0:
         code = _detect(st, pr, t, ev)
     else:
         st[DQ] = st[Q] - st[B]
@@ -1029,7 +1044,8 @@ def _keep_event(events, ne, ev):
 def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
         out, events, ev):
     """:func:`step` over arrays; fills ``out`` (rows: q_i_hat, dq_i_hat, q estimate, its sd,
-    contact, gap, the sheet's estimated temperature T_g, their covariance) and ``events``
+    contact, gap, the sheet's estimated temperature T_g, their covariance; where it has ten
+    rows, the step-result bits and the current contact's onset) and ``events``
     (``ev``: a scratch event row); returns the event count. Calls :func:`step`, compiled
     once: inlining the sample step here too was 12 % faster a sample (170 against 193 ns) but
     another 20 s of numba's compile on a cold cache."""
@@ -1040,6 +1056,9 @@ def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
         c = step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k],
                       T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
         _outputs(st, out, k)
+        if out.shape[0] > 8:  # the step-result bits and the onset (the re-dating's clock)
+            out[8, k] = c
+            out[9, k] = st[ONSET]
         if c & C_ENDED:
             if ne < cap:
                 _keep_event(events, ne, ev)

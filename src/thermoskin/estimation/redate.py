@@ -1,0 +1,331 @@
+"""Dating a contact again when it ends: a pulse fit on a detection-free filter.
+
+The detector dates an onset when it fires and a release when its release test trips, each
+from the readings it has by then. When the contact has ended, more is known: the readings
+after the release, and that the heat came as one pulse of one height. Where the pipe
+readings are slow (10 Hz boards, a 100 Hz log) that dates the contact better, and the
+event (:class:`~thermoskin.events.ContactEvent`) is written with the fit's onset and
+release, ``detector.redate_tail`` after the detector's release.
+
+The fit is the generalised likelihood ratio of a rectangular pulse of heat of free height
+from ``t_on`` to ``t_off`` (Willsky and Jones 1976; Basseville and Nikiforov 1993, sec. 2.4)
+on the innovations of the estimator's own Kalman filter run with detection off (so it
+never jumps), over a 10 ms grid of both times within ``detector.redate_reach`` of the
+detector's own:
+
+    LLR(t_on, t_off) = a^2 / b,   a = sum_k rho_k e_k / S_k,   b = sum_k rho_k^2 / S_k,
+
+``e_k, S_k`` the innovations and their variances (times the learnt scale squared), ``rho_k``
+what a unit pulse would have left in them: a unit step of ``q_i`` at ``t_on`` carried through
+the filter, ``mu <- Phi (I - K H) mu``, minus the same from ``t_off``. The filter's state
+error where the evidence starts (:data:`NUISANCE_S` before the earliest candidate) is a
+nuisance of free value: its signatures are projected out (Willsky and Jones's unknown
+initial state), so the filter needs only :data:`HISTORY_S` of readings before it to learn
+the innovations' scale. A contact longer than :data:`LONGEST_S` (or whose start has left
+the buffer) has its release alone dated again, as a step down.
+
+Where the pipe readings come :attr:`~thermoskin.params.DetectorParams.redate_hz` a second or
+more (1 kHz), the detector's own dating is kept: it is within 0.3 s there, and the fit would
+cost tens of milliseconds a contact. The live loop and offline analysis run this on the same
+rows at the same moments (the first sample at or after the due time, or the next contact's
+detection), so they write the same events.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thermoskin._jit import njit
+from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.events import ContactEvent
+from thermoskin.params import Config
+
+Array = NDArray[np.float64]
+
+
+class TracedModel(Protocol):
+    """What the re-dating reads of the estimator: the kernel's parameters and tables."""
+
+    pr: Array
+    tabs: tuple[Array, ...]
+
+GRID_S = 0.01      #: candidate spacing, s
+NUISANCE_S = 1.0   #: evidence used before the earliest candidate, to pin the state error there, s
+HISTORY_S = 5.0    #: the detection-free filter runs this long before that, s
+LONGEST_S = 30.0   #: a contact longer than this has its release alone dated again, s
+NCOL = 8           #: the input buffer's columns: t, T_w, T_p, T_a, T_w_cmd, pump row, drive, fresh
+NREC = 2 * K.NUR + 2  #: per row of the trace: the two updates, the pump row, ready
+
+
+@njit(cache=True, nogil=True)
+def trace(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
+          rec, ev):
+    """The kernel's sample step (``pr[PR_TRACE]`` = 1: no detection) over rows; ``rec[k]``: the
+    row's pipe and tank updates (``K.UREC`` layout), the pump row its prediction used, and
+    whether the filter was initialised."""
+    n = t.shape[0]
+    for k in range(n):
+        K.step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k], T_w_cmd[k],
+               iv[k], drive[k], fresh[k], ev)
+        for j in range(2 * K.NUR):
+            rec[k, j] = st[K.UREC + j]
+        rec[k, 2 * K.NUR] = st[K.IVP]
+        rec[k, 2 * K.NUR + 1] = st[K.READY]
+
+
+@njit(cache=True, nogil=True)
+def pulse_sums(rec, Phi, j_first, s_on, s_off):
+    """The fit's sums over the trace's rows ``j_first..``: with the candidates' columns (onsets
+    ``s_on``, releases ``s_off``: the rows they start at, ascending) and the five nuisance
+    columns (a unit error of each state at ``j_first``), ``a = R z`` and the blocks of ``R R'``
+    the fit reads: ``d`` (candidates' diagonal), ``cn`` (candidates x nuisance), ``nn``,
+    ``x`` (onsets x releases). ``R``'s column for a reading is ``rho / sqrt(S)``, ``z = e /
+    sqrt(S)``. The filter's transitions between readings and candidate starts are multiplied
+    together first (``A``), so a 1 kHz loop with 10 Hz boards costs little per row."""
+    no, nf = s_on.shape[0], s_off.shape[0]
+    nc = no + nf
+    mu = np.zeros((5, nc + 5))
+    for m in range(5):
+        mu[m, nc + m] = 1.0
+    a = np.zeros(nc + 5)
+    d = np.zeros(nc)
+    cn = np.zeros((nc, 5))
+    nn = np.zeros((5, 5))
+    x = np.zeros((no, nf))
+    A = np.eye(5)
+    fresh_A = True  # A is the identity
+    p_on = p_off = 0
+    r = np.zeros(nc + 5)
+    tmp = np.zeros(5)
+    n = rec.shape[0]
+    for j in range(j_first, n):
+        starts = (p_on < no and s_on[p_on] <= j) or (p_off < nf and s_off[p_off] <= j)
+        reads = rec[j, 0] != 0.0 or rec[j, K.NUR] != 0.0
+        if (starts or reads) and not fresh_A:  # bring the active columns up to this row
+            for c in range(nc + 5):
+                if (c < no and c >= p_on) or (no <= c < nc and c - no >= p_off):
+                    continue
+                for m in range(5):
+                    tmp[m] = mu[m, c]
+                for m in range(5):
+                    s = 0.0
+                    for q in range(5):
+                        s += A[m, q] * tmp[q]
+                    mu[m, c] = s
+            A[:, :] = 0.0
+            for m in range(5):
+                A[m, m] = 1.0
+            fresh_A = True
+        while p_on < no and s_on[p_on] <= j:
+            mu[2, p_on] = 1.0
+            p_on += 1
+        while p_off < nf and s_off[p_off] <= j:
+            mu[2, no + p_off] = 1.0
+            p_off += 1
+        for u in range(2):
+            o = u * K.NUR
+            if rec[j, o] == 0.0:
+                continue
+            i = 0 if u == 0 else 3
+            if rec[j, o + 3] != 0.0:  # evidence
+                w = 1.0 / math.sqrt(rec[j, o + 2])
+                z = rec[j, o + 1] * w
+                for c in range(nc + 5):
+                    r[c] = mu[i, c] * w
+                    a[c] += r[c] * z
+                for m in range(5):
+                    rn = r[nc + m]
+                    for q in range(5):
+                        nn[m, q] += rn * r[nc + q]
+                for c in range(p_on):
+                    rc = r[c]
+                    d[c] += rc * rc
+                    for m in range(5):
+                        cn[c, m] += rc * r[nc + m]
+                    for b in range(p_off):
+                        x[c, b] += rc * r[no + b]
+                for b in range(p_off):
+                    rc = r[no + b]
+                    d[no + b] += rc * rc
+                    for m in range(5):
+                        cn[no + b, m] += rc * r[nc + m]
+            for c in range(nc + 5):  # mu <- (I - K H) mu
+                if (c < no and c >= p_on) or (no <= c < nc and c - no >= p_off):
+                    continue
+                rho = mu[i, c]
+                for m in range(5):
+                    mu[m, c] -= rec[j, o + 4 + m] * rho
+        # predict: A <- Phi A
+        F = Phi[int(rec[j, 2 * K.NUR])]
+        for q in range(5):
+            for m in range(5):
+                tmp[m] = A[m, q]
+            for m in range(5):
+                s = 0.0
+                for l_ in range(5):
+                    s += F[m, l_] * tmp[l_]
+                A[m, q] = s
+        fresh_A = False
+    return a, d, cn, nn, x
+
+
+def pulse_fit(a: Array, d: Array, cn: Array, nn: Array, x: Array, no: int, sign: float,
+              s_on: NDArray[np.int64], s_off: NDArray[np.int64]) -> tuple[int, int] | None:
+    """The candidates (indices into the onsets and releases; onset -1: the release alone, as a
+    step down) of the largest likelihood ratio, the nuisance projected out:
+    ``G_p = G - G_cn G_nn^+ G_nc``, ``a_p = a - G_cn G_nn^+ a_n``; None if no pulse of sign
+    ``sign`` fits."""
+    nc = d.shape[0]
+    w, V = np.linalg.eigh(nn)
+    keep = w > 1e-12 * max(float(w.max()), 1e-300)
+    Vk = V[:, keep] / np.sqrt(w[keep])  # nn^+ = Vk Vk'
+    C = cn @ Vk                          # candidates x kept
+    an = a[nc:] @ Vk
+    ap = a[:nc] - C @ an
+    dp = d - np.einsum("ij,ij->i", C, C)
+    if no == 0:
+        ok = (-sign * ap > 0) & (dp > 1e-12 * d) & (d > 0)
+        if not ok.any():
+            return None
+        llr = np.where(ok, ap * ap / np.where(ok, dp, 1.0), -np.inf)
+        return -1, int(np.argmax(llr))
+    xp = x - C[:no] @ C[no:].T
+    num = ap[:no, None] - ap[None, no:]
+    den = dp[:no, None] + dp[None, no:] - 2.0 * xp
+    ok = ((num * sign > 0) & (s_on[:, None] < s_off[None, :])
+          & (den > 1e-12 * (d[:no, None] + d[None, no:])) & (d[None, no:] > 0))
+    if not ok.any():
+        return None
+    llr = np.where(ok, num * num / np.where(ok, den, 1.0), -np.inf)
+    i_on, i_off = np.unravel_index(int(np.argmax(llr)), llr.shape)
+    return int(i_on), int(i_off)
+
+
+class Redater:
+    """One patch's re-dating: the buffer of its last input rows and the contact waiting for
+    its due time. :class:`~thermoskin.estimator.TouchEstimator` hands it every row it steps
+    (:meth:`push`, :meth:`push_block`) and every row where a contact starts or ends or the
+    waiting one falls due (:meth:`on_row`), one sample at a time live and a chunk at a time
+    offline: the same rows, the same moments, the same events."""
+
+    def __init__(self, cfg: Config, t_s: float) -> None:
+        d = cfg.detector
+        self.rate_max, self.reach, self.tail = d.redate_hz, d.redate_reach, d.redate_tail
+        span = HISTORY_S + NUISANCE_S + 2 * self.reach + LONGEST_S + self.tail + 1.0
+        self.nr = math.ceil(span / t_s)
+        self.buf = np.zeros((self.nr, NCOL))
+        self.n = 0  # rows pushed
+        self.pending: ContactEvent | None = None
+        self.due = math.inf
+
+    # -- the buffer -------------------------------------------------------------------------
+    def push(self, row: tuple[float, ...]) -> None:
+        """One row (the :data:`NCOL` inputs of a sample)."""
+        self.buf[self.n % self.nr] = row
+        self.n += 1
+
+    def push_block(self, cols: tuple[Array, ...]) -> None:
+        """Rows given as :data:`NCOL` columns, in order (only the last ``nr`` are kept)."""
+        m = len(cols[0])
+        skip = max(0, m - self.nr)
+        self.n += skip
+        m -= skip
+        p = self.n % self.nr
+        first = min(m, self.nr - p)
+        for j, c in enumerate(cols):
+            self.buf[p:p + first, j] = c[skip:skip + first]
+            self.buf[:m - first, j] = c[skip + first:]
+        self.n += m
+
+    def _rows(self, k0: int, k1: int, block: tuple[Array, ...] | None, n0: int) -> Array:
+        """Rows ``k0..k1-1`` (indices since the start) from the buffer and from ``block``
+        (columns not yet pushed, their first row ``n0``)."""
+        if block is None or k1 <= n0:
+            return self.buf[np.arange(k0, k1) % self.nr]
+        new = np.column_stack([c[max(k0, n0) - n0:k1 - n0] for c in block])
+        if k0 >= n0:
+            return new
+        return np.concatenate([self.buf[np.arange(k0, n0) % self.nr], new])
+
+    # -- the contacts -----------------------------------------------------------------------
+    def on_row(self, est: TracedModel, k: int, t: float, onset_started: float,
+               ended: ContactEvent | None, block: tuple[Array, ...] | None = None, n0: int = 0
+               ) -> list[ContactEvent]:
+        """Row ``k`` at ``t``: a contact started there (its onset; NaN if none) or ended
+        there (its event as the detector has it). Returns the events to write now: the one
+        waiting, dated again from the rows before its due time (or before the new contact's
+        onset), once that time has come or a contact has started."""
+        out = []
+        if self.pending is not None and (onset_started == onset_started or t >= self.due):
+            t_end = min(self.due, onset_started) if onset_started == onset_started else self.due
+            out.append(self.redate(est, self.pending, k, t_end, block, n0))
+            self.pending, self.due = None, math.inf
+        if ended is not None:
+            self.pending, self.due = ended, ended.release + self.tail
+            if t >= self.due:
+                out.append(self.redate(est, ended, k, self.due, block, n0))
+                self.pending, self.due = None, math.inf
+        return out
+
+    def flush(self, est: TracedModel) -> list[ContactEvent]:
+        """The end of the log: the contact waiting, from the rows there are."""
+        if self.pending is None:
+            return []
+        e, self.pending, self.due = self.pending, None, math.inf
+        return [self.redate(est, e, self.n - 1, math.inf)]
+
+    def redate(self, est: TracedModel, e: ContactEvent, k_now: int, t_end: float,
+               block: tuple[Array, ...] | None = None, n0: int = 0) -> ContactEvent:
+        """``e`` dated again from the rows before ``t_end`` that the buffer holds at row
+        ``k_now`` (its last ``nr``); ``e`` itself where the readings came fast, or no pulse
+        of its sign fits."""
+        if self.rate_max <= 0:
+            return e
+        data = self._rows(max(0, k_now + 1 - self.nr), k_now + 1, block, n0)
+        t = data[:, 0]
+        end = int(np.searchsorted(t, t_end, side="left"))
+        reach = self.reach
+        with_onset = e.release - e.onset <= LONGEST_S and t[0] <= e.onset - reach - NUISANCE_S
+        t_ev0 = (e.onset if with_onset else e.release) - reach - NUISANCE_S
+        k0 = int(np.searchsorted(t, t_ev0 - HISTORY_S))
+        j0 = int(np.searchsorted(t, t_ev0))
+        if end - j0 < 2:
+            return e
+        span = t[end - 1] - t[j0]
+        if span <= 0 or np.count_nonzero(data[j0:end, 7].astype(np.int64) & 1) / span >= self.rate_max:
+            return e
+        w = np.ascontiguousarray(data[k0:end].T)
+        tw = w[0]
+        pr = est.pr.copy()
+        pr[K.PR_TRACE] = 1.0
+        pr[K.PR_OSJ] = 0.0  # no step signatures: nothing jumps
+        rec = np.zeros((len(tw), NREC))
+        trace(K.new_state(), pr, *est.tabs, tw, w[1], w[2], w[3], w[4], w[5].astype(np.int64),
+              w[6], w[7].astype(np.int64), rec, np.zeros(K.NEV))
+        j_first = j0 - k0
+        if not rec[j_first:, 2 * K.NUR + 1].all():  # the filter restarted: no fit
+            return e
+        cand_on = (np.arange(e.onset - reach, e.onset + reach + 1e-9, GRID_S) if with_onset
+                   else np.zeros(0))
+        cand_off = np.arange(e.release - reach, e.release + reach + 1e-9, GRID_S)
+        s_on = np.searchsorted(tw, cand_on).astype(np.int64)
+        s_off = np.searchsorted(tw, cand_off).astype(np.int64)
+        keep = s_off < len(tw) - 1  # a release with readings after it
+        cand_off, s_off = cand_off[keep], s_off[keep]
+        if not len(cand_off):
+            return e
+        best = pulse_fit(*pulse_sums(rec, est.tabs[0], j_first, s_on, s_off), len(s_on),
+                         float(e.sign), s_on, s_off)
+        if best is None:
+            return e
+        i_on, i_off = best
+        onset = min(float(cand_on[i_on]) if i_on >= 0 else e.onset, e.detected_at)
+        release = max(float(cand_off[i_off]), onset)
+        dur = release - onset
+        return dataclasses.replace(e, onset=onset, release=release, duration=dur,
+                                   energy=e.mean_dq * dur)

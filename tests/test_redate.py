@@ -1,0 +1,249 @@
+"""Dating a contact again when it ends (``estimation.redate``).
+
+The compiled fit is held to an independent one: the plain-Python reference filter
+(:class:`~thermoskin.estimation.reference.ReferenceEstimator`, detection off, its updates
+recorded), the pulse's and the nuisance's signatures carried row by row, the nuisance
+projected out of the readings themselves (an SVD), not out of the sums.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation import redate as RD  # noqa: N812
+from thermoskin.estimation.model import I_Q
+from thermoskin.estimation.reference import ReferenceEstimator
+from thermoskin.estimator import TouchEstimator
+from thermoskin.params import Config, load_config
+from thermoskin.pipeline import loop_t_s, observe, sample_interval
+from thermoskin.sim.conditions import decimate, get_condition
+from thermoskin.sim.run import simulate
+
+
+def _log(name: str, seed: int, duration: float | None = None
+         ) -> tuple[Config, dict[str, np.ndarray], object]:
+    cond = get_condition(name, seed)
+    cfg = cond.config(load_config())
+    sc = cond.scenario if duration is None else cond.scenario.with_duration(duration)
+    log = simulate(sc, cfg)
+    if cond.decimate > 1:
+        log = decimate(log, cond.decimate)
+    return cfg, log, sc
+
+
+def _block(log: dict[str, np.ndarray], est: TouchEstimator) -> tuple[np.ndarray, ...]:
+    """The log's rows as the re-dating's input columns."""
+    n = len(log["t"])
+    nan = np.full(n, math.nan)
+    return (log["t"], log["T_w"], log["T_p"], log["T_a"], log.get("T_w_cmd", nan),
+            est.rows_of(log["v"]).astype(float), log.get("drive", nan), log["fresh"].astype(float))
+
+
+class _Recorder(ReferenceEstimator):
+    def _detect(self, t: float, ge: float, gg: float) -> int:
+        return 0
+
+
+def _reference_fit(log: dict[str, np.ndarray], cfg: Config, k0: int, end: int, j_first: int,
+                   cand_on: np.ndarray, cand_off: np.ndarray, sign: float) -> tuple[float, float]:
+    """The pulse fit the textbook way, on rows ``k0..end-1`` (evidence from ``j_first`` on)."""
+    t = log["t"]
+    est = _Recorder(cfg, loop_t_s(sample_interval(t), cfg))
+    cmd = log.get("T_w_cmd")
+    rows, phis = [], []
+    for k in range(k0, end):
+        est.updates = []
+        est.step(float(t[k]), float(log["T_w"][k]), float(log["T_p"][k]), float(log["v"][k]),
+                 float(log["T_a"][k]), float(cmd[k]) if cmd is not None else math.nan,
+                 int(log["fresh"][k]), float(log["drive"][k]) if "drive" in log else math.nan)
+        rows.append(est.updates)
+        phis.append(est.tables.Phi[est.iv_prev])
+    tt = t[k0:end]
+    s_on, s_off = np.searchsorted(tt, cand_on), np.searchsorted(tt, cand_off)
+    keep = s_off < len(tt) - 1
+    cand_off, s_off = cand_off[keep], s_off[keep]
+    start = np.concatenate([s_on, s_off])
+    n = len(start)
+    mu = np.zeros((5, n + 5))
+    mu[:, n:] = np.eye(5)
+    cols, z = [], []
+    for j in range(j_first, len(tt)):
+        new = start == j
+        mu[:, :n][:, new] = 0.0
+        mu[I_Q, :n][new] = 1.0
+        for i, e, Se, Kg, evidence in rows[j]:
+            rho = mu[i].copy()
+            if evidence:
+                cols.append(rho / math.sqrt(Se))
+                z.append(e / math.sqrt(Se))
+            mu -= np.outer(Kg, rho)
+        mu = phis[j] @ mu
+    R = np.array(cols).T
+    zz = np.array(z)
+    U, sv, _ = np.linalg.svd(R[n:].T, full_matrices=False)
+    U = U[:, sv > 1e-6 * sv[0]]
+    Rp = R[:n] - (R[:n] @ U) @ U.T
+    zp = zz - U @ (U.T @ zz)
+    a = Rp @ zp
+    G = Rp @ Rp.T
+    no = len(s_on)
+    ia = np.arange(no)[:, None]
+    ib = no + np.arange(len(s_off))[None, :]
+    num = a[ia] - a[ib]
+    den = G[ia, ia] + G[ib, ib] - 2.0 * G[ia, ib]
+    ok = (num * sign > 0) & (start[ia] < start[ib]) & (den > 1e-9 * (G[ia, ia] + G[ib, ib]))
+    llr = np.where(ok, num * num / np.where(ok, den, 1.0), -np.inf)
+    i_on, i_off = np.unravel_index(int(np.argmax(llr)), llr.shape)
+    return float(cand_on[i_on]), float(cand_off[i_off])
+
+
+def test_pulse_sums_against_row_by_row_signatures() -> None:
+    """The compiled sums (transitions between readings multiplied together first) against the
+    signatures carried row by row and summed directly, on a random trace with sparse readings."""
+    rng = np.random.default_rng(3)
+    n = 400
+    rec = np.zeros((n, RD.NREC))
+    Phi = np.stack([np.eye(5) + 0.02 * rng.standard_normal((5, 5)) for _ in range(2)])
+    for j in range(n):
+        for u, every in ((0, 7), (1, 11)):
+            if j % every == 0:
+                o = u * K.NUR
+                rec[j, o] = 1.0
+                rec[j, o + 1] = rng.standard_normal()
+                rec[j, o + 2] = 0.5 + rng.random()
+                rec[j, o + 3] = 1.0 if rng.random() > 0.1 else 0.0
+                rec[j, o + 4:o + 9] = 0.3 * rng.standard_normal(5)
+        rec[j, 2 * K.NUR] = float(rng.integers(2))
+        rec[j, 2 * K.NUR + 1] = 1.0
+    j_first = 20
+    s_on = np.sort(rng.integers(25, 120, 9)).astype(np.int64)
+    s_off = np.sort(rng.integers(150, 390, 7)).astype(np.int64)
+    a, d, cn, nn, x = RD.pulse_sums(rec, Phi, j_first, s_on, s_off)
+    start = np.concatenate([s_on, s_off])
+    nc = len(start)
+    mu = np.zeros((5, nc + 5))
+    mu[:, nc:] = np.eye(5)
+    Rcols, z = [], []
+    for j in range(j_first, n):
+        for c in np.flatnonzero(start == j):
+            mu[:, c] = np.eye(5)[I_Q]
+        for u, i in ((0, 0), (1, 3)):
+            o = u * K.NUR
+            if rec[j, o]:
+                rho = mu[i].copy()
+                if rec[j, o + 3]:
+                    Rcols.append(rho / math.sqrt(rec[j, o + 2]))
+                    z.append(rec[j, o + 1] / math.sqrt(rec[j, o + 2]))
+                mu -= np.outer(rec[j, o + 4:o + 9], rho)
+        mu = Phi[int(rec[j, 2 * K.NUR])] @ mu
+    R = np.array(Rcols).T
+    G = R @ R.T
+    np.testing.assert_allclose(a, R @ np.array(z), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(d, np.diag(G)[:nc], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(cn, G[:nc, nc:], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(nn, G[nc:, nc:], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(x, G[:len(s_on), len(s_on):nc], rtol=1e-10, atol=1e-12)
+
+
+def test_fit_against_the_reference_filter_and_svd_projection() -> None:
+    """Each contact of a 100 Hz log dated again by the estimator's re-dating and by the
+    textbook fit on the plain-Python filter over the same rows: the same onset and release."""
+    cfg, log, _ = _log("log-100hz", 101)
+    est = TouchEstimator(cfg, t_s=loop_t_s(sample_interval(log["t"]), cfg))
+    raw = observe(log, cfg.replace(detector={"redate_hz": 0.0})).events
+    assert len(raw) >= 8
+    rd = RD.Redater(cfg, est.t_s)
+    block = _block(log, est)
+    t = log["t"]
+    reach = cfg.detector.redate_reach
+    same = 0
+    for e in raw:
+        t_end = e.release + cfg.detector.redate_tail
+        got = rd.redate(est, e, int(np.searchsorted(t, t_end)), t_end, block, 0)
+        t0 = e.onset - reach - RD.NUISANCE_S
+        k0, j0 = int(np.searchsorted(t, t0 - RD.HISTORY_S)), int(np.searchsorted(t, t0))
+        end = int(np.searchsorted(t, t_end))
+        on, off = _reference_fit(log, cfg, k0, end, j0 - k0,
+                                 np.arange(e.onset - reach, e.onset + reach + 1e-9, RD.GRID_S),
+                                 np.arange(e.release - reach, e.release + reach + 1e-9, RD.GRID_S),
+                                 float(e.sign))
+        exact_on = got.onset == pytest.approx(min(on, e.detected_at), abs=1e-9)
+        assert exact_on or abs(got.onset - on) <= 0.011
+        assert got.release == pytest.approx(off, abs=0.011)
+        same += exact_on and got.release == pytest.approx(off, abs=1e-9)
+        assert got.duration == pytest.approx(got.release - got.onset)
+        assert got.energy == pytest.approx(e.mean_dq * got.duration)
+    assert same >= len(raw) - 1  # a tie at the grid's rounding at most
+
+
+def test_step_and_chunks_write_the_same_events() -> None:
+    """Live (a sample at a time) and offline (chunks of any size) re-date at the same rows."""
+    cfg, log, _ = _log("boards-10hz", 102, duration=80.0)
+    t, n = log["t"], len(log["t"])
+    a = TouchEstimator(cfg)
+    for k in range(n):
+        a.step(float(t[k]), float(log["T_w"][k]), float(log["T_p"][k]), float(log["v"][k]),
+               float(log["T_a"][k]), float(log["T_w_cmd"][k]), int(log["fresh"][k]))
+    a.finish(float(t[-1]))
+    assert len(a.events) >= 4
+    for size in (997, 25_000, n):
+        b = TouchEstimator(cfg)
+        for s in range(0, n, size):
+            sl = slice(s, s + size)
+            b.feed(t[sl], log["T_w"][sl], log["T_p"][sl], log["v"][sl], log["T_a"][sl],
+                   log["T_w_cmd"][sl], log["fresh"][sl])
+        b.finish(float(t[-1]))
+        assert b.events == a.events, size
+
+
+def _duration_errors(events: list, touches: tuple) -> np.ndarray:
+    out = []
+    for tc in touches:
+        e = next((e for e in events if tc.t_on <= e.detected_at <= tc.t_on + tc.duration + 1.0), None)
+        if e is not None:
+            out.append(e.duration - tc.duration)
+    return np.abs(np.array(out))
+
+
+@pytest.mark.parametrize("name,seed", [("boards-10hz", 103), ("log-100hz", 104)])
+def test_redating_brings_durations_nearer_the_truth(name: str, seed: int) -> None:
+    """Against the scenario's own touches: no more durations off by over 0.3 s, and a smaller
+    mean error, than the detector's own dates."""
+    cfg, log, sc = _log(name, seed)
+    raw = _duration_errors(observe(log, cfg.replace(detector={"redate_hz": 0.0})).events, sc.touches)
+    new = _duration_errors(observe(log, cfg).events, sc.touches)
+    assert len(new) == len(raw) >= 8
+    assert np.sum(new > 0.3) <= np.sum(raw > 0.3)
+    assert new.mean() < raw.mean()
+
+
+def test_fast_readings_keep_the_detector_dates() -> None:
+    """At 1 kHz (readings faster than ``redate_hz``) the events are the detector's own."""
+    cfg, log, _ = _log("taps", 105, duration=60.0)
+    on = observe(log, cfg).events
+    off = observe(log, cfg.replace(detector={"redate_hz": 0.0})).events
+    assert len(on) >= 3
+    assert on == off
+
+
+def test_release_alone_when_the_start_is_gone() -> None:
+    """A contact longer than the buffer's reach has its release alone dated again (a step down)."""
+    cfg, log, _ = _log("log-100hz", 101)
+    raw = observe(log, cfg.replace(detector={"redate_hz": 0.0})).events
+    e0 = raw[2]
+    est = TouchEstimator(cfg, t_s=loop_t_s(sample_interval(log["t"]), cfg))
+    rd = RD.Redater(cfg, est.t_s)
+    block = _block(log, est)
+    t_end = e0.release + cfg.detector.redate_tail
+    k = int(np.searchsorted(log["t"], t_end))
+    long = dataclasses.replace(e0, onset=e0.release - RD.LONGEST_S - 1.0)
+    got = rd.redate(est, long, k, t_end, block, 0)
+    assert got.onset == long.onset
+    assert abs(got.release - e0.release) <= cfg.detector.redate_reach + 1e-9
+    both = rd.redate(est, e0, k, t_end, block, 0)
+    assert abs(got.release - both.release) <= 0.1
