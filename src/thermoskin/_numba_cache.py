@@ -29,8 +29,8 @@ CONSTANTS_FROM = ("estimation/model.py", "events.py", "physics/finger.py", "sim/
 global's value into the machine code (the event record's layout, the onset threshold's rate
 tolerance, the noise block's length)."""
 
-SOURCES = ("estimation/kernel.py", "sweep/kernel.py", "sweep/qp.py", "sim/skin_plant.py",
-           "sim/board_bank.py", "skin_transport.py", "calibrate.py", *COMPILED_ELSEWHERE,
+SOURCES = ("estimation/kernel.py", "estimation/redate.py", "sweep/kernel.py", "sweep/qp.py",
+           "sim/skin_plant.py", "sim/board_bank.py", "skin_transport.py", "calibrate.py", *COMPILED_ELSEWHERE,
            *CONSTANTS_FROM)
 """Every module with compiled (``@njit``) code, relative to the package, and those of
 :data:`COMPILED_ELSEWHERE` and :data:`CONSTANTS_FROM` (a test keeps it whole)."""

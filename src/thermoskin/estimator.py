@@ -174,6 +174,9 @@ class TouchEstimator:
         self.st = K.new_state()
         self.events: list[ContactEvent] = []
         self._redater = Redater(self.cfg, self.t_s) if self.cfg.detector.redate_hz > 0 else None
+        #: the events the last :meth:`step` wrote: a contact ended then, or (dated again,
+        #: :mod:`~thermoskin.estimation.redate`) a while before
+        self.written: list[ContactEvent] | tuple[()] = ()
         self.contact = 0
         self.started = self.ended = False
 
@@ -210,7 +213,7 @@ class TouchEstimator:
     # -- streaming --------------------------------------------------------------------------
     def step(self, t: float, T_w: float, T_p: float, v: float, T_a: float,
              T_w_cmd: float = math.nan, fresh: int = 7, drive: float = math.nan) -> int:
-        """One sample; returns ``contact``.
+        """One sample; returns ``contact``. The events it writes are :attr:`written`.
 
         ``v`` and ``drive``: the pump command and the Peltier drive applied from ``t`` on
         (``drive`` NaN: unknown, the tank is then a constant-velocity model); ``fresh``: the
@@ -224,15 +227,18 @@ class TouchEstimator:
         self.started = bool(code & K.C_STARTED)
         self.ended = bool(code & K.C_ENDED)
         rd = self._redater
+        self.written = ()
         if rd is None:
             if self.ended:
-                self.events.append(ContactEvent.from_kernel(self._ev))
+                self.written = [ContactEvent.from_kernel(self._ev)]
         else:
             rd.push((t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh))
             if self.started or self.ended or t >= rd.due:
-                self.events.extend(rd.on_row(
+                self.written = rd.on_row(
                     self, rd.n - 1, t, self.st[K.ONSET] if self.started else math.nan,
-                    ContactEvent.from_kernel(self._ev) if self.ended else None))
+                    ContactEvent.from_kernel(self._ev) if self.ended else None)
+        if self.written:
+            self.events.extend(self.written)
         self.contact = code & K.C_CONTACT
         return self.contact
 

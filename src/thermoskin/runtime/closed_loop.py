@@ -151,8 +151,9 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
         c_Tpt[k] = T_p_true
         if est.started and on_start is not None:
             on_start(t)
-        if est.ended and on_event is not None:
-            on_event(est.events[-1])
+        if est.written and on_event is not None:
+            for e in est.written:
+                on_event(e)
         plant.apply(ctrl.drive, ctrl.v)
         if sup.code:
             n_run = k + 1
@@ -165,8 +166,9 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     send(n_run, fault_code)
     n_events = len(est.events)
     est.finish((n_run - 1) * t_s)
-    if on_event is not None and len(est.events) > n_events:
-        on_event(est.events[-1])
+    if on_event is not None:
+        for e in est.events[n_events:]:
+            on_event(e)
     wall = time.perf_counter() - wall0
     if progress is not None:
         progress(1.0)

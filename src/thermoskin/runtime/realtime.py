@@ -242,8 +242,9 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
                     ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh)
                     drive, v = sup.gate(ctrl.drive, ctrl.v)
                     est = ctrl.estimator
-                    if est.ended and on_event is not None:
-                        on_event(est.events[-1])
+                    if est.written and on_event is not None:
+                        for e in est.written:
+                            on_event(e)
                     q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, ctrl.contact, est.gap
                     T_p_cmd = ctrl.T_p_cmd
                 if truth is not None:
