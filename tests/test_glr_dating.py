@@ -90,7 +90,7 @@ def test_buffer_pools_and_wraps() -> None:
 def test_slow_rise_before_a_touch_no_longer_dates_it_early() -> None:
     cond = get_condition("log-100hz", 103)
     # the detector's own dating (re-dated at the release, each version is right: test_redate)
-    cfg = cond.config(load_config()).replace(detector={"redate_hz": 0.0})
+    cfg = cond.config(load_config()).replace(detector={"redate_readings": 0.0})
     sc = cond.scenario.with_duration(25.0)
     log = decimate(simulate(sc, cfg), cond.decimate)
     tc = next(tc for tc in sc.touches if 20.0 < tc.t_on < 22.0)

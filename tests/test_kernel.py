@@ -53,7 +53,7 @@ def test_kernel_equals_reference(name: str, cfg, log) -> None:  # type: ignore[n
     t_s = float(log["t"][1] - log["t"][0])
     t_s = cfg.sampling.t_s if abs(t_s - cfg.sampling.t_s) < 1e-9 else round(t_s, 6)
     # the detector's own events: the reference has no re-dating (tests/test_redate.py holds it)
-    est = TouchEstimator(cfg.replace(detector={"redate_hz": 0.0}), t_s=t_s)
+    est = TouchEstimator(cfg.replace(detector={"redate_readings": 0.0}), t_s=t_s)
     ref = ReferenceEstimator(cfg, t_s)
     keys = ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd", "fresh")
     worst = {"q_i_hat": 0.0, "dq_i_hat": 0.0, "sd": 0.0, "T_g_hat": 0.0}

@@ -23,6 +23,7 @@ from thermoskin.params import Config, load_config
 from thermoskin.pipeline import loop_t_s, observe, sample_interval
 from thermoskin.sim.conditions import decimate, get_condition
 from thermoskin.sim.run import simulate
+from thermoskin.sim.scenarios import SCENARIOS
 
 
 def _log(name: str, seed: int, duration: float | None = None
@@ -155,7 +156,7 @@ def test_fit_against_the_reference_filter_and_svd_projection() -> None:
     textbook fit on the plain-Python filter over the same rows: the same onset and release."""
     cfg, log, _ = _log("log-100hz", 101)
     est = TouchEstimator(cfg, t_s=loop_t_s(sample_interval(log["t"]), cfg))
-    raw = observe(log, cfg.replace(detector={"redate_hz": 0.0})).events
+    raw = observe(log, cfg.replace(detector={"redate_readings": 0.0})).events
     assert len(raw) >= 8
     rd = RD.Redater(cfg, est.t_s)
     block = _block(log, est)
@@ -215,26 +216,32 @@ def test_redating_brings_durations_nearer_the_truth(name: str, seed: int) -> Non
     """Against the scenario's own touches: no more durations off by over 0.3 s, and a smaller
     mean error, than the detector's own dates."""
     cfg, log, sc = _log(name, seed)
-    raw = _duration_errors(observe(log, cfg.replace(detector={"redate_hz": 0.0})).events, sc.touches)
+    raw = _duration_errors(observe(log, cfg.replace(detector={"redate_readings": 0.0})).events, sc.touches)
     new = _duration_errors(observe(log, cfg).events, sc.touches)
     assert len(new) == len(raw) >= 8
     assert np.sum(new > 0.3) <= np.sum(raw > 0.3)
     assert new.mean() < raw.mean()
 
 
-def test_fast_readings_keep_the_detector_dates() -> None:
-    """At 1 kHz (readings faster than ``redate_hz``) the events are the detector's own."""
+def test_long_contacts_at_1khz_keep_the_detector_dates() -> None:
+    """At 1 kHz a contact of 2 s weighs more readings than ``redate_readings``: the events are
+    the detector's own; its taps (0.2-0.5 s) are dated again."""
+    cfg = load_config()
+    log = simulate(SCENARIOS["one-finger"].with_duration(25.0), cfg)
+    off = observe(log, cfg.replace(detector={"redate_readings": 0.0})).events
+    assert len(off) >= 3 and all(e.duration > 1.0 for e in off)
+    assert observe(log, cfg).events == off
     cfg, log, _ = _log("taps", 105, duration=60.0)
     on = observe(log, cfg).events
-    off = observe(log, cfg.replace(detector={"redate_hz": 0.0})).events
-    assert len(on) >= 3
-    assert on == off
+    off = observe(log, cfg.replace(detector={"redate_readings": 0.0})).events
+    assert len(on) == len(off) >= 3
+    assert all(a.onset != b.onset or a.release != b.release for a, b in zip(on, off, strict=True))
 
 
 def test_release_alone_when_the_start_is_gone() -> None:
     """A contact longer than the buffer's reach has its release alone dated again (a step down)."""
     cfg, log, _ = _log("log-100hz", 101)
-    raw = observe(log, cfg.replace(detector={"redate_hz": 0.0})).events
+    raw = observe(log, cfg.replace(detector={"redate_readings": 0.0})).events
     e0 = raw[2]
     est = TouchEstimator(cfg, t_s=loop_t_s(sample_interval(log["t"]), cfg))
     rd = RD.Redater(cfg, est.t_s)

@@ -173,7 +173,7 @@ class TouchEstimator:
         """Everything afresh; disarmed until the set-point is held (if there is one)."""
         self.st = K.new_state()
         self.events: list[ContactEvent] = []
-        self._redater = Redater(self.cfg, self.t_s) if self.cfg.detector.redate_hz > 0 else None
+        self._redater = Redater(self.cfg, self.t_s) if self.cfg.detector.redate_readings > 0 else None
         #: the events the last :meth:`step` wrote: a contact ended then, or (dated again,
         #: :mod:`~thermoskin.estimation.redate`) a while before
         self.written: list[ContactEvent] | tuple[()] = ()

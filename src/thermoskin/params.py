@@ -214,10 +214,12 @@ class DetectorParams(_Validated):
                           "readings (Lorden), so at a few readings a second each carries much "
                           "evidence; 11.9 is once in 4 h at 10 readings a second (10 Hz boards: "
                           "11.9 rather than 9.5, which alarmed about once in 22 min)")
-    redate_hz: float = _p(200.0, "1/s", 0.0, 1e6,
-                          doc="a contact's onset and release are dated again when it ends, by a "
-                              "pulse fit on a detection-free filter, where the pipe readings came "
-                              "fewer than this a second (slow boards, coarse logs); 0: never")
+    redate_readings: float = _p(3000.0, "", 0.0, 1e7,
+                                doc="a contact's onset and release are dated again when it ends, by "
+                                    "a pulse fit on a detection-free filter, where that fit weighs at "
+                                    "most this many pipe readings (its cost grows with them, about 4 "
+                                    "us each): with 10 Hz boards or a 100 Hz log every contact up to "
+                                    "27 s, at 1 kHz taps up to 0.7 s; 0: never")
     redate_reach: float = _p(0.5, "s", 0.01, 5.0,
                              doc="the fit's onset and release lie within this of the detector's")
     redate_tail: float = _p(0.8, "s", 0.0, 10.0,
