@@ -139,7 +139,9 @@ GBUF = GHEAD + 3        # NGB entries of 3: time of the last reading pooled, sum
 NGB = 256
 UREC = GBUF + 3 * NGB  # traced (PR_TRACE): this sample's pipe and tank updates, NUR fields each:
 NUR = 9                # made (1/0), innovation e, kappa^2 S, evidence (1/0), the gain K (5)
-NSTATE = UREC + 2 * NUR
+SWB = UREC + 2 * NUR   # traced: a pump-switch correction's x_Tw += c (x_Tp - x_Tw), its c, before
+SWA = SWB + 1          # the updates and after them (0: none)
+NSTATE = SWA + 1
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -903,6 +905,12 @@ def _detect(st, pr, t, ev):
 
 
 @_inline
+def _switch_coef(pr, Rw, iv_old, iv):
+    """The share of ``x_Tp - x_Tw`` that :func:`_switch_correction` adds to ``x_Tw``."""
+    return 0.5 * (1.0 / Rw[iv] - 1.0 / Rw[iv_old]) * pr[PR_TS] * pr[PR_ICW]
+
+
+@_inline
 def _switch_correction(st, pr, Rw, iv_old, iv):
     """A log coarser than the loop: the pump switched (table row ``iv_old`` to ``iv``) somewhere
     in the last interval, not at its end; the water brought (T_p - T_w)(1/R_w,new - 1/R_w,old)
@@ -922,6 +930,7 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     process-noise tables while idle and in contact; ``Rw`` the water's resistance per row.
     """
     R = pr[PR_RT]
+    st[UREC] = st[UREC + NUR] = st[SWB] = st[SWA] = 0.0  # the trace's records of this sample
     _eq8(st, pr, Rw, T_w, T_p, T_a, iv)
     iv_old = -1  # the pump's row before a switch whose correction waits for this row's reading
     if iv >= 0:
@@ -932,6 +941,8 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
                 # before the switch: it updates the state as it stood, the correction after it
                 iv_old = int(st[IVP])
             else:
+                if pr[PR_TRACE] != 0.0:
+                    st[SWB] = _switch_coef(pr, Rw, int(st[IVP]), iv)
                 _switch_correction(st, pr, Rw, int(st[IVP]), iv)
         if iv != int(st[IVP]):
             st[PHASE] = 0.0
@@ -947,7 +958,6 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     gap = st[E8GAP] > 0.0
     st[GAP] = 1.0 if gap else 0.0
     st[SGE] = st[SGG] = 0.0
-    st[UREC] = st[UREC + NUR] = 0.0
     st[QPRI] = st[X + 2]
     if st[READY] == 0.0:
         if gap:
@@ -986,6 +996,8 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
         if (fresh & 2) != 0 and math.isfinite(T_p):
             _update(st, pr, 3, T_p, R)
     if iv_old >= 0:
+        if pr[PR_TRACE] != 0.0:
+            st[SWA] = _switch_coef(pr, Rw, iv_old, iv)
         _switch_correction(st, pr, Rw, iv_old, iv)
     st[Q] = st[X + 2]
     pq = st[P + 12]

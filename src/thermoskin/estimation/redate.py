@@ -59,7 +59,8 @@ NUISANCE_S = 1.0   #: evidence used before the earliest candidate, to pin the st
 HISTORY_S = 5.0    #: the detection-free filter runs this long before that, s
 LONGEST_S = 30.0   #: a contact longer than this has its release alone dated again, s
 NCOL = 8           #: the input buffer's columns: t, T_w, T_p, T_a, T_w_cmd, pump row, drive, fresh
-NREC = 2 * K.NUR + 2  #: per row of the trace: the two updates, the pump row, ready
+NREC = 2 * K.NUR + 4  #: per row of the trace: the two updates, the pump row, ready, switch corrections
+RIV, RREADY, RSWB, RSWA = 2 * K.NUR, 2 * K.NUR + 1, 2 * K.NUR + 2, 2 * K.NUR + 3
 
 
 @njit(cache=True, nogil=True)
@@ -74,8 +75,19 @@ def trace(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, i
                iv[k], drive[k], fresh[k], ev)
         for j in range(2 * K.NUR):
             rec[k, j] = st[K.UREC + j]
-        rec[k, 2 * K.NUR] = st[K.IVP]
-        rec[k, 2 * K.NUR + 1] = st[K.READY]
+        rec[k, RIV] = st[K.IVP]
+        rec[k, RREADY] = st[K.READY]
+        rec[k, RSWB] = st[K.SWB]
+        rec[k, RSWA] = st[K.SWA]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _switch(mu, c, no, nc, p_on, p_off):
+    """A pump switch's correction, ``x_Tw += c (x_Tp - x_Tw)``, on the active columns."""
+    for col in range(nc + 5):
+        if (col < no and col >= p_on) or (no <= col < nc and col - no >= p_off):
+            continue
+        mu[0, col] += c * (mu[3, col] - mu[0, col])
 
 
 @njit(cache=True, nogil=True)
@@ -105,7 +117,7 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
     n = rec.shape[0]
     for j in range(j_first, n):
         starts = (p_on < no and s_on[p_on] <= j) or (p_off < nf and s_off[p_off] <= j)
-        reads = rec[j, 0] != 0.0 or rec[j, K.NUR] != 0.0
+        reads = rec[j, 0] != 0.0 or rec[j, K.NUR] != 0.0 or rec[j, RSWB] != 0.0 or rec[j, RSWA] != 0.0
         if (starts or reads) and not fresh_A:  # bring the active columns up to this row
             for c in range(nc + 5):
                 if (c < no and c >= p_on) or (no <= c < nc and c - no >= p_off):
@@ -127,6 +139,8 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
         while p_off < nf and s_off[p_off] <= j:
             mu[2, no + p_off] = 1.0
             p_off += 1
+        if rec[j, RSWB] != 0.0:
+            _switch(mu, rec[j, RSWB], no, nc, p_on, p_off)
         for u in range(2):
             o = u * K.NUR
             if rec[j, o] == 0.0:
@@ -160,8 +174,10 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
                 rho = mu[i, c]
                 for m in range(5):
                     mu[m, c] -= rec[j, o + 4 + m] * rho
+        if rec[j, RSWA] != 0.0:
+            _switch(mu, rec[j, RSWA], no, nc, p_on, p_off)
         # predict: A <- Phi A
-        F = Phi[int(rec[j, 2 * K.NUR])]
+        F = Phi[int(rec[j, RIV])]
         for q in range(5):
             for m in range(5):
                 tmp[m] = A[m, q]
@@ -307,9 +323,11 @@ class Redater:
         trace(K.new_state(), pr, *est.tabs, tw, w[1], w[2], w[3], w[4], w[5].astype(np.int64),
               w[6], w[7].astype(np.int64), rec, np.zeros(K.NEV))
         j_first = j0 - k0
-        if not rec[j_first:, 2 * K.NUR + 1].all():  # the filter restarted: no fit
+        if not rec[j_first:, RREADY].all():  # the filter restarted: no fit
             return e
-        cand_on = (np.arange(e.onset - reach, e.onset + reach + 1e-9, GRID_S) if with_onset
+        # a touch began before it was detected
+        cand_on = (np.arange(e.onset - reach, min(e.onset + reach, e.detected_at) + 1e-9, GRID_S)
+                   if with_onset
                    else np.zeros(0))
         cand_off = np.arange(e.release - reach, e.release + reach + 1e-9, GRID_S)
         s_on = np.searchsorted(tw, cand_on).astype(np.int64)
@@ -323,7 +341,7 @@ class Redater:
         if best is None:
             return e
         i_on, i_off = best
-        onset = min(float(cand_on[i_on]) if i_on >= 0 else e.onset, e.detected_at)
+        onset = float(cand_on[i_on]) if i_on >= 0 else e.onset
         release = max(float(cand_off[i_off]), onset)
         dur = release - onset
         return dataclasses.replace(e, onset=onset, release=release, duration=dur,

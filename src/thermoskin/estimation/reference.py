@@ -98,6 +98,9 @@ class ReferenceEstimator:
         self.cmd = math.nan
         self.armed, self.n_in = False, 0
         self.updates: list[tuple[int, float, float, Array, bool]] | None = None
+        # with updates recorded: also each pump-switch correction, as (-1, c, 0, K, False),
+        # x_Tw += c (x_Tp - x_Tw) (the re-dating's signatures carry it)
+        self.record_switches = False
         self.mode, self.n_seen, self.warm = "warm", 0, []
         self.b = 0.0
         self.cusums = [_Cusum(d.dq_design), _Cusum(-d.dq_design),
@@ -258,6 +261,9 @@ class ReferenceEstimator:
               * self.t_s / self.cfg.skin.C_w)
         self.x[I_TW] += 0.5 * dT
         self.P[I_TW, I_TW] += (self.vsw * dT) ** 2
+        if self.updates is not None and self.record_switches:
+            c = 0.5 * (1 / self.R_w(vs[iv]) - 1 / self.R_w(vs[iv_old])) * self.t_s / self.cfg.skin.C_w
+            self.updates.append((-1, c, 0.0, np.zeros(5), False))
 
     def _init(self, T_w: float, T_p: float, T_a: float) -> None:
         Rg, Rag, R = self.cfg.skin.R_g, self.cfg.skin.R_ag, self.R
