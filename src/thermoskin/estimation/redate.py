@@ -235,38 +235,55 @@ class Redater:
         span = HISTORY_S + NUISANCE_S + 2 * self.reach + LONGEST_S + self.tail + 1.0
         self.nr = math.ceil(span / t_s)
         self.buf = np.zeros((self.nr, NCOL))
-        self.n = 0  # rows pushed
+        self.n_buf = 0  # rows written to the buffer
+        self.rows: list[tuple[float, ...]] = []  # rows pushed one at a time, not yet written
         self.pending: ContactEvent | None = None
         self.due = math.inf
 
+    @property
+    def n(self) -> int:
+        """Rows pushed."""
+        return self.n_buf + len(self.rows)
+
     # -- the buffer -------------------------------------------------------------------------
     def push(self, row: tuple[float, ...]) -> None:
-        """One row (the :data:`NCOL` inputs of a sample)."""
-        self.buf[self.n % self.nr] = row
-        self.n += 1
+        """One row (the :data:`NCOL` inputs of a sample; kept in a list, written to the buffer
+        a thousand at a time: a numpy row store costs more than the sample step)."""
+        self.rows.append(row)
+        if len(self.rows) >= 1024:
+            self._write()
+
+    def _write(self) -> None:
+        if self.rows:
+            a = np.array(self.rows, dtype=float)
+            self.rows.clear()
+            self.push_block(tuple(a.T))
 
     def push_block(self, cols: tuple[Array, ...]) -> None:
         """Rows given as :data:`NCOL` columns, in order (only the last ``nr`` are kept)."""
+        self._write()
         m = len(cols[0])
         skip = max(0, m - self.nr)
-        self.n += skip
+        self.n_buf += skip
         m -= skip
-        p = self.n % self.nr
+        p = self.n_buf % self.nr
         first = min(m, self.nr - p)
         for j, c in enumerate(cols):
             self.buf[p:p + first, j] = c[skip:skip + first]
             self.buf[:m - first, j] = c[skip + first:]
-        self.n += m
+        self.n_buf += m
 
-    def _rows(self, k0: int, k1: int, block: tuple[Array, ...] | None, n0: int) -> Array:
-        """Rows ``k0..k1-1`` (indices since the start) from the buffer and from ``block``
-        (columns not yet pushed, their first row ``n0``)."""
+    def _cols(self, k0: int, k1: int, block: tuple[Array, ...] | None, n0: int,
+              which: tuple[int, ...] = tuple(range(NCOL))) -> Array:
+        """Columns ``which`` of rows ``k0..k1-1`` (indices since the start; columns x rows), from
+        the buffer and from ``block`` (columns not yet pushed, their first row ``n0``)."""
+        self._write()
+        old = (self.buf[np.arange(k0, min(k1, n0) if block is not None else k1) % self.nr][:, which].T
+               if block is None or k0 < n0 else np.zeros((len(which), 0)))
         if block is None or k1 <= n0:
-            return self.buf[np.arange(k0, k1) % self.nr]
-        new = np.column_stack([c[max(k0, n0) - n0:k1 - n0] for c in block])
-        if k0 >= n0:
-            return new
-        return np.concatenate([self.buf[np.arange(k0, n0) % self.nr], new])
+            return old
+        new = np.stack([block[j][max(k0, n0) - n0:k1 - n0] for j in which]).astype(float)
+        return new if k0 >= n0 else np.concatenate([old, new], axis=1)
 
     # -- the contacts -----------------------------------------------------------------------
     def on_row(self, est: TracedModel, k: int, t: float, onset_started: float,
@@ -302,8 +319,8 @@ class Redater:
         of its sign fits."""
         if self.most <= 0:
             return e
-        data = self._rows(max(0, k_now + 1 - self.nr), k_now + 1, block, n0)
-        t = data[:, 0]
+        k_lo = max(0, k_now + 1 - self.nr)
+        t = self._cols(k_lo, k_now + 1, block, n0, (0,))[0]
         end = int(np.searchsorted(t, t_end, side="left"))
         reach = self.reach
         with_onset = e.release - e.onset <= LONGEST_S and t[0] <= e.onset - reach - NUISANCE_S
@@ -312,9 +329,10 @@ class Redater:
         j0 = int(np.searchsorted(t, t_ev0))
         if end - j0 < 2:
             return e
-        if np.count_nonzero(data[j0:end, 7].astype(np.int64) & 1) > self.most:
+        fresh = self._cols(k_lo + j0, k_lo + end, block, n0, (7,))[0]
+        if np.count_nonzero(fresh.astype(np.int64) & 1) > self.most:
             return e  # the fit would cost more than it is worth (a long contact at 1 kHz)
-        w = np.ascontiguousarray(data[k0:end].T)
+        w = np.ascontiguousarray(self._cols(k_lo + k0, k_lo + end, block, n0))
         tw = w[0]
         pr = est.pr.copy()
         pr[K.PR_TRACE] = 1.0
