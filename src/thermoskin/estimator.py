@@ -268,13 +268,15 @@ class TouchEstimator:
               else np.ascontiguousarray(fresh, dtype=np.int64))
         iv = self.rows_of(v)
         rd = self._redater
-        out = np.empty((8 if rd is None else 10, n))
+        out = np.empty((8, n))
         events = np.empty((max(16, n // 50), K.NEV))
-        ne = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out, events,
-                   self._ev)
+        marks = np.empty((2 * len(events), 3))
+        ne, nm = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out,
+                       events, self._ev, marks)
         new = [ContactEvent.from_kernel(events[i]) for i in range(min(ne, len(events)))]
         if rd is not None:
-            new = self._redate_chunk(rd, new, (t, T_w, T_p, T_a, cmd, iv, drv, fr), out)
+            new = self._redate_chunk(rd, new, (t, T_w, T_p, T_a, cmd, iv, drv, fr),
+                                     marks[:min(nm, len(marks))])
         self.events.extend(new)
         self.contact = int(self.st[K.CONTACT])
         cols = {"q_i_hat": out[0], "dq_i_hat": out[1], "sd": out[3],
@@ -283,28 +285,27 @@ class TouchEstimator:
         return cols, new
 
     def _redate_chunk(self, rd: Redater, ended: list[ContactEvent], block: tuple[Array, ...],
-                      out: Array) -> list[ContactEvent]:
-        """The chunk's rows where a contact started or ended, or the waiting one fell due, in
-        order, as :meth:`step` hands them to the re-dating one sample at a time."""
+                      marks: Array) -> list[ContactEvent]:
+        """The chunk's rows where a contact started or ended (``marks``: row, bits, onset), or
+        the waiting one fell due, in order, as :meth:`step` hands them to the re-dating one
+        sample at a time."""
         t = block[0]
-        codes = out[8].astype(np.int64)
-        marks = np.flatnonzero(codes & (K.C_STARTED | K.C_ENDED))
         n0 = rd.n
         it = iter(ended)
         written: list[ContactEvent] = []
         pos, im = 0, 0
         while True:
-            while im < len(marks) and marks[im] < pos:
-                im += 1
-            k = int(marks[im]) if im < len(marks) else len(t)
+            k = int(marks[im, 0]) if im < len(marks) else len(t)
             if rd.pending is not None:
                 k = min(k, pos + int(np.searchsorted(t[pos:], rd.due, side="left")))
             if k >= len(t):
                 break
-            c = int(codes[k])
+            c = int(marks[im, 1]) if im < len(marks) and marks[im, 0] == k else 0
             written.extend(rd.on_row(self, n0 + k, float(t[k]),
-                                     float(out[9, k]) if c & K.C_STARTED else math.nan,
+                                     float(marks[im, 2]) if c & K.C_STARTED else math.nan,
                                      next(it) if c & K.C_ENDED else None, block, n0))
+            if c:
+                im += 1
             pos = k + 1
         rd.push_block(block)
         return written

@@ -1054,28 +1054,34 @@ def _keep_event(events, ne, ev):
 
 @njit(nogil=True, **_FAST)
 def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
-        out, events, ev):
+        out, events, ev, marks):
     """:func:`step` over arrays; fills ``out`` (rows: q_i_hat, dq_i_hat, q estimate, its sd,
-    contact, gap, the sheet's estimated temperature T_g, their covariance; where it has ten
-    rows, the step-result bits and the current contact's onset) and ``events``
-    (``ev``: a scratch event row); returns the event count. Calls :func:`step`, compiled
-    once: inlining the sample step here too was 12 % faster a sample (170 against 193 ns) but
-    another 20 s of numba's compile on a cold cache."""
+    contact, gap, the sheet's estimated temperature T_g, their covariance), ``events``
+    (``ev``: a scratch event row) and ``marks`` (the rows where a contact started or ended:
+    row, those step-result bits, the contact's onset; the re-dating's clock); returns the
+    event count and the mark count. Calls :func:`step`, compiled once: inlining the sample
+    step here too was 12 % faster a sample (170 against 193 ns) but another 20 s of numba's
+    compile on a cold cache."""
     n = t.shape[0]
     ne = 0
+    nm = 0
     cap = events.shape[0]
+    cap_m = marks.shape[0]
     for k in range(n):
         c = step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k],
                       T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
         _outputs(st, out, k)
-        if out.shape[0] > 8:  # the step-result bits and the onset (the re-dating's clock)
-            out[8, k] = c
-            out[9, k] = st[ONSET]
-        if c & C_ENDED:
-            if ne < cap:
-                _keep_event(events, ne, ev)
-            ne += 1
-    return ne
+        if c & (C_STARTED | C_ENDED):
+            if nm < cap_m:
+                marks[nm, 0] = k
+                marks[nm, 1] = c & (C_STARTED | C_ENDED)
+                marks[nm, 2] = st[ONSET]
+            nm += 1
+            if c & C_ENDED:
+                if ne < cap:
+                    _keep_event(events, ne, ev)
+                ne += 1
+    return ne, nm
 
 
 @_inline

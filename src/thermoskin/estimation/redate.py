@@ -234,7 +234,7 @@ class Redater:
         self.most, self.reach, self.tail = d.redate_readings, d.redate_reach, d.redate_tail
         span = HISTORY_S + NUISANCE_S + 2 * self.reach + LONGEST_S + self.tail + 1.0
         self.nr = math.ceil(span / t_s)
-        self.buf = np.zeros((self.nr, NCOL))
+        self.buf = np.zeros((NCOL, self.nr))  # a column's rows contiguous (searched in place)
         self.n_buf = 0  # rows written to the buffer
         self.rows: list[tuple[float, ...]] = []  # rows pushed one at a time, not yet written
         self.pending: ContactEvent | None = None
@@ -255,9 +255,9 @@ class Redater:
 
     def _write(self) -> None:
         if self.rows:
-            a = np.array(self.rows, dtype=float)
+            a = np.array(self.rows, dtype=float).T
             self.rows.clear()
-            self.push_block(tuple(a.T))
+            self.push_block(tuple(a))
 
     def push_block(self, cols: tuple[Array, ...]) -> None:
         """Rows given as :data:`NCOL` columns, in order (only the last ``nr`` are kept)."""
@@ -269,8 +269,8 @@ class Redater:
         p = self.n_buf % self.nr
         first = min(m, self.nr - p)
         for j, c in enumerate(cols):
-            self.buf[p:p + first, j] = c[skip:skip + first]
-            self.buf[:m - first, j] = c[skip + first:]
+            self.buf[j, p:p + first] = c[skip:skip + first]
+            self.buf[j, :m - first] = c[skip + first:]
         self.n_buf += m
 
     def _cols(self, k0: int, k1: int, block: tuple[Array, ...] | None, n0: int,
@@ -278,12 +278,29 @@ class Redater:
         """Columns ``which`` of rows ``k0..k1-1`` (indices since the start; columns x rows), from
         the buffer and from ``block`` (columns not yet pushed, their first row ``n0``)."""
         self._write()
-        old = (self.buf[np.arange(k0, min(k1, n0) if block is not None else k1) % self.nr][:, which].T
-               if block is None or k0 < n0 else np.zeros((len(which), 0)))
-        if block is None or k1 <= n0:
+        k_mid = k1 if block is None else max(k0, min(k1, n0))
+        old = self.buf[np.asarray(which)[:, None], (np.arange(k0, k_mid) % self.nr)[None, :]]
+        if k1 <= k_mid:
             return old
-        new = np.stack([block[j][max(k0, n0) - n0:k1 - n0] for j in which]).astype(float)
-        return new if k0 >= n0 else np.concatenate([old, new], axis=1)
+        new = np.stack([block[j][k_mid - n0:k1 - n0] for j in which]).astype(float)  # type: ignore[index]
+        return new if k_mid == k0 else np.concatenate([old, new], axis=1)
+
+    def _search(self, x: float, k0: int, k1: int, block: tuple[Array, ...] | None, n0: int) -> int:
+        """The first row of ``k0..k1-1`` at or after time ``x`` (``k1`` if none), searched in
+        place: the buffer's one or two stretches, then ``block``."""
+        self._write()
+        k_mid = k1 if block is None else max(k0, min(k1, n0))
+        if k0 < k_mid:
+            a, m = k0 % self.nr, k_mid - k0
+            stretches = ([(k0, self.buf[0, a:a + m])] if a + m <= self.nr else
+                         [(k0, self.buf[0, a:]), (k0 + self.nr - a, self.buf[0, :a + m - self.nr])])
+            for k_start, seg in stretches:
+                i = int(np.searchsorted(seg, x))
+                if i < len(seg):
+                    return k_start + i
+        if k1 > k_mid and block is not None:
+            return k_mid + int(np.searchsorted(block[0][k_mid - n0:k1 - n0], x))
+        return k1
 
     # -- the contacts -----------------------------------------------------------------------
     def on_row(self, est: TracedModel, k: int, t: float, onset_started: float,
@@ -319,20 +336,20 @@ class Redater:
         of its sign fits."""
         if self.most <= 0:
             return e
-        k_lo = max(0, k_now + 1 - self.nr)
-        t = self._cols(k_lo, k_now + 1, block, n0, (0,))[0]
-        end = int(np.searchsorted(t, t_end, side="left"))
+        k_lo, k_hi = max(0, k_now + 1 - self.nr), k_now + 1
+        end = self._search(t_end, k_lo, k_hi, block, n0)
         reach = self.reach
-        with_onset = e.release - e.onset <= LONGEST_S and t[0] <= e.onset - reach - NUISANCE_S
+        t_first = float(self._cols(k_lo, k_lo + 1, block, n0, (0,))[0, 0])
+        with_onset = e.release - e.onset <= LONGEST_S and t_first <= e.onset - reach - NUISANCE_S
         t_ev0 = (e.onset if with_onset else e.release) - reach - NUISANCE_S
-        k0 = int(np.searchsorted(t, t_ev0 - HISTORY_S))
-        j0 = int(np.searchsorted(t, t_ev0))
+        k0 = self._search(t_ev0 - HISTORY_S, k_lo, k_hi, block, n0)
+        j0 = self._search(t_ev0, k_lo, k_hi, block, n0)
         if end - j0 < 2:
             return e
-        fresh = self._cols(k_lo + j0, k_lo + end, block, n0, (7,))[0]
+        fresh = self._cols(j0, end, block, n0, (7,))[0]
         if np.count_nonzero(fresh.astype(np.int64) & 1) > self.most:
             return e  # the fit would cost more than it is worth (a long contact at 1 kHz)
-        w = np.ascontiguousarray(self._cols(k_lo + k0, k_lo + end, block, n0))
+        w = np.ascontiguousarray(self._cols(k0, end, block, n0))
         tw = w[0]
         pr = est.pr.copy()
         pr[K.PR_TRACE] = 1.0
