@@ -40,7 +40,9 @@ def test_run_rows_reuses_one_scratch_event_row_and_matches_one_patch(monkeypatch
     cfg = load_config()
     log = simulate(SCENARIOS["one-finger"].with_duration(14.0), cfg)  # touches at 5-7 s, 13-15.5 s
     keys = ("T_w", "T_p", "v", "T_a", "T_w_cmd")
-    one = TouchEstimator(cfg).run(log["t"], *(log[k] for k in keys), fresh=log["fresh"])
+    # a skin's patches keep the detector's dates (no re-dating at the contact's end)
+    one = TouchEstimator(cfg.replace(detector={"redate_readings": 0.0})).run(
+        log["t"], *(log[k] for k in keys), fresh=log["fresh"])
     assert len(one.events) == 2 and one.events[-1].release == log["t"][-1]  # the last: by finish
 
     seen: list[np.ndarray] = []
