@@ -82,12 +82,56 @@ def trace(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, i
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _switch(mu, c, no, nc, p_on, p_off):
-    """A pump switch's correction, ``x_Tw += c (x_Tp - x_Tw)``, on the active columns."""
+def _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off):
+    """Add a stretch's sums to the fit's (``a += v' mu``, ``G += mu' W mu`` for the blocks
+    kept) and carry the active columns over it (``mu <- M mu``)."""
     for col in range(nc + 5):
         if (col < no and col >= p_on) or (no <= col < nc and col - no >= p_off):
             continue
-        mu[0, col] += c * (mu[3, col] - mu[0, col])
+        s = 0.0
+        for m in range(5):
+            s += v[m] * mu[m, col]
+        a[col] += s
+        for m in range(5):
+            s = 0.0
+            for q in range(5):
+                s += W[m, q] * mu[q, col]
+            WM[m, col] = s
+    for m in range(5):  # the nuisance's block
+        for q in range(5):
+            s = 0.0
+            for l_ in range(5):
+                s += mu[l_, nc + m] * WM[l_, nc + q]
+            nn[m, q] += s
+    for col in range(nc):
+        if (col < no and col >= p_on) or (col >= no and col - no >= p_off):
+            continue
+        s = 0.0
+        for l_ in range(5):
+            s += mu[l_, col] * WM[l_, col]
+        d[col] += s
+        for m in range(5):
+            s = 0.0
+            for l_ in range(5):
+                s += mu[l_, col] * WM[l_, nc + m]
+            cn[col, m] += s
+    for c in range(p_on):
+        for b in range(p_off):
+            s = 0.0
+            for l_ in range(5):
+                s += mu[l_, c] * WM[l_, no + b]
+            x[c, b] += s
+    tmp = np.empty(5)
+    for col in range(nc + 5):
+        if (col < no and col >= p_on) or (no <= col < nc and col - no >= p_off):
+            continue
+        for m in range(5):
+            tmp[m] = mu[m, col]
+        for m in range(5):
+            s = 0.0
+            for q in range(5):
+                s += M[m, q] * tmp[q]
+            mu[m, col] = s
 
 
 @njit(cache=True, nogil=True)
@@ -97,10 +141,16 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
     columns (a unit error of each state at ``j_first``), ``a = R z`` and the blocks of ``R R'``
     the fit reads: ``d`` (candidates' diagonal), ``cn`` (candidates x nuisance), ``nn``,
     ``x`` (onsets x releases). ``R``'s column for a reading is ``rho / sqrt(S)``, ``z = e /
-    sqrt(S)``. The filter's transitions between readings and candidate starts are multiplied
-    together first (``A``), so a 1 kHz loop with 10 Hz boards costs little per row."""
-    no, nf = s_on.shape[0], s_off.shape[0]
-    nc = no + nf
+    sqrt(S)``, ``rho`` a column's signature at that reading.
+
+    Between two candidate starts every column is carried by the same map ``M`` (the filter's
+    ``I - K H``, a coarse log's switch correction and ``Phi``, multiplied together), so a
+    reading's ``rho = h' mu0`` with ``h`` row ``i`` of ``M`` and ``mu0`` the columns where the
+    stretch began: the stretch's readings add ``v = sum w z h`` and ``W = sum w^2 h h'`` (``w =
+    1/sqrt(S)``), and the columns are touched once a stretch, not once a reading (the same
+    sums, in another order)."""
+    no, nc = s_on.shape[0], s_on.shape[0] + s_off.shape[0]
+    nf = nc - no
     mu = np.zeros((5, nc + 5))
     for m in range(5):
         mu[m, nc + m] = 1.0
@@ -109,38 +159,31 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
     cn = np.zeros((nc, 5))
     nn = np.zeros((5, 5))
     x = np.zeros((no, nf))
-    A = np.eye(5)
-    fresh_A = True  # A is the identity
-    p_on = p_off = 0
-    r = np.zeros(nc + 5)
+    M = np.eye(5)
+    v = np.zeros(5)
+    W = np.zeros((5, 5))
+    WM = np.zeros((5, nc + 5))
     tmp = np.zeros(5)
+    p_on = p_off = 0
     n = rec.shape[0]
     for j in range(j_first, n):
-        starts = (p_on < no and s_on[p_on] <= j) or (p_off < nf and s_off[p_off] <= j)
-        reads = rec[j, 0] != 0.0 or rec[j, K.NUR] != 0.0 or rec[j, RSWB] != 0.0 or rec[j, RSWA] != 0.0
-        if (starts or reads) and not fresh_A:  # bring the active columns up to this row
-            for c in range(nc + 5):
-                if (c < no and c >= p_on) or (no <= c < nc and c - no >= p_off):
-                    continue
-                for m in range(5):
-                    tmp[m] = mu[m, c]
-                for m in range(5):
-                    s = 0.0
-                    for q in range(5):
-                        s += A[m, q] * tmp[q]
-                    mu[m, c] = s
-            A[:, :] = 0.0
+        if (p_on < no and s_on[p_on] <= j) or (p_off < nf and s_off[p_off] <= j):
+            _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off)
+            M[:, :] = 0.0
             for m in range(5):
-                A[m, m] = 1.0
-            fresh_A = True
-        while p_on < no and s_on[p_on] <= j:
-            mu[2, p_on] = 1.0
-            p_on += 1
-        while p_off < nf and s_off[p_off] <= j:
-            mu[2, no + p_off] = 1.0
-            p_off += 1
-        if rec[j, RSWB] != 0.0:
-            _switch(mu, rec[j, RSWB], no, nc, p_on, p_off)
+                M[m, m] = 1.0
+            v[:] = 0.0
+            W[:, :] = 0.0
+            while p_on < no and s_on[p_on] <= j:
+                mu[2, p_on] = 1.0
+                p_on += 1
+            while p_off < nf and s_off[p_off] <= j:
+                mu[2, no + p_off] = 1.0
+                p_off += 1
+        c = rec[j, RSWB]
+        if c != 0.0:  # x_Tw += c (x_Tp - x_Tw)
+            for q in range(5):
+                M[0, q] += c * (M[3, q] - M[0, q])
         for u in range(2):
             o = u * K.NUR
             if rec[j, o] == 0.0:
@@ -148,45 +191,33 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
             i = 0 if u == 0 else 3
             if rec[j, o + 3] != 0.0:  # evidence
                 w = 1.0 / math.sqrt(rec[j, o + 2])
-                z = rec[j, o + 1] * w
-                for c in range(nc + 5):
-                    r[c] = mu[i, c] * w
-                    a[c] += r[c] * z
+                wz = rec[j, o + 1] * w * w
+                w2 = w * w
                 for m in range(5):
-                    rn = r[nc + m]
+                    hm = M[i, m]
+                    v[m] += wz * hm
                     for q in range(5):
-                        nn[m, q] += rn * r[nc + q]
-                for c in range(p_on):
-                    rc = r[c]
-                    d[c] += rc * rc
-                    for m in range(5):
-                        cn[c, m] += rc * r[nc + m]
-                    for b in range(p_off):
-                        x[c, b] += rc * r[no + b]
-                for b in range(p_off):
-                    rc = r[no + b]
-                    d[no + b] += rc * rc
-                    for m in range(5):
-                        cn[no + b, m] += rc * r[nc + m]
-            for c in range(nc + 5):  # mu <- (I - K H) mu
-                if (c < no and c >= p_on) or (no <= c < nc and c - no >= p_off):
-                    continue
-                rho = mu[i, c]
-                for m in range(5):
-                    mu[m, c] -= rec[j, o + 4 + m] * rho
-        if rec[j, RSWA] != 0.0:
-            _switch(mu, rec[j, RSWA], no, nc, p_on, p_off)
-        # predict: A <- Phi A
-        F = Phi[int(rec[j, RIV])]
+                        W[m, q] += w2 * hm * M[i, q]
+            for q in range(5):  # M <- (I - K H) M
+                tmp[q] = M[i, q]
+            for m in range(5):
+                km = rec[j, o + 4 + m]
+                for q in range(5):
+                    M[m, q] -= km * tmp[q]
+        c = rec[j, RSWA]
+        if c != 0.0:
+            for q in range(5):
+                M[0, q] += c * (M[3, q] - M[0, q])
+        F = Phi[int(rec[j, RIV])]  # M <- Phi M
         for q in range(5):
             for m in range(5):
-                tmp[m] = A[m, q]
+                tmp[m] = M[m, q]
             for m in range(5):
                 s = 0.0
                 for l_ in range(5):
                     s += F[m, l_] * tmp[l_]
-                A[m, q] = s
-        fresh_A = False
+                M[m, q] = s
+    _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off)
     return a, d, cn, nn, x
 
 
