@@ -217,9 +217,10 @@ class DetectorParams(_Validated):
     redate_readings: float = _p(3000.0, "", 0.0, 1e7,
                                 doc="a contact's onset and release are dated again when it ends, by "
                                     "a pulse fit on a detection-free filter, where that fit weighs at "
-                                    "most this many pipe readings (its cost grows with them, about 4 "
-                                    "us each): with 10 Hz boards or a 100 Hz log every contact up to "
-                                    "27 s, at 1 kHz taps up to 0.7 s; 0: never")
+                                    "most this many pipe readings (its cost grows with the readings "
+                                    "and rows it runs over: 1.5-3 ms a contact): with 10 Hz boards or "
+                                    "a 100 Hz log every contact up to 27 s, at 1 kHz taps up to 0.7 s; "
+                                    "0: never")
     redate_reach: float = _p(0.5, "s", 0.01, 5.0,
                              doc="the fit's onset and release lie within this of the detector's")
     redate_tail: float = _p(0.8, "s", 0.0, 10.0,

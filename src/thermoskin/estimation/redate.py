@@ -24,9 +24,10 @@ initial state), so the filter needs only :data:`HISTORY_S` of readings before it
 the innovations' scale. A contact longer than :data:`LONGEST_S` (or whose start has left
 the buffer) has its release alone dated again, as a step down.
 
-The fit's cost grows with the pipe readings it weighs (about 4 µs each); where they are more
-than ``detector.redate_readings`` (3000: a contact longer than 0.7 s at 1 kHz) the detector's
-own dating is kept, which is within 0.3 s there. The live loop and offline analysis run this on the same
+The fit's cost grows with the pipe readings it weighs and the rows it runs the filter over
+(1.5-3 ms a contact); where the readings are more than ``detector.redate_readings`` (3000: a
+contact longer than 0.7 s at 1 kHz) the detector's own dating is kept, which is within 0.3 s
+there. The live loop and offline analysis run this on the same
 rows at the same moments (the first sample at or after the due time, or the next contact's
 detection), so they write the same events.
 """
@@ -82,11 +83,29 @@ def trace(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, i
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _left_mul(A, B, col, tmp):
+    """``B[:, col] = A @ B[:, col]`` (5 x 5), in place."""
+    for m in range(5):
+        tmp[m] = B[m, col]
+    for m in range(5):
+        s = 0.0
+        for q in range(5):
+            s += A[m, q] * tmp[q]
+        B[m, col] = s
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _idle(col, no, nc, p_on, p_off):
+    """A candidate's column whose step has not started yet (all zero: skipped)."""
+    return (col < no and col >= p_on) or (no <= col < nc and col - no >= p_off)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off):
     """Add a stretch's sums to the fit's (``a += v' mu``, ``G += mu' W mu`` for the blocks
     kept) and carry the active columns over it (``mu <- M mu``)."""
     for col in range(nc + 5):
-        if (col < no and col >= p_on) or (no <= col < nc and col - no >= p_off):
+        if _idle(col, no, nc, p_on, p_off):
             continue
         s = 0.0
         for m in range(5):
@@ -104,7 +123,7 @@ def _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off):
                 s += mu[l_, nc + m] * WM[l_, nc + q]
             nn[m, q] += s
     for col in range(nc):
-        if (col < no and col >= p_on) or (col >= no and col - no >= p_off):
+        if _idle(col, no, nc, p_on, p_off):
             continue
         s = 0.0
         for l_ in range(5):
@@ -123,15 +142,8 @@ def _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off):
             x[c, b] += s
     tmp = np.empty(5)
     for col in range(nc + 5):
-        if (col < no and col >= p_on) or (no <= col < nc and col - no >= p_off):
-            continue
-        for m in range(5):
-            tmp[m] = mu[m, col]
-        for m in range(5):
-            s = 0.0
-            for q in range(5):
-                s += M[m, q] * tmp[q]
-            mu[m, col] = s
+        if not _idle(col, no, nc, p_on, p_off):
+            _left_mul(M, mu, col, tmp)
 
 
 @njit(cache=True, nogil=True)
@@ -210,13 +222,7 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
                 M[0, q] += c * (M[3, q] - M[0, q])
         F = Phi[int(rec[j, RIV])]  # M <- Phi M
         for q in range(5):
-            for m in range(5):
-                tmp[m] = M[m, q]
-            for m in range(5):
-                s = 0.0
-                for l_ in range(5):
-                    s += F[m, l_] * tmp[l_]
-                M[m, q] = s
+            _left_mul(F, M, q, tmp)
     _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off)
     return a, d, cn, nn, x
 
