@@ -9,6 +9,7 @@ projected out of the readings themselves (an SVD), not out of the sums.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import numpy as np
@@ -263,3 +264,49 @@ def test_release_alone_when_the_start_is_gone() -> None:
     assert abs(got.release - e0.release) <= cfg.detector.redate_reach + 1e-9
     both = rd.redate(est, e0, k, t_end, block, 0)
     assert abs(got.release - both.release) <= 0.1
+
+
+def test_close_taps_are_not_dated_into_each_other() -> None:
+    """Taps 0.3 s long, 0.3-0.45 s apart, on a 100 Hz log: each contact's onset is dated after
+    the release of the one written before it (the evidence starts there too)."""
+    cond = get_condition("log-100hz", 2)
+    cfg = cond.config(load_config())
+    proto = get_condition("tap-burst", 2).scenario.touches[0]
+    rng = np.random.default_rng(2)
+    touches, t = [], 6.0
+    while t < 60.0:
+        for _ in range(4):
+            touches.append(dataclasses.replace(proto, t_on=t, duration=0.3))
+            t += 0.3 + rng.uniform(0.3, 0.45)
+        t += 6.0
+    sc = dataclasses.replace(cond.scenario, touches=tuple(touches), duration=65.0)
+    log = decimate(simulate(sc, cfg), cond.decimate)
+    on = observe(log, cfg).events
+    off = observe(log, cfg.replace(detector={"redate_readings": 0.0})).events
+    assert [e.detected_at for e in on] == [e.detected_at for e in off] and len(on) >= 12
+    assert all(b.onset > a.release for a, b in itertools.pairwise(on))
+    assert sum(a != b for a, b in zip(on, off, strict=True)) >= len(on) // 2  # and they are dated again
+
+
+def test_a_contact_open_at_the_end_keeps_its_release() -> None:
+    """A log cut in the middle of a tap: the contact did not end, so its release stays the
+    log's end (its onset alone is dated again)."""
+    cfg, log, _ = _log("tap-burst", 7, duration=10.31)
+    on = observe(log, cfg).events
+    off = observe(log, cfg.replace(detector={"redate_readings": 0.0})).events
+    assert on[-1].release == off[-1].release == log["t"][-1]
+    assert on[-1].onset <= on[-1].detected_at
+
+
+def test_absurd_readings_leave_the_detector_dates() -> None:
+    """A finite but absurd reading near a contact (1e6 degC for a board's reading) makes the
+    fit's sums overflow: the event keeps the detector's dates, no exception."""
+    cfg, log, _ = _log("boards-10hz", 5, duration=30.0)
+    t = log["t"]
+    log["T_w"][(t >= 5.67) & (t < 5.77)] = 1e6
+    est = TouchEstimator(cfg)
+    for k in range(len(t)):
+        est.step(float(t[k]), float(log["T_w"][k]), float(log["T_p"][k]), float(log["v"][k]),
+                 float(log["T_a"][k]), float(log["T_w_cmd"][k]), int(log["fresh"][k]))
+    est.finish(float(t[-1]))
+    assert est.events and all(math.isfinite(e.onset) and math.isfinite(e.release) for e in est.events)

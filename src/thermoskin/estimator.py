@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.model import ModelTables, build_tables
 from thermoskin.estimation.redate import Redater
+from thermoskin.estimation.redate import load as redate_load
 from thermoskin.events import ContactEvent
 from thermoskin.observer import ThermalExchangeObserver
 from thermoskin.params import Config
@@ -112,12 +113,16 @@ class Observation:
 
 
 def warm_up(cfg: Config) -> None:
-    """Load what estimation needs (numba, the compiled kernel from its cache, the water's
-    properties for the tables; about half a second) by running a two-sample estimate: a caller
-    that has other work in flight meanwhile (``observe`` reading ahead) hides that time."""
+    """Load what estimation needs (numba, the compiled kernel and the fit at a contact's end
+    from its cache, the water's properties for the tables; about half a second) by running a
+    two-sample estimate: a caller that has other work in flight meanwhile (``observe`` reading
+    ahead) hides that time."""
     t_s = cfg.sampling.t_s
     x = np.full(2, 24.0)
-    TouchEstimator(cfg).feed(np.array([0.0, t_s]), x, x, np.zeros(2), x, T_w_cmd=x)
+    est = TouchEstimator(cfg)
+    est.feed(np.array([0.0, t_s]), x, x, np.zeros(2), x, T_w_cmd=x)
+    if cfg.detector.redate_readings > 0:
+        redate_load(est)  # the fit at a contact's end, compiled
 
 
 class TouchEstimator:
@@ -249,7 +254,8 @@ class TouchEstimator:
             self.events.extend(rd.flush(self))
         if K.finish(self.st, t, self._ev):
             e = ContactEvent.from_kernel(self._ev)
-            self.events.append(e if rd is None else rd.redate(self, e, rd.n - 1, math.inf))
+            self.events.append(e if rd is None else rd.redate(self, e, rd.n - 1, math.inf,
+                                                              open_end=True))
             self.contact = 0
 
     # -- arrays -----------------------------------------------------------------------------

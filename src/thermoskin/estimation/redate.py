@@ -230,23 +230,31 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
 def pulse_fit(a: Array, d: Array, cn: Array, nn: Array, x: Array, no: int, sign: float,
               s_on: NDArray[np.int64], s_off: NDArray[np.int64]) -> tuple[int, int] | None:
     """The candidates (indices into the onsets and releases; onset -1: the release alone, as a
-    step down) of the largest likelihood ratio, the nuisance projected out:
-    ``G_p = G - G_cn G_nn^+ G_nc``, ``a_p = a - G_cn G_nn^+ a_n``; None if no pulse of sign
-    ``sign`` fits."""
+    step down; release -1: the onset alone, a step up) of the largest likelihood ratio, the
+    nuisance projected out: ``G_p = G - G_cn G_nn^+ G_nc``, ``a_p = a - G_cn G_nn^+ a_n``;
+    None if no pulse of sign ``sign`` fits (or the sums are not finite)."""
     nc = d.shape[0]
-    w, V = np.linalg.eigh(nn)
+    if not (np.isfinite(a).all() and np.isfinite(d).all() and np.isfinite(cn).all()
+            and np.isfinite(nn).all() and np.isfinite(x).all()):
+        return None  # readings far out of range: no fit (the detector's dates stand)
+    try:
+        w, V = np.linalg.eigh(nn)
+    except np.linalg.LinAlgError:
+        return None
     keep = w > 1e-12 * max(float(w.max()), 1e-300)
     Vk = V[:, keep] / np.sqrt(w[keep])  # nn^+ = Vk Vk'
     C = cn @ Vk                          # candidates x kept
     an = a[nc:] @ Vk
     ap = a[:nc] - C @ an
     dp = d - np.einsum("ij,ij->i", C, C)
-    if no == 0:
-        ok = (-sign * ap > 0) & (dp > 1e-12 * d) & (d > 0)
+    if no == 0 or nc == no:  # one edge alone: the release as a step down, or the onset up
+        sg = -sign if no == 0 else sign
+        ok = (sg * ap > 0) & (dp > 1e-12 * d) & (d > 0)
         if not ok.any():
             return None
         llr = np.where(ok, ap * ap / np.where(ok, dp, 1.0), -np.inf)
-        return -1, int(np.argmax(llr))
+        i = int(np.argmax(llr))
+        return (-1, i) if no == 0 else (i, -1)
     xp = x - C[:no] @ C[no:].T
     num = ap[:no, None] - ap[None, no:]
     den = dp[:no, None] + dp[None, no:] - 2.0 * xp
@@ -257,6 +265,19 @@ def pulse_fit(a: Array, d: Array, cn: Array, nn: Array, x: Array, no: int, sign:
     llr = np.where(ok, num * num / np.where(ok, den, 1.0), -np.inf)
     i_on, i_off = np.unravel_index(int(np.argmax(llr)), llr.shape)
     return int(i_on), int(i_off)
+
+
+def load(est: TracedModel) -> None:
+    """Load the compiled fit (from numba's cache) now, not at the first contact's end: a live
+    loop pays it before it starts (about 20 ms)."""
+    n = 4
+    z = np.full(n, 24.0)
+    rec = np.zeros((n, NREC))
+    trace(K.new_state(), est.pr, *est.tabs, np.arange(n) * 1e-3, z, z, z, z,
+          np.zeros(n, dtype=np.int64), np.full(n, np.nan), np.full(n, 7, dtype=np.int64), rec,
+          np.zeros(K.NEV))
+    one = np.zeros(1, dtype=np.int64)
+    pulse_sums(rec, est.tabs[0], 0, one, one + 1)
 
 
 class Redater:
@@ -276,6 +297,7 @@ class Redater:
         self.rows: list[tuple[float, ...]] = []  # rows pushed one at a time, not yet written
         self.pending: ContactEvent | None = None
         self.due = math.inf
+        self.last_release = -math.inf  # the release of the last contact written
 
     @property
     def n(self) -> int:
@@ -367,18 +389,34 @@ class Redater:
         return [self.redate(est, e, self.n - 1, math.inf)]
 
     def redate(self, est: TracedModel, e: ContactEvent, k_now: int, t_end: float,
-               block: tuple[Array, ...] | None = None, n0: int = 0) -> ContactEvent:
+               block: tuple[Array, ...] | None = None, n0: int = 0, open_end: bool = False
+               ) -> ContactEvent:
         """``e`` dated again from the rows before ``t_end`` that the buffer holds at row
         ``k_now`` (its last ``nr``); ``e`` itself where the readings came fast, or no pulse
-        of its sign fits."""
+        of its sign fits. ``open_end``: the contact had not ended (the log or the run did):
+        its onset alone is dated again. Nothing is dated into the contact written before."""
+        out = self._redate(est, e, k_now, t_end, block, n0, open_end)
+        self.last_release = out.release
+        return out
+
+    def _redate(self, est: TracedModel, e: ContactEvent, k_now: int, t_end: float,
+                block: tuple[Array, ...] | None, n0: int, open_end: bool) -> ContactEvent:
         if self.most <= 0:
             return e
         k_lo, k_hi = max(0, k_now + 1 - self.nr), k_now + 1
         end = self._search(t_end, k_lo, k_hi, block, n0)
         reach = self.reach
         t_first = float(self._cols(k_lo, k_lo + 1, block, n0, (0,))[0, 0])
-        with_onset = e.release - e.onset <= LONGEST_S and t_first <= e.onset - reach - NUISANCE_S
-        t_ev0 = (e.onset if with_onset else e.release) - reach - NUISANCE_S
+        # the candidates and the evidence start after the contact before (its end is then a
+        # state error where the evidence starts: the nuisance, projected out)
+        after = self.last_release + GRID_S
+        on_lo = max(e.onset - reach, after)
+        with_onset = (e.release - e.onset <= LONGEST_S and on_lo <= e.onset
+                      and t_first <= max(on_lo - NUISANCE_S, self.last_release))
+        if open_end and not with_onset:
+            return e
+        t_ev0 = max((on_lo if with_onset else max(e.release - reach, after)) - NUISANCE_S,
+                    self.last_release)
         k0 = self._search(t_ev0 - HISTORY_S, k_lo, k_hi, block, n0)
         j0 = self._search(t_ev0, k_lo, k_hi, block, n0)
         if end - j0 < 2:
@@ -398,15 +436,15 @@ class Redater:
         if not rec[j_first:, RREADY].all():  # the filter restarted: no fit
             return e
         # a touch began before it was detected
-        cand_on = (np.arange(e.onset - reach, min(e.onset + reach, e.detected_at) + 1e-9, GRID_S)
-                   if with_onset
-                   else np.zeros(0))
-        cand_off = np.arange(e.release - reach, e.release + reach + 1e-9, GRID_S)
+        cand_on = (np.arange(on_lo, min(e.onset + reach, e.detected_at) + 1e-9, GRID_S)
+                   if with_onset else np.zeros(0))
+        cand_off = (np.zeros(0) if open_end else
+                    np.arange(max(e.release - reach, after), e.release + reach + 1e-9, GRID_S))
         s_on = np.searchsorted(tw, cand_on).astype(np.int64)
         s_off = np.searchsorted(tw, cand_off).astype(np.int64)
         keep = s_off < len(tw) - 1  # a release with readings after it
         cand_off, s_off = cand_off[keep], s_off[keep]
-        if not len(cand_off):
+        if not len(cand_off) and not open_end:
             return e
         best = pulse_fit(*pulse_sums(rec, est.tabs[0], j_first, s_on, s_off), len(s_on),
                          float(e.sign), s_on, s_off)
@@ -414,7 +452,7 @@ class Redater:
             return e
         i_on, i_off = best
         onset = float(cand_on[i_on]) if i_on >= 0 else e.onset
-        release = max(float(cand_off[i_off]), onset)
+        release = max(float(cand_off[i_off]) if i_off >= 0 else e.release, onset)
         dur = release - onset
         return dataclasses.replace(e, onset=onset, release=release, duration=dur,
                                    energy=e.mean_dq * dur)

@@ -148,12 +148,14 @@ def _make_device(spec: LoopSpec) -> Any:
 
 def _warm_up(cfg: Config, T: float) -> None:
     """Step a throw-away loop body so that first-call costs (imports, caches) are paid now."""
+    from thermoskin.estimator import warm_up
     from thermoskin.runtime.controller import SkinController
 
     c = SkinController(cfg)
     c.reset(T)
     for k in range(20):
         c.step(k * cfg.sampling.t_s, T, T, T, T)
+    warm_up(cfg)  # and the fit that dates a contact again at its end
 
 
 def run_loop(spec: LoopSpec, buf: Any, cap: int,
