@@ -64,21 +64,15 @@ HISTORY_S = 20.0  # the filter runs this long before the touch (or from the log'
 NUISANCE_S = 1.0  # evidence used before the earliest candidate, to pin the state error there
 
 
-class _Recorder(ReferenceEstimator):
-    """The reference filter with detection off, recording each scalar update (its
-    ``updates``: state read, innovation, its variance times the learnt scale squared, gain,
-    whether it is evidence; the evidence is weighed as the detector weighs it)."""
-
-    def _detect(self, t: float, ge: float, gg: float) -> int:
-        return 0  # never a contact: the filter never jumps and keeps its no-touch noise
-
-
 def _record(log: dict[str, np.ndarray], cfg: Config, k0: int, k1: int
             ) -> tuple[list[list[tuple[int, float, float, np.ndarray, bool]]], list[np.ndarray]]:
     """Run the filter over rows ``k0..k1`` (no detection); per row its updates and its Phi."""
     t = log["t"]
     t_s = loop_t_s(sample_interval(t), cfg)
-    est = _Recorder(cfg, t_s)
+    # the reference filter with detection off (it never jumps and keeps its no-touch noise),
+    # recording each scalar update: state read, innovation, its variance times the learnt
+    # scale squared, gain, whether it is evidence (weighed as the detector weighs it)
+    est = ReferenceEstimator(cfg, t_s, detect=False)
     fresh = log["_fresh"]
     cmd = log.get("T_w_cmd")
     rows, phis = [], []

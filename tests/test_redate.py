@@ -46,16 +46,11 @@ def _block(log: dict[str, np.ndarray], est: TouchEstimator) -> tuple[np.ndarray,
             est.rows_of(log["v"]).astype(float), log.get("drive", nan), log["fresh"].astype(float))
 
 
-class _Recorder(ReferenceEstimator):
-    def _detect(self, t: float, ge: float, gg: float) -> int:
-        return 0
-
-
 def _reference_fit(log: dict[str, np.ndarray], cfg: Config, k0: int, end: int, j_first: int,
                    cand_on: np.ndarray, cand_off: np.ndarray, sign: float) -> tuple[float, float]:
     """The pulse fit the textbook way, on rows ``k0..end-1`` (evidence from ``j_first`` on)."""
     t = log["t"]
-    est = _Recorder(cfg, loop_t_s(sample_interval(t), cfg))
+    est = ReferenceEstimator(cfg, loop_t_s(sample_interval(t), cfg), detect=False)
     est.record_switches = True
     cmd = log.get("T_w_cmd")
     rows, phis = [], []

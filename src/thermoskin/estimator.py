@@ -148,7 +148,7 @@ class TouchEstimator:
         self.tables = build_tables(self.cfg, self.t_s, v_values)
         tb = self.tables
         Rw = np.array([self._R_w(v) for v in tb.v_values])
-        self._tabs = self.tabs = (tb.Phi, tb.Gam, tb.Q_idle, tb.Q, tb.Phi_a, tb.Q_a, Rw)
+        self.tabs = (tb.Phi, tb.Gam, tb.Q_idle, tb.Q, tb.Phi_a, tb.Q_a, Rw)
         self._iv = {v: i for i, v in enumerate(tb.v_values)}
         self.pr = kernel_params(self.cfg, tb, self._eq8)
 
@@ -227,7 +227,7 @@ class TouchEstimator:
         iv = self._iv.get(v)
         if iv is None:
             iv = self._index(v)
-        code = K.step(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
+        code = K.step(self.st, self.pr, *self.tabs, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
                       self._ev)
         self.started = bool(code & K.C_STARTED)
         self.ended = bool(code & K.C_ENDED)
@@ -277,7 +277,7 @@ class TouchEstimator:
         out = np.empty((8, n))
         events = np.empty((max(16, n // 50), K.NEV))
         marks = np.empty((2 * len(events), 3))
-        ne, nm = K.run(self.st, self.pr, *self._tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out,
+        ne, nm = K.run(self.st, self.pr, *self.tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out,
                        events, self._ev, marks)
         new = [ContactEvent.from_kernel(events[i]) for i in range(min(ne, len(events)))]
         if rd is not None:

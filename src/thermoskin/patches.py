@@ -61,7 +61,7 @@ class PatchEstimators:
                 m._build(vs)
         self.v_values = self._models[0].tables.v_values
         self._iv = {v: i for i, v in enumerate(self.v_values)}
-        tabs = [m._tabs for m in self._models]
+        tabs = [m.tabs for m in self._models]
         self._tabs = tuple(np.ascontiguousarray(np.stack([t[j] for t in tabs]))
                            for j in range(len(tabs[0])))
         self.PR = np.ascontiguousarray(np.stack([m.pr for m in self._models]))

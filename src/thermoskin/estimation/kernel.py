@@ -930,7 +930,8 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     process-noise tables while idle and in contact; ``Rw`` the water's resistance per row.
     """
     R = pr[PR_RT]
-    st[UREC] = st[UREC + NUR] = st[SWB] = st[SWA] = 0.0  # the trace's records of this sample
+    if pr[PR_TRACE] != 0.0:  # the trace's records of this sample
+        st[UREC] = st[UREC + NUR] = st[SWB] = st[SWA] = 0.0
     _eq8(st, pr, Rw, T_w, T_p, T_a, iv)
     iv_old = -1  # the pump's row before a switch whose correction waits for this row's reading
     if iv >= 0:

@@ -55,6 +55,7 @@ class TracedModel(Protocol):
     pr: Array
     tabs: tuple[Array, ...]
 
+
 GRID_S = 0.01      #: candidate spacing, s
 NUISANCE_S = 1.0   #: evidence used before the earliest candidate, to pin the state error there, s
 HISTORY_S = 5.0    #: the detection-free filter runs this long before that, s

@@ -63,6 +63,9 @@ class ReferenceEstimator:
 
     cfg: Config
     t_s: float
+    #: False: the filter alone, never a contact (the kernel's ``PR_TRACE``; the re-dating's
+    #: detection-free filter, with :attr:`updates` recorded)
+    detect: bool = True
     tables: ModelTables = field(init=False)
 
     def __post_init__(self) -> None:
@@ -237,7 +240,7 @@ class ReferenceEstimator:
         code = 0
         if self.gap:
             code = self.contact
-        elif self.armed:
+        elif self.armed and self.detect:
             code = self._detect(t, ge, gg)
         else:
             self.dq = self.x[I_Q] - self.b
@@ -257,13 +260,12 @@ class ReferenceEstimator:
     def _switch_correction(self, iv_old: int, iv: int) -> None:
         """The pump switched within the last interval of a coarse log (kernel: ``_switch_correction``)."""
         vs = self.tables.v_values
-        dT = ((self.x[I_TP] - self.x[I_TW]) * (1 / self.R_w(vs[iv]) - 1 / self.R_w(vs[iv_old]))
-              * self.t_s / self.cfg.skin.C_w)
+        share = (1 / self.R_w(vs[iv]) - 1 / self.R_w(vs[iv_old])) * self.t_s / self.cfg.skin.C_w
+        dT = (self.x[I_TP] - self.x[I_TW]) * share
         self.x[I_TW] += 0.5 * dT
         self.P[I_TW, I_TW] += (self.vsw * dT) ** 2
         if self.updates is not None and self.record_switches:
-            c = 0.5 * (1 / self.R_w(vs[iv]) - 1 / self.R_w(vs[iv_old])) * self.t_s / self.cfg.skin.C_w
-            self.updates.append((-1, c, 0.0, np.zeros(5), False))
+            self.updates.append((-1, 0.5 * share, 0.0, np.zeros(5), False))
 
     def _init(self, T_w: float, T_p: float, T_a: float) -> None:
         Rg, Rag, R = self.cfg.skin.R_g, self.cfg.skin.R_ag, self.R

@@ -223,7 +223,7 @@ class Models:
             est = TouchEstimator(key)
             if est._iv.get(0.0) != 0 or est._iv.get(key.pump.v_on) != 1:
                 raise RuntimeError("estimator tables: rows 0 and 1 must be v = 0 and v_on")
-            tabs = tuple(np.ascontiguousarray(x[:2]) for x in est._tabs)
+            tabs = tuple(np.ascontiguousarray(x[:2]) for x in est.tabs)
             got = self.est[key] = (est.pr.copy(), tabs)
         return got
 
