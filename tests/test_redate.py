@@ -99,8 +99,10 @@ def _reference_fit(log: dict[str, np.ndarray], cfg: Config, k0: int, end: int, j
     den = G[ia, ia] + G[ib, ib] - 2.0 * G[ia, ib]
     ok = (num * sign > 0) & (start[ia] < start[ib]) & (den > 1e-9 * (G[ia, ia] + G[ib, ib]))
     llr = np.where(ok, num * num / np.where(ok, den, 1.0), -np.inf)
-    i_on, i_off = np.unravel_index(int(np.argmax(llr)), llr.shape)
-    return float(cand_on[i_on]), float(cand_off[i_off])
+    # each time's posterior mean: the pairs weighed by their likelihood ratio, exp(a^2 / 2b)
+    on, off = np.meshgrid(cand_on, cand_off, indexing="ij")
+    w = np.exp(0.5 * (llr - llr.max()))
+    return float(np.sum(w * on) / np.sum(w)), float(np.sum(w * off) / np.sum(w))
 
 
 def test_pulse_sums_against_row_by_row_signatures() -> None:
@@ -157,7 +159,8 @@ def test_pulse_sums_against_row_by_row_signatures() -> None:
 
 def test_fit_against_the_reference_filter_and_svd_projection() -> None:
     """Each contact of a 100 Hz log dated again by the estimator's re-dating and by the
-    textbook fit on the plain-Python filter over the same rows: the same onset and release."""
+    textbook fit on the plain-Python filter over the same rows: the same onset and release
+    (each its posterior mean over the grid)."""
     cfg, log, _ = _log("log-100hz", 101)
     est = TouchEstimator(cfg, t_s=loop_t_s(sample_interval(log["t"]), cfg))
     raw = observe(log, cfg.replace(detector={"redate_readings": 0.0})).events
@@ -166,7 +169,7 @@ def test_fit_against_the_reference_filter_and_svd_projection() -> None:
     block = _block(log, est)
     t = log["t"]
     reach = cfg.detector.redate_reach
-    same = 0
+    moved = 0
     for e in raw:
         t_end = e.release + cfg.detector.redate_tail
         got = rd.redate(est, e, int(np.searchsorted(t, t_end)), t_end, block, 0)
@@ -178,13 +181,12 @@ def test_fit_against_the_reference_filter_and_svd_projection() -> None:
                                            RD.GRID_S),
                                  np.arange(e.release - reach, e.release + reach + 1e-9, RD.GRID_S),
                                  float(e.sign))
-        exact_on = got.onset == pytest.approx(on, abs=1e-9)
-        assert exact_on or abs(got.onset - on) <= 0.011
-        assert got.release == pytest.approx(off, abs=0.011)
-        same += exact_on and got.release == pytest.approx(off, abs=1e-9)
+        assert got.onset == pytest.approx(on, abs=1e-4)
+        assert got.release == pytest.approx(off, abs=1e-4)
+        moved += abs(got.onset - e.onset) > 0.005 or abs(got.release - e.release) > 0.005
         assert got.duration == pytest.approx(got.release - got.onset)
         assert got.energy == pytest.approx(e.mean_dq * got.duration)
-    assert same >= len(raw) - 1  # a tie at the grid's rounding at most
+    assert moved >= len(raw) // 2  # the fit did date them again
 
 
 def test_step_and_chunks_write_the_same_events() -> None:
@@ -257,7 +259,7 @@ def test_release_alone_when_the_start_is_gone() -> None:
     got = rd.redate(est, long, k, t_end, block, 0)
     assert got.onset == long.onset
     assert abs(got.release - e0.release) <= cfg.detector.redate_reach + 1e-9
-    both = rd.redate(est, e0, k, t_end, block, 0)
+    both = RD.Redater(cfg, est.t_s).redate(est, e0, k, t_end, block, 0)  # nothing written before
     assert abs(got.release - both.release) <= 0.1
 
 
