@@ -685,3 +685,30 @@ def test_csv_of_a_killed_writer(tmp_path: Path) -> None:
     finally:
         proc.kill()
     _check_live_rows(read_log(p, live=True), flushed * 500)
+
+
+def test_parquet_encodings_by_column(tmp_path: Path) -> None:
+    """A dictionary for the columns of few values (flags, 1/64 K steps), byte-stream-split
+    values for the others (time, estimates), as the file's own metadata says; exact round
+    trip; an empty log keeps its columns."""
+    import pyarrow.parquet as pq
+
+    n = 300_000
+    rng = np.random.default_rng(4)
+    cols = {"t": np.arange(n) * 1e-3, "T_w": np.round((24 + rng.normal(0, 0.05, n)) * 64) / 64,
+            "q_i_hat": rng.normal(0.1, 0.02, n), "contact": (rng.random(n) < 0.2).astype(float)}
+    cols["q_i_hat"][:5000] = np.nan  # a warm-up of NaN does not make a column of few values
+    p = write_log(tmp_path / "enc.parquet", cols)
+    meta = pq.ParquetFile(p).metadata
+    for g in range(meta.num_row_groups):
+        enc = {meta.row_group(g).column(i).path_in_schema: meta.row_group(g).column(i).encodings
+               for i in range(meta.num_columns)}
+        for k in ("T_w", "contact"):
+            assert "RLE_DICTIONARY" in enc[k], (g, k, enc[k])
+        for k in ("t", "q_i_hat"):
+            assert "BYTE_STREAM_SPLIT" in enc[k] and "RLE_DICTIONARY" not in enc[k], (g, k, enc[k])
+    log = read_log(p, required=("t",), nan_columns=("q_i_hat",))
+    for k, a in cols.items():
+        np.testing.assert_array_equal(log[k], a, err_msg=k)
+    e = write_log(tmp_path / "none.parquet", {k: np.zeros(0) for k in cols})
+    assert pq.read_schema(e).names == list(cols)
