@@ -17,7 +17,8 @@ detector's own:
 
 ``e_k, S_k`` the innovations and their variances (times the learnt scale squared), ``rho_k``
 what a unit pulse would have left in them: a unit step of ``q_i`` at ``t_on`` carried through
-the filter, ``mu <- Phi (I - K H) mu``, minus the same from ``t_off``. The filter's state
+the filter, ``mu <- Phi (I - K H) mu``, minus the same from ``t_off``. Each time written is its
+posterior mean over the grid, weights ``exp(LLR / 2)`` (:func:`pulse_fit`). The filter's state
 error where the evidence starts (:data:`NUISANCE_S` before the earliest candidate) is a
 nuisance of free value: its signatures are projected out (Willsky and Jones's unknown
 initial state), so the filter needs only :data:`HISTORY_S` of readings before it to learn
