@@ -93,6 +93,14 @@ def _reference_fit(log: dict[str, np.ndarray], cfg: Config, k0: int, end: int, j
     a = Rp @ zp
     G = Rp @ Rp.T
     no = len(s_on)
+    if no == 0 or len(s_off) == 0:  # one edge: the release as a step down, or the onset up
+        sg = -sign if no == 0 else sign
+        num, den = a, np.diag(G)
+        ok = (num * sg > 0) & (den > 1e-9 * np.diag(G @ G.T) ** 0.5)
+        llr = np.where(ok, num * num / np.where(ok, den, 1.0), -np.inf)
+        w = np.exp(0.5 * (llr - llr.max()))
+        mean = float(np.sum(w * (cand_off if no == 0 else cand_on)) / np.sum(w))
+        return (math.nan, mean) if no == 0 else (mean, math.nan)
     ia = np.arange(no)[:, None]
     ib = no + np.arange(len(s_off))[None, :]
     num = a[ia] - a[ib]
@@ -245,6 +253,48 @@ def test_long_contacts_at_1khz_keep_the_detector_dates() -> None:
     assert all(a.onset != b.onset or a.release != b.release for a, b in zip(on, off, strict=True))
 
 
+def test_one_edge_fits_against_the_reference_filter() -> None:
+    """The release alone (a contact whose start has left the buffer: a step down) and the
+    onset alone (a contact still open: a step up), each against the textbook fit on the
+    plain-Python filter over the same rows, for every contact of a 100 Hz log; the fits move
+    the detector's dates."""
+    cfg, log, _ = _log("log-100hz", 101)
+    est = TouchEstimator(cfg, t_s=loop_t_s(sample_interval(log["t"]), cfg))
+    raw = observe(log, cfg.replace(detector={"redate_readings": 0.0})).events
+    block = _block(log, est)
+    t = log["t"]
+    reach, tail = cfg.detector.redate_reach, cfg.detector.redate_tail
+    moved = 0
+    for e in raw:
+        # the release alone
+        t_end = e.release + tail
+        end = int(np.searchsorted(t, t_end))
+        long = dataclasses.replace(e, onset=e.release - RD.LONGEST_S - 1.0)
+        got = RD.Redater(cfg, est.t_s).redate(est, long, end, t_end, block, 0)
+        t0 = e.release - reach - RD.NUISANCE_S
+        k0, j0 = int(np.searchsorted(t, t0 - RD.HISTORY_S)), int(np.searchsorted(t, t0))
+        _, off = _reference_fit(log, cfg, k0, end, j0 - k0, np.zeros(0),
+                                np.arange(e.release - reach, e.release + reach + 1e-9, RD.GRID_S),
+                                float(e.sign))
+        assert got.onset == long.onset
+        assert got.release == pytest.approx(off, abs=1e-4)
+        # the onset alone: the log ends 0.3 s after the detection, in the contact
+        t_cut = e.detected_at + 0.3
+        cut = int(np.searchsorted(t, t_cut))
+        open_e = dataclasses.replace(e, release=float(t[cut - 1]))
+        got = RD.Redater(cfg, est.t_s).redate(est, open_e, cut - 1, math.inf, block, 0,
+                                             open_end=True)  # as finish calls it
+        t0 = e.onset - reach - RD.NUISANCE_S
+        k0, j0 = int(np.searchsorted(t, t0 - RD.HISTORY_S)), int(np.searchsorted(t, t0))
+        on, _ = _reference_fit(log, cfg, k0, cut, j0 - k0,
+                               np.arange(e.onset - reach, min(e.onset + reach, e.detected_at) + 1e-9,
+                                         RD.GRID_S), np.zeros(0), float(e.sign))
+        assert got.release == open_e.release
+        assert got.onset == pytest.approx(on, abs=1e-4)
+        moved += abs(got.onset - e.onset) > 0.005
+    assert moved >= len(raw) // 2
+
+
 def test_release_alone_when_the_start_is_gone() -> None:
     """A contact longer than the buffer's reach has its release alone dated again (a step down)."""
     cfg, log, _ = _log("log-100hz", 101)
@@ -307,3 +357,18 @@ def test_absurd_readings_leave_the_detector_dates() -> None:
                  float(log["T_a"][k]), float(log["T_w_cmd"][k]), int(log["fresh"][k]))
     est.finish(float(t[-1]))
     assert est.events and all(math.isfinite(e.onset) and math.isfinite(e.release) for e in est.events)
+
+
+def test_fit_refuses_sums_whose_likelihood_overflows() -> None:
+    """Finite sums whose likelihood ratio overflows (a^2 beyond float64) give no fit rather than
+    NaN dates, for a pulse and for one edge alone."""
+    big = np.array([1e160, 2e160, -1e160, -2e160, 0, 0, 0, 0, 0])
+    s_on, s_off = np.array([0, 1]), np.array([5, 6])
+    c_on, c_off = np.array([1.0, 1.01]), np.array([2.0, 2.01])
+    args = (np.ones(4), np.zeros((4, 5)), np.eye(5))
+    assert RD.pulse_fit(big, *args, np.zeros((2, 2)), 2, 1.0, s_on, s_off, c_on, c_off) is None
+    assert RD.pulse_fit(big, *args, np.zeros((0, 4)), 0, -1.0, s_on[:0], np.arange(4),
+                        c_on[:0], np.arange(4.0)) is None
+    small = big * 1e-160  # the same sums, scaled into range: a fit, finite
+    on, off = RD.pulse_fit(small, *args, np.zeros((2, 2)), 2, 1.0, s_on, s_off, c_on, c_off)
+    assert 1.0 <= on <= 1.01 and 2.0 <= off <= 2.01

@@ -267,7 +267,10 @@ def pulse_fit(a: Array, d: Array, cn: Array, nn: Array, x: Array, no: int, sign:
         ok = (sg * ap > 0) & (dp > 1e-12 * d) & (d > 0)
         if not ok.any():
             return None
-        llr = np.where(ok, ap * ap / np.where(ok, dp, 1.0), -np.inf)
+        with np.errstate(over="ignore"):
+            llr = np.where(ok, ap * ap / np.where(ok, dp, 1.0), -np.inf)
+        if not np.isfinite(llr[ok]).all():  # sums near overflow: no fit
+            return None
         return (None, _posterior_mean(llr, c_off)) if no == 0 else (_posterior_mean(llr, c_on), None)
     xp = x - C[:no] @ C[no:].T
     num = ap[:no, None] - ap[None, no:]
@@ -276,7 +279,10 @@ def pulse_fit(a: Array, d: Array, cn: Array, nn: Array, x: Array, no: int, sign:
           & (den > 1e-12 * (d[:no, None] + d[None, no:])) & (d[None, no:] > 0))
     if not ok.any():
         return None
-    llr = np.where(ok, num * num / np.where(ok, den, 1.0), -np.inf)
+    with np.errstate(over="ignore"):
+        llr = np.where(ok, num * num / np.where(ok, den, 1.0), -np.inf)
+    if not np.isfinite(llr[ok]).all():  # sums near overflow: no fit
+        return None
     # each time's mean over the other's (its marginal): sum over the pairs of w t
     w = np.exp(0.5 * (llr - llr.max()))
     tot = w.sum()
