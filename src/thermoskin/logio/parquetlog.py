@@ -29,7 +29,7 @@ ROW_GROUP_ROWS = 262_144
 #: given up after 64 KiB of dictionary (8192 distinct values, then plain values); the others
 #: (time, estimates) byte-stream-split, where a dictionary tried first would cost its encoding
 #: and then fall back to plain values (the 1 h benchmark's observe output: written in 0.52 s
-#: instead of 0.62 s, 48 MiB instead of 60); zstd over all.
+#: instead of 0.62 s, 51 MiB instead of 63); zstd over all.
 DICTIONARY_PAGE_BYTES = 1 << 16
 COMPRESSION = "zstd"
 #: The sample of a column's first row group that :func:`few_values` counts, and how many
