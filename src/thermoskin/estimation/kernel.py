@@ -904,19 +904,17 @@ def _detect(st, pr, t, ev):
 
 
 @_inline
-def _switch_coef(pr, Rw, iv_old, iv):
-    """The share of ``x_Tp - x_Tw`` that :func:`_switch_correction` adds to ``x_Tw``."""
-    return 0.5 * (1.0 / Rw[iv] - 1.0 / Rw[iv_old]) * pr[PR_TS] * pr[PR_ICW]
-
-
-@_inline
-def _switch_correction(st, pr, Rw, iv_old, iv):
+def _switch_correction(st, pr, Rw, iv_old, iv, slot):
     """A log coarser than the loop: the pump switched (table row ``iv_old`` to ``iv``) somewhere
     in the last interval, not at its end; the water brought (T_p - T_w)(1/R_w,new - 1/R_w,old)
-    t_s / C_w times a uniform fraction of it more: half of it, and its sd (0.29) as variance."""
-    dT = (st[X + 3] - st[X]) * (1.0 / Rw[iv] - 1.0 / Rw[iv_old]) * pr[PR_TS] * pr[PR_ICW]
-    st[X] += 0.5 * dT
-    st[P] += (pr[PR_VSW] * dT) ** 2
+    t_s / C_w times a uniform fraction of it more: half of it, ``x_Tw += c (x_Tp - x_Tw)``, and
+    its sd (0.29) as variance. Traced (``PR_TRACE``): ``c`` kept in ``st[slot]``."""
+    c = 0.5 * (1.0 / Rw[iv] - 1.0 / Rw[iv_old]) * pr[PR_TS] * pr[PR_ICW]
+    if pr[PR_TRACE] != 0.0:
+        st[slot] = c
+    half = (st[X + 3] - st[X]) * c
+    st[X] += half
+    st[P] += (pr[PR_VSW] * 2.0 * half) ** 2
 
 
 @_inline
@@ -941,9 +939,7 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
                 # before the switch: it updates the state as it stood, the correction after it
                 iv_old = int(st[IVP])
             else:
-                if pr[PR_TRACE] != 0.0:
-                    st[SWB] = _switch_coef(pr, Rw, int(st[IVP]), iv)
-                _switch_correction(st, pr, Rw, int(st[IVP]), iv)
+                _switch_correction(st, pr, Rw, int(st[IVP]), iv, SWB)
         if iv != int(st[IVP]):
             st[PHASE] = 0.0
             st[PHDIR] = 0.0 if Rw[iv] < Rw[int(st[IVP])] else 1.0
@@ -996,9 +992,7 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
         if (fresh & 2) != 0 and math.isfinite(T_p):
             _update(st, pr, 3, T_p, R)
     if iv_old >= 0:
-        if pr[PR_TRACE] != 0.0:
-            st[SWA] = _switch_coef(pr, Rw, iv_old, iv)
-        _switch_correction(st, pr, Rw, iv_old, iv)
+        _switch_correction(st, pr, Rw, iv_old, iv, SWA)
     st[Q] = st[X + 2]
     pq = st[P + 12]
     st[SQ] = math.sqrt(pq) if pq > 0.0 else 1e-12

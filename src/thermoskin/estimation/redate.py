@@ -97,6 +97,14 @@ def _left_mul(A, B, col, tmp):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _switch(M, c):
+    """A coarse log's pump-switch correction on the map: ``x_Tw += c (x_Tp - x_Tw)``."""
+    if c != 0.0:
+        for q in range(5):
+            M[0, q] += c * (M[3, q] - M[0, q])
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _idle(col, no, nc, p_on, p_off):
     """A candidate's column whose step has not started yet (all zero: skipped)."""
     return (col < no and col >= p_on) or (no <= col < nc and col - no >= p_off)
@@ -194,10 +202,7 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
             while p_off < nf and s_off[p_off] <= j:
                 mu[2, no + p_off] = 1.0
                 p_off += 1
-        c = rec[j, RSWB]
-        if c != 0.0:  # x_Tw += c (x_Tp - x_Tw)
-            for q in range(5):
-                M[0, q] += c * (M[3, q] - M[0, q])
+        _switch(M, rec[j, RSWB])  # before this row's updates
         for u in range(2):
             o = u * K.NUR
             if rec[j, o] == 0.0:
@@ -218,10 +223,7 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
                 km = rec[j, o + 4 + m]
                 for q in range(5):
                     M[m, q] -= km * tmp[q]
-        c = rec[j, RSWA]
-        if c != 0.0:
-            for q in range(5):
-                M[0, q] += c * (M[3, q] - M[0, q])
+        _switch(M, rec[j, RSWA])  # after them
         F = Phi[int(rec[j, RIV])]  # M <- Phi M
         for q in range(5):
             _left_mul(F, M, q, tmp)
@@ -229,11 +231,16 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
     return a, d, cn, nn, x
 
 
-def _posterior_mean(llr: Array, times: Array) -> float:
-    """``sum w t / sum w`` with ``w = exp(llr / 2)``: the mean of a time under the profile
-    likelihood over the grid (``llr`` is twice the log-likelihood ratio; -inf: not admissible)."""
+def _posterior(num: Array, den: Array, ok: NDArray[np.bool_]) -> Array | None:
+    """The candidates' weights ``exp(LLR / 2)``, ``LLR = num^2 / den`` (twice the log-likelihood
+    ratio), summing to 1, zero where not ``ok``; None where a ratio overflows (sums near
+    float64's end: no fit)."""
+    with np.errstate(over="ignore"):
+        llr = np.where(ok, num * num / np.where(ok, den, 1.0), -np.inf)
+    if not np.isfinite(llr[ok]).all():
+        return None
     w = np.exp(0.5 * (llr - llr.max()))
-    return float(w @ times / w.sum())
+    return w / w.sum()
 
 
 def pulse_fit(a: Array, d: Array, cn: Array, nn: Array, x: Array, no: int, sign: float,
@@ -267,11 +274,10 @@ def pulse_fit(a: Array, d: Array, cn: Array, nn: Array, x: Array, no: int, sign:
         ok = (sg * ap > 0) & (dp > 1e-12 * d) & (d > 0)
         if not ok.any():
             return None
-        with np.errstate(over="ignore"):
-            llr = np.where(ok, ap * ap / np.where(ok, dp, 1.0), -np.inf)
-        if not np.isfinite(llr[ok]).all():  # sums near overflow: no fit
+        w = _posterior(ap, dp, ok)
+        if w is None:
             return None
-        return (None, _posterior_mean(llr, c_off)) if no == 0 else (_posterior_mean(llr, c_on), None)
+        return (None, float(w @ c_off)) if no == 0 else (float(w @ c_on), None)
     xp = x - C[:no] @ C[no:].T
     num = ap[:no, None] - ap[None, no:]
     den = dp[:no, None] + dp[None, no:] - 2.0 * xp
@@ -279,14 +285,10 @@ def pulse_fit(a: Array, d: Array, cn: Array, nn: Array, x: Array, no: int, sign:
           & (den > 1e-12 * (d[:no, None] + d[None, no:])) & (d[None, no:] > 0))
     if not ok.any():
         return None
-    with np.errstate(over="ignore"):
-        llr = np.where(ok, num * num / np.where(ok, den, 1.0), -np.inf)
-    if not np.isfinite(llr[ok]).all():  # sums near overflow: no fit
+    w = _posterior(num, den, ok)
+    if w is None:
         return None
-    # each time's mean over the other's (its marginal): sum over the pairs of w t
-    w = np.exp(0.5 * (llr - llr.max()))
-    tot = w.sum()
-    return float(w.sum(axis=1) @ c_on / tot), float(w.sum(axis=0) @ c_off / tot)
+    return float(w.sum(axis=1) @ c_on), float(w.sum(axis=0) @ c_off)  # each time's marginal
 
 
 def load(est: TracedModel) -> None:
