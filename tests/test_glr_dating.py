@@ -75,14 +75,17 @@ def test_buffer_pools_and_wraps() -> None:
     rd = [(0.001 * k, 1.0, 2.0) for k in range(5000)]
     st, _ = _state(rd, pool=0.0125)
     assert st[K.GCNT] == K.NGB
-    newest = int(st[K.GHEAD]) - 1
-    o = K.GBUF + 3 * (newest % K.NGB)
-    assert st[o] == pytest.approx(4.999)
-    full = K.GBUF + 3 * ((newest - 1) % K.NGB)  # a whole entry: 13 readings
-    assert st[full + 1] == pytest.approx(13.0) and st[full + 2] == pytest.approx(26.0)
+    # the newest entry, still pooling: 4.992 ... 4.999 (8 readings; entries begin every 13)
+    t_new, ge_new, _ = K.glr_entry(st, 0)
+    assert t_new == pytest.approx(4.999) and ge_new == pytest.approx(5000 - 13 * (5000 // 13))
+    _, ge_full, gg_full = K.glr_entry(st, 1)  # a whole entry: 13 readings
+    assert ge_full == pytest.approx(13.0) and gg_full == pytest.approx(26.0)
+    t_prev = K.glr_entry(st, 1)[0]
+    assert t_prev == pytest.approx(t_new - 0.008)  # the last reading before the newest entry's
+    assert np.isnan(K.glr_entry(st, K.NGB)[0])  # only NGB held
     # a window longer than the buffer: the part not held has only t_zero as a candidate, with
     # the CUSUM's own sums (here a step at 0.5 s, long before the oldest entry held)
-    held_from = st[K.GBUF + 3 * (int(st[K.GHEAD]) % K.NGB)]
+    held_from = K.glr_entry(st, K.NGB - 1)[0]
     assert held_from > 1.0
     assert K._glr_time(st, 0.5, 1.0, 1e6, 1.0) == 0.5
 

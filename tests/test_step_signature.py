@@ -41,6 +41,8 @@ def test_signature_is_the_difference_of_two_runs(impl: str) -> None:
     runs = []
     for stepped in (False, True):
         est = TouchEstimator(cfg) if impl == "kernel" else ReferenceEstimator(cfg, t_s)
+        if impl == "kernel":  # idle (the kernel carries signatures only then), never warming up
+            est.st[K.MODE] = K.IDLE
         s = np.zeros(5)  # the step carried by the model: s <- Phi s
         xs, mus, ss = [], [], []
         for k in range(n):
@@ -56,14 +58,13 @@ def test_signature_is_the_difference_of_two_runs(impl: str) -> None:
             if k == k0:  # the step, and every CUSUM's signature, start here
                 s = e_q.copy()
                 if impl == "kernel":
-                    for j in range(K.NCU):
-                        K._mu_reset(est.st, j)
+                    K._mu_reset_all(est.st)
                 else:
                     for c in est.cusums:
                         c.mu = e_q.copy()
             if impl == "kernel":
                 xs.append(est.st[K.X:K.X + 5].copy())
-                mus.append(est.st[K.MU:K.MU + 5].copy())
+                mus.append(est.st[K.MU:K.MU + K.NMU].copy())
             else:
                 xs.append(est.x.copy())
                 mus.append(est.cusums[0].mu.copy())

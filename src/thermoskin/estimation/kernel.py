@@ -130,8 +130,13 @@ PHDIR = PHASE + 1  # that switch: 0 to a lower water resistance (more flow), 1 t
 GHEAD = PHASE + 2       # the onset dating's ring buffer (idle, armed): the next entry written
 GCNT = GHEAD + 1        # entries held (at most NGB)
 GT0 = GHEAD + 2         # time of the first reading pooled in the newest entry, s
+GOPEN = GHEAD + 3       # the newest entry, still pooling (3 fields as in GBUF): kept here, with
+#                         the fields every sample reads, and written to GBUF once it is full
+KUP = GOPEN + 3   # this sample's pipe and tank updates for the step signatures, 6 fields each:
+#                   made (1/0), the gain K (5); applied to them with the prediction (_mu_carry)
+MRST = KUP + 12   # bit j: CUSUM j's signature restarted in this sample (the updates skip it)
 NPH = 64          # most phase bins of the pump-cycle correction, per direction
-TPL = GHEAD + 3   # the correction: mean no-touch innovation of T_w per (direction, phase), K
+TPL = MRST + 1    # the correction: mean no-touch innovation of T_w per (direction, phase), K
 GBUF = TPL + 2 * NPH    # NGB entries of 3: time of the last reading pooled, sums of g e/S, g^2/S
 NGB = 256
 WBUF = GBUF + 3 * NGB  # warm-up buffer: NWB q values
@@ -287,17 +292,16 @@ def _update(st, pr, i, y, R):
         st[u + 7] = k3
         st[u + 8] = k4
     # each onset CUSUM's step signature: what remains in the estimate's error of a step of
-    # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu; read only by an
-    # onset's whole-state jump, so not kept without it (a skin's patches: a fifth of a sample;
-    # PR_OSJ is fixed for a patch's life)
-    for j in range(NCU if pr[PR_OSJ] != 0.0 else 0):
-        m = MU + NMU * j
-        rho = st[m + i]
-        st[m] -= k0 * rho
-        st[m + 1] -= k1 * rho
-        st[m + 2] -= k2 * rho
-        st[m + 3] -= k3 * rho
-        st[m + 4] -= k4 * rho
+    # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu: the gain kept, and
+    # applied with the prediction (:func:`_mu_carry`)
+    if _keeps_mu(st, pr):
+        u = KUP if i == 0 else KUP + 6
+        st[u] = 1.0
+        st[u + 1] = k0
+        st[u + 2] = k1
+        st[u + 3] = k2
+        st[u + 4] = k3
+        st[u + 5] = k4
     st[X] += k0 * e
     st[X + 1] += k1 * e
     st[X + 2] += k2 * e
@@ -478,8 +482,7 @@ def _init(st, pr, T_w, T_p, T_a):
     st[PA + 3] = R
     st[READY] = 1.0
     st[GAPRUN] = 0.0
-    for j in range(NCU):
-        _mu_reset(st, j)
+    _mu_reset_all(st)
     _threshold(st, pr)
 
 
@@ -560,28 +563,91 @@ def _threshold(st, pr):
 
 
 @_inline
+def _keeps_mu(st, pr):
+    """Whether the step signatures are carried through this sample. They are read only by an
+    onset's whole-state jump, so not kept without it (a skin's patches: ``PR_OSJ`` is fixed for
+    a patch's life), and not while warming up or in contact: every way out of those modes
+    (:func:`_end`, a withdrawal, the warm-up's end) restarts every CUSUM, signature included
+    (:func:`_cusums_reset`), so what they would carry is never read (a quarter of a sample)."""
+    return pr[PR_OSJ] != 0.0 and st[MODE] == IDLE
+
+
+@_inline
 def _mu_reset(st, j):
-    """CUSUM ``j``'s step signature for a step of ``q_i`` now: all of it still to be learnt."""
+    """CUSUM ``j``'s step signature for a step of ``q_i`` now: all of it still to be learnt. A
+    unit step of ``q_i`` is unchanged by this sample's updates (``mu[T_w] = mu[T_p] = 0``), so
+    it skips them, whenever in the sample it was restarted."""
     m = MU + NMU * j
     for a_ in range(NMU):
         st[m + a_] = 0.0
     st[m + 2] = 1.0
+    st[MRST] = int(st[MRST]) | (1 << j)
 
 
 @_inline
-def _mu_predict(st, F):
-    """The step signatures through the model, ``mu <- Phi mu`` (rows 2 and 4 of ``Phi`` are unit rows)."""
-    # Phi's rows read once (the stores below could be to the same memory, for all the compiler
-    # knows: it would read them again for every signature)
+def _mu_reset_all(st):
+    """Every CUSUM's signature a unit step now."""
+    for j in range(NCU):
+        _mu_reset(st, j)
+
+
+@_inline
+def _mu_updated(st, j):
+    """CUSUM ``j``'s signature after this sample's updates (:data:`KUP`): for an onset, which
+    comes before :func:`_mu_carry` applies them."""
+    m = MU + NMU * j
+    u0, u1, u2, u3, u4 = st[m], st[m + 1], st[m + 2], st[m + 3], st[m + 4]
+    if not (int(st[MRST]) >> j) & 1:
+        for w, i in ((KUP, 0), (KUP + 6, 3)):
+            if st[w] != 0.0:
+                rho = u0 if i == 0 else u3
+                u0 -= st[w + 1] * rho
+                u1 -= st[w + 2] * rho
+                u2 -= st[w + 3] * rho
+                u3 -= st[w + 4] * rho
+                u4 -= st[w + 5] * rho
+    return (u0, u1, u2, u3, u4)
+
+
+@_inline
+def _mu_carry(st, F):
+    """The step signatures through this sample: its updates, ``mu <- (I - K H) mu`` for each
+    (pipe, then tank: :data:`KUP`; not for a signature restarted in it, :data:`MRST`), then the
+    model, ``mu <- Phi mu`` (rows 2 and 4 of ``Phi`` are unit rows). One pass, each signature
+    read and written once (the updates' own passes made a fifth of a sample)."""
+    # Phi's rows and the gains read once (the stores below could be to the same memory, for
+    # all the compiler knows: it would read them again for every signature)
     a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
     b0, b1, b2, b3, b4 = F[1, 0], F[1, 1], F[1, 2], F[1, 3], F[1, 4]
     c0, c1, c2, c3, c4 = F[3, 0], F[3, 1], F[3, 2], F[3, 3], F[3, 4]
+    uw = st[KUP] != 0.0
+    w0, w1, w2, w3, w4 = st[KUP + 1], st[KUP + 2], st[KUP + 3], st[KUP + 4], st[KUP + 5]
+    up = st[KUP + 6] != 0.0
+    p0, p1, p2, p3, p4 = st[KUP + 7], st[KUP + 8], st[KUP + 9], st[KUP + 10], st[KUP + 11]
+    rst = int(st[MRST])
     for j in range(NCU):
         m = MU + NMU * j
         u0, u1, u2, u3, u4 = st[m], st[m + 1], st[m + 2], st[m + 3], st[m + 4]
+        if not (rst >> j) & 1:
+            if uw:
+                rho = u0
+                u0 -= w0 * rho
+                u1 -= w1 * rho
+                u2 -= w2 * rho
+                u3 -= w3 * rho
+                u4 -= w4 * rho
+            if up:
+                rho = u3
+                u0 -= p0 * rho
+                u1 -= p1 * rho
+                u2 -= p2 * rho
+                u3 -= p3 * rho
+                u4 -= p4 * rho
         st[m] = a0 * u0 + a1 * u1 + a2 * u2 + a3 * u3 + a4 * u4
         st[m + 1] = b0 * u0 + b1 * u1 + b2 * u2 + b3 * u3 + b4 * u4
         st[m + 3] = c0 * u0 + c1 * u1 + c2 * u2 + c3 * u3 + c4 * u4
+        st[m + 2] = u2
+        st[m + 4] = u4
 
 
 @_inline
@@ -593,7 +659,7 @@ def _cusums_reset(st, t):
         st[o + 1] = t
         st[o + 2] = 0.0
         st[o + 3] = 0.0
-        _mu_reset(st, j)
+    _mu_reset_all(st)
 
 
 @_inline
@@ -631,22 +697,46 @@ def _between(st, t_zero, t):
 def _glr_push(st, pr, t, sge, sgg):
     """Keep a pipe reading's time and evidence ``(g e/S, g²/S)`` in the ring buffer: pooled
     into the newest entry if that began less than ``PR_GPOOL`` ago, else in a new entry (the
-    oldest of ``NGB`` goes)."""
-    k = int(st[GHEAD])
+    oldest of ``NGB`` goes). The newest entry is pooled in ``GOPEN`` (beside the fields every
+    sample reads; in the ring, a 1 kHz reading was a distant cache line each sample, a tenth
+    of a patch's sample) and goes to its slot in the ring when the next begins."""
     if st[GCNT] > 0.0 and t - st[GT0] < pr[PR_GPOOL]:
-        o = GBUF + 3 * (k - 1 if k > 0 else NGB - 1)
-        st[o] = t
-        st[o + 1] += sge
-        st[o + 2] += sgg
+        st[GOPEN] = t
+        st[GOPEN + 1] += sge
+        st[GOPEN + 2] += sgg
         return
-    o = GBUF + 3 * k
-    st[o] = t
-    st[o + 1] = sge
-    st[o + 2] = sgg
+    k = int(st[GHEAD])
+    if st[GCNT] > 0.0:
+        o = GBUF + 3 * (k - 1 if k > 0 else NGB - 1)
+        st[o] = st[GOPEN]
+        st[o + 1] = st[GOPEN + 1]
+        st[o + 2] = st[GOPEN + 2]
+    st[GOPEN] = t
+    st[GOPEN + 1] = sge
+    st[GOPEN + 2] = sgg
     st[GT0] = t
     st[GHEAD] = k + 1 if k + 1 < NGB else 0
     if st[GCNT] < NGB:
         st[GCNT] += 1.0
+
+
+@_inline
+def _glr_entry_at(st, k, newest):
+    """Offset of ring slot ``k``'s fields: ``GOPEN`` for the newest entry (slot ``newest``)."""
+    return GOPEN if k == newest else GBUF + 3 * k
+
+
+@njit(cache=True)
+def glr_entry(st, back):
+    """The ``back``-th newest entry of the onset dating's buffer (0: the one still pooling):
+    time of its last reading, its sums of ``g e/S`` and ``g²/S``; NaNs if not held."""
+    if back >= st[GCNT]:
+        return np.nan, np.nan, np.nan
+    head = int(st[GHEAD])
+    newest = head - 1 if head > 0 else NGB - 1
+    k = (newest - back) % NGB
+    o = _glr_entry_at(st, k, newest)
+    return st[o], st[o + 1], st[o + 2]
 
 
 @_inline
@@ -666,9 +756,10 @@ def _glr_time(st, t_zero, sg, sum_ge, sum_gg):
     a = 0.0
     b = 0.0
     k = int(st[GHEAD])
+    newest = k - 1 if k > 0 else NGB - 1
     for _ in range(int(st[GCNT])):
         k = k - 1 if k > 0 else NGB - 1
-        o = GBUF + 3 * k
+        o = _glr_entry_at(st, k, newest)
         tk = st[o]
         if tk <= t_zero:
             break
@@ -789,16 +880,16 @@ def _detect(st, pr, t, ev):
             # the jump, and the sheet and pipe what the filter has not yet seen of the step;
             # correcting q_i alone left them behind, the filter then drove q_i past the touch
             # to catch up, and the contact's level, set too high, released a tap early)
-            m = MU + NMU * fire
             jump = st[o + 2] / st[o + 3] if st[o + 3] > 0.0 else sg * D
             if sg * jump < D:
                 jump = sg * D
             if pr[PR_OSJ] != 0.0:
+                mu = _mu_updated(st, fire)
                 for a_ in range(5):
-                    ua = jump * st[m + a_]
+                    ua = jump * mu[a_]
                     st[X + a_] += ua
                     for b_ in range(5):
-                        st[P + 5 * a_ + b_] += 0.25 * ua * jump * st[m + b_]
+                        st[P + 5 * a_ + b_] += 0.25 * ua * jump * mu[b_]
             else:
                 st[X + 2] += jump
                 st[P + 12] += 0.25 * jump * jump
@@ -927,6 +1018,7 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     process-noise tables while idle and in contact; ``Rw`` the water's resistance per row.
     """
     R = pr[PR_RT]
+    st[KUP] = st[KUP + 6] = st[MRST] = 0.0  # no update nor restart of the signatures yet
     if pr[PR_TRACE] != 0.0:  # the trace's records of this sample
         st[UREC] = st[UREC + NUR] = st[SWB] = st[SWA] = 0.0
     _eq8(st, pr, Rw, T_w, T_p, T_a, iv)
@@ -1025,8 +1117,8 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     _ambient_predict(st, Phi_a, Q_a)
     Qd = Qc if st[MODE] == INCONTACT else Qi
     _predict(st, Phi[iv], Gam[iv], Qd[iv], st[XA], drive if drive == drive else 0.0)
-    if pr[PR_OSJ] != 0.0:  # the step signatures, for the onset's whole-state jump
-        _mu_predict(st, Phi[iv])
+    if _keeps_mu(st, pr):  # the step signatures, for the onset's whole-state jump
+        _mu_carry(st, Phi[iv])
     if st[GAPRUN] > pr[PR_MAXGAP]:
         st[READY] = 0.0  # restart from the next valid readings
     return code
