@@ -56,7 +56,7 @@ from thermoskin.events import (  # the event record's layout
 
 # ---------------------------------------------------------------- state layout (one patch)
 X = 0          # x: T_w, T_g, q_i, T_p, dT_p (5)
-P = 5          # P: 5 x 5, row-major (25)
+P = 5          # P: 5 x 5, row-major (25); symmetric, its upper triangle alone kept (_pu)
 XA = 30        # x_a: T_a, T_as (2)
 PA = 32        # P_a: 2 x 2 (4)
 READY = 36     # 1 once the filter is initialised
@@ -248,6 +248,13 @@ def new_state() -> np.ndarray:
 
 
 @_inline
+def _pu(a, b):
+    """Offset of ``P[a, b]`` in the state: its upper triangle's entry (``P`` is symmetric; only
+    that triangle is kept up to date, 15 stores instead of 25 at each update and prediction)."""
+    return P + 5 * a + b if a <= b else P + 5 * b + a
+
+
+@_inline
 def _update(st, pr, i, y, R):
     """Scalar measurement of state ``i``; adds its evidence about a change of ``q_i``."""
     S = st[P + 6 * i] + R
@@ -263,7 +270,7 @@ def _update(st, pr, i, y, R):
     else:
         # evidence: the reading's sensitivity to a lasting change of q_i, g = P[i, q] / P[q, q]
         pqq = st[P + 12]
-        g = st[P + 5 * i + 2] / pqq if pqq > 0.0 else 0.0
+        g = st[_pu(i, 2)] / pqq if pqq > 0.0 else 0.0
         gS = g / (kap * kap * S)  # one division for both
         st[SGE] += gS * e
         st[SGG] += gS * g
@@ -275,11 +282,13 @@ def _update(st, pr, i, y, R):
     inv = 1.0 / S
     # the gain's column, read once (the stores below go to the same array: the compiler would
     # read it again after each)
-    k0 = st[P + i] * inv
-    k1 = st[P + 5 + i] * inv
-    k2 = st[P + 10 + i] * inv
-    k3 = st[P + 15 + i] * inv
-    k4 = st[P + 20 + i] * inv
+    # P's row i (its column: P is symmetric)
+    r = (st[_pu(i, 0)], st[_pu(i, 1)], st[_pu(i, 2)], st[_pu(i, 3)], st[_pu(i, 4)])
+    k0 = r[0] * inv
+    k1 = r[1] * inv
+    k2 = r[2] * inv
+    k3 = r[3] * inv
+    k4 = r[4] * inv
     if pr[PR_TRACE] != 0.0:  # the re-dating's detection-free filter keeps the update
         u = UREC if i == 0 else UREC + NUR
         st[u] = 1.0
@@ -307,19 +316,13 @@ def _update(st, pr, i, y, R):
     st[X + 2] += k2 * e
     st[X + 3] += k3 * e
     st[X + 4] += k4 * e
-    # P <- P - K P[i, :] with K = P[:, i]/S: P is symmetric here, so row i is column i and the
-    # gain k_a = r_a / S; the upper triangle is computed (15 products, not 25) and mirrored.
-    # Symmetric because every change of P before an update keeps it so: _predict computes the
-    # upper triangle and mirrors it (it reads that triangle alone, which also wipes the last
-    # bits of asymmetry an onset's whole-state jump leaves, in _detect, between the updates
-    # and the prediction), this update mirrors, and the rest touch the diagonal only
-    r = (st[P + 5 * i], st[P + 5 * i + 1], st[P + 5 * i + 2], st[P + 5 * i + 3], st[P + 5 * i + 4])
+    # P <- P - K P[i, :] with K = P[:, i]/S: P is symmetric, so row i is column i and the gain
+    # k_a = r_a / S; on the upper triangle alone (15 products, not 25; the lower is never read:
+    # every reader of P goes through _pu)
     for a_ in range(5):
         ka = r[a_] * inv
         for b_ in range(a_, 5):
-            v = st[P + 5 * a_ + b_] - ka * r[b_]
-            st[P + 5 * a_ + b_] = v
-            st[P + 5 * b_ + a_] = v
+            st[P + 5 * a_ + b_] -= ka * r[b_]
 
 
 @_inline
@@ -329,7 +332,7 @@ def _predict(st, F, G, QQ, u, w):
     ``q_i`` and ``r_p`` are random walks: their rows of ``Phi`` are unit rows and of
     ``Gamma`` zero (:func:`thermoskin.estimation.model.build_tables` makes them exactly so),
     which this uses (rows 0, 1 and 3 of ``Phi`` only), with ``P`` symmetric: the 15 distinct
-    entries are computed once, in registers.
+    entries are read and written, in its upper triangle (:func:`_pu`).
     """
     x0, x1, x2, x3, x4 = st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4]
     a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
@@ -376,19 +379,19 @@ def _predict(st, F, G, QQ, u, w):
     n24 = p24 + QQ[2, 4]
     n44 = p44 + QQ[4, 4]
     st[P] = n00
-    st[P + 1] = st[P + 5] = n01
-    st[P + 2] = st[P + 10] = n02
-    st[P + 3] = st[P + 15] = n03
-    st[P + 4] = st[P + 20] = n04
+    st[P + 1] = n01
+    st[P + 2] = n02
+    st[P + 3] = n03
+    st[P + 4] = n04
     st[P + 6] = n11
-    st[P + 7] = st[P + 11] = n12
-    st[P + 8] = st[P + 16] = n13
-    st[P + 9] = st[P + 21] = n14
+    st[P + 7] = n12
+    st[P + 8] = n13
+    st[P + 9] = n14
     st[P + 12] = n22
-    st[P + 13] = st[P + 17] = n23
-    st[P + 14] = st[P + 22] = n24
+    st[P + 13] = n23
+    st[P + 14] = n24
     st[P + 18] = n33
-    st[P + 19] = st[P + 23] = n34
+    st[P + 19] = n34
     st[P + 24] = n44
 
 
@@ -888,7 +891,7 @@ def _detect(st, pr, t, ev):
                 for a_ in range(5):
                     ua = jump * mu[a_]
                     st[X + a_] += ua
-                    for b_ in range(5):
+                    for b_ in range(a_, 5):  # P's upper triangle (_pu)
                         st[P + 5 * a_ + b_] += 0.25 * ua * jump * mu[b_]
             else:
                 st[X + 2] += jump
