@@ -617,7 +617,8 @@ def _mu_carry(st, F):
     """The step signatures through this sample: its updates, ``mu <- (I - K H) mu`` for each
     (pipe, then tank: :data:`KUP`; not for a signature restarted in it, :data:`MRST`), then the
     model, ``mu <- Phi mu`` (rows 2 and 4 of ``Phi`` are unit rows). One pass, each signature
-    read and written once (the updates' own passes made a fifth of a sample)."""
+    read and written once (the updates' own passes made a fifth of a sample); a restarted one,
+    a unit step still, is Phi's column 2 (exactly: the products with its zeros add nothing)."""
     # Phi's rows and the gains read once (the stores below could be to the same memory, for
     # all the compiler knows: it would read them again for every signature)
     a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
@@ -630,22 +631,26 @@ def _mu_carry(st, F):
     rst = int(st[MRST])
     for j in range(NCU):
         m = MU + NMU * j
+        if (rst >> j) & 1:  # a unit step of q_i: Phi's column 2 (rows 2, 4 unit rows)
+            st[m] = a2
+            st[m + 1] = b2
+            st[m + 3] = c2
+            continue
         u0, u1, u2, u3, u4 = st[m], st[m + 1], st[m + 2], st[m + 3], st[m + 4]
-        if not (rst >> j) & 1:
-            if uw:
-                rho = u0
-                u0 -= w0 * rho
-                u1 -= w1 * rho
-                u2 -= w2 * rho
-                u3 -= w3 * rho
-                u4 -= w4 * rho
-            if up:
-                rho = u3
-                u0 -= p0 * rho
-                u1 -= p1 * rho
-                u2 -= p2 * rho
-                u3 -= p3 * rho
-                u4 -= p4 * rho
+        if uw:
+            rho = u0
+            u0 -= w0 * rho
+            u1 -= w1 * rho
+            u2 -= w2 * rho
+            u3 -= w3 * rho
+            u4 -= w4 * rho
+        if up:
+            rho = u3
+            u0 -= p0 * rho
+            u1 -= p1 * rho
+            u2 -= p2 * rho
+            u3 -= p3 * rho
+            u4 -= p4 * rho
         st[m] = a0 * u0 + a1 * u1 + a2 * u2 + a3 * u3 + a4 * u4
         st[m + 1] = b0 * u0 + b1 * u1 + b2 * u2 + b3 * u3 + b4 * u4
         st[m + 3] = c0 * u0 + c1 * u1 + c2 * u2 + c3 * u3 + c4 * u4
