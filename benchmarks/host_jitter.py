@@ -43,7 +43,7 @@ def spin(seconds: float) -> list[int]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=3.0, help="spin this long on each core")
-    ap.add_argument("--tick-us", type=float, default=65.0, help="a tick's length, µs (1000 patches: about 65)")
+    ap.add_argument("--tick-us", type=float, default=65.0, help="a tick, µs (1000 patches: about 65)")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
     cores = len(os.sched_getaffinity(0))

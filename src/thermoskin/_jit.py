@@ -2,15 +2,47 @@
 
 Importing numba through here loads its array registry without the BLAS probe
 (:func:`thermoskin._numba_cache.skip_blas_probe`, which keeps ``scipy.linalg`` out of a short
-``observe``) before any compiled call, so that no compiled module can forget it.
+``observe``) before any compiled call, so that no compiled module can forget it. Also
+:func:`prefetch_w`, a cache hint numba has no word for.
 """
 
 from __future__ import annotations
 
-from numba import njit, prange
+from llvmlite import binding as _llvm
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from thermoskin._numba_cache import skip_blas_probe
 
 skip_blas_probe()
 
-__all__ = ["njit", "prange"]
+# LLVM 15 on has opaque pointers, and the intrinsic's name says so
+_PREFETCH = "llvm.prefetch.p0" if _llvm.llvm_version_info >= (15,) else "llvm.prefetch.p0i8"
+
+
+@intrinsic
+def prefetch_w(typingctx, arr, idx):  # type: ignore[no-untyped-def]
+    """In compiled code, ``prefetch_w(a, i)``: the cache line holding ``a[i]`` (a 1-D array) will
+    be written soon; fetch it now, without waiting for it (LLVM's ``llvm.prefetch``, write,
+    kept in every cache level: x86's ``prefetchw``). A hint: no effect on any value."""
+    if not (isinstance(arr, types.Array) and arr.ndim == 1 and isinstance(idx, types.Integer)):
+        return None
+    sig = types.void(arr, idx)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]])
+        i8p, i32 = ir.IntType(8).as_pointer(), ir.IntType(32)
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32]), _PREFETCH)
+        # write (1), high locality (3), data (1)
+        builder.call(fn, [builder.bitcast(ptr, i8p), i32(1), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+__all__ = ["njit", "prange", "prefetch_w"]

@@ -40,7 +40,7 @@ import math
 import numba.core.options
 import numpy as np
 
-from thermoskin._jit import njit, prange
+from thermoskin._jit import njit, prange, prefetch_w
 from thermoskin.estimation.model import RATE_TOL
 from thermoskin.events import (  # the event record's layout
     EV_DETECTED,
@@ -723,6 +723,13 @@ def _glr_push(st, pr, t, sge, sgg):
     st[GOPEN + 1] = sge
     st[GOPEN + 2] = sgg
     st[GT0] = t
+    # the slot this new entry goes to when it is full: unread for seconds, so out of the
+    # caches; fetched now, as a hint, so that the write then does not wait for memory (every
+    # patch of a skin writes in the same sample: 1000 patches, that sample took 80 us instead
+    # of 63 us)
+    o = GBUF + 3 * k
+    prefetch_w(st, o)
+    prefetch_w(st, o + 2)
     st[GHEAD] = k + 1 if k + 1 < NGB else 0
     if st[GCNT] < NGB:
         st[GCNT] += 1.0
