@@ -595,20 +595,24 @@ def _mu_reset_all(st):
 
 
 @_inline
+def _mu_reading(u0, u1, u2, u3, u4, k0, k1, k2, k3, k4, rho):
+    """A reading's update of a signature, ``mu - K rho`` (``rho``: its component at the reading)."""
+    return u0 - k0 * rho, u1 - k1 * rho, u2 - k2 * rho, u3 - k3 * rho, u4 - k4 * rho
+
+
+@_inline
 def _mu_updated(st, j):
     """CUSUM ``j``'s signature after this sample's updates (:data:`KUP`): for an onset, which
     comes before :func:`_mu_carry` applies them."""
     m = MU + NMU * j
     u0, u1, u2, u3, u4 = st[m], st[m + 1], st[m + 2], st[m + 3], st[m + 4]
     if not (int(st[MRST]) >> j) & 1:
-        for w, i in ((KUP, 0), (KUP + 6, 3)):
-            if st[w] != 0.0:
-                rho = u0 if i == 0 else u3
-                u0 -= st[w + 1] * rho
-                u1 -= st[w + 2] * rho
-                u2 -= st[w + 3] * rho
-                u3 -= st[w + 4] * rho
-                u4 -= st[w + 5] * rho
+        if st[KUP] != 0.0:
+            u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, st[KUP + 1], st[KUP + 2],
+                                             st[KUP + 3], st[KUP + 4], st[KUP + 5], u0)
+        if st[KUP + 6] != 0.0:
+            u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, st[KUP + 7], st[KUP + 8],
+                                             st[KUP + 9], st[KUP + 10], st[KUP + 11], u3)
     return (u0, u1, u2, u3, u4)
 
 
@@ -638,19 +642,9 @@ def _mu_carry(st, F):
             continue
         u0, u1, u2, u3, u4 = st[m], st[m + 1], st[m + 2], st[m + 3], st[m + 4]
         if uw:
-            rho = u0
-            u0 -= w0 * rho
-            u1 -= w1 * rho
-            u2 -= w2 * rho
-            u3 -= w3 * rho
-            u4 -= w4 * rho
+            u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, w0, w1, w2, w3, w4, u0)
         if up:
-            rho = u3
-            u0 -= p0 * rho
-            u1 -= p1 * rho
-            u2 -= p2 * rho
-            u3 -= p3 * rho
-            u4 -= p4 * rho
+            u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, p0, p1, p2, p3, p4, u3)
         st[m] = a0 * u0 + a1 * u1 + a2 * u2 + a3 * u3 + a4 * u4
         st[m + 1] = b0 * u0 + b1 * u1 + b2 * u2 + b3 * u3 + b4 * u4
         st[m + 3] = c0 * u0 + c1 * u1 + c2 * u2 + c3 * u3 + c4 * u4
