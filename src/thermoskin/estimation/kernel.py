@@ -571,7 +571,7 @@ def _keeps_mu(st, pr):
     onset's whole-state jump, so not kept without it (a skin's patches: ``PR_OSJ`` is fixed for
     a patch's life), and not while warming up or in contact: every way out of those modes
     (:func:`_end`, a withdrawal, the warm-up's end) restarts every CUSUM, signature included
-    (:func:`_cusums_reset`), so what they would carry is never read (a quarter of a sample)."""
+    (:func:`_cusums_reset`), so what they would carry is never read."""
     return pr[PR_OSJ] != 0.0 and st[MODE] == IDLE
 
 
@@ -621,7 +621,7 @@ def _mu_carry(st, F):
     """The step signatures through this sample: its updates, ``mu <- (I - K H) mu`` for each
     (pipe, then tank: :data:`KUP`; not for a signature restarted in it, :data:`MRST`), then the
     model, ``mu <- Phi mu`` (rows 2 and 4 of ``Phi`` are unit rows). One pass, each signature
-    read and written once (the updates' own passes made a fifth of a sample); a restarted one,
+    read and written once (the updates' own passes had read and written each twice more); a restarted one,
     a unit step still, is Phi's column 2 (exactly: the products with its zeros add nothing)."""
     # Phi's rows and the gains read once (the stores below could be to the same memory, for
     # all the compiler knows: it would read them again for every signature)
