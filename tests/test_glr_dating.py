@@ -78,9 +78,8 @@ def test_buffer_pools_and_wraps() -> None:
     # the newest entry, still pooling: 4.992 ... 4.999 (8 readings; entries begin every 13)
     t_new, ge_new, _ = K.glr_entry(st, 0)
     assert t_new == pytest.approx(4.999) and ge_new == pytest.approx(5000 - 13 * (5000 // 13))
-    _, ge_full, gg_full = K.glr_entry(st, 1)  # a whole entry: 13 readings
+    t_prev, ge_full, gg_full = K.glr_entry(st, 1)  # a whole entry: 13 readings
     assert ge_full == pytest.approx(13.0) and gg_full == pytest.approx(26.0)
-    t_prev = K.glr_entry(st, 1)[0]
     assert t_prev == pytest.approx(t_new - 0.008)  # the last reading before the newest entry's
     assert np.isnan(K.glr_entry(st, K.NGB)[0])  # only NGB held
     # a window longer than the buffer: the part not held has only t_zero as a candidate, with
