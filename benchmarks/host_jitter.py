@@ -1,13 +1,16 @@
-"""The host's own stalls: how often a busy thread loses the CPU, and for how long.
+"""The host's own stalls: how often a busy thread loses the CPU, for how long, and on which cores at once.
 
 A tick of many patches (``benchmarks/patches.py``) ends when the last core finishes its share,
-so a stall of either core lands in that tick whole. This measures the stalls with no
-estimator at all: one process per core spins reading the clock for ``--seconds`` and records
-every gap between two readings longer than 5 µs (the loop's own step is about 0.1 µs). It
-prints one JSON line: per core, the gaps per second over 10, 20, 40 and 80 µs and their
-p50/p99/max; and, for ticks of ``--tick-us`` on all cores at once, the share of ticks that a
-stall over 20 and over 40 µs would hit (``1 - exp(-cores * rate * tick)``, stalls taken as
-independent). If that share is above 1 %, such stalls reach a tick's p99.
+so a stall of any core lands in that tick whole. This measures the stalls with no estimator at
+all: one process per core (each pinned to its core) spins reading the clock for ``--seconds``
+and records every gap between two readings longer than 5 µs (the loop's own step is about
+0.1 µs), with its start and end on the machine's monotonic clock. It prints one JSON line: per
+core, the gaps per second over 10, 20, 40 and 80 µs and their p50/p99/max; the share of one
+core's stalls over 20 µs that overlap a stall of another core (1: the whole machine stops, as a
+virtual machine does when its host takes it off the CPU; 0: each core alone); and, for ticks of
+``--tick-us``, the share of ticks a stall over 20 and over 40 µs would hit: ``1 - exp(-rate *
+tick)`` with ``rate`` that of the stalls of all cores merged where they overlap. If that share
+is above 1 %, such stalls reach a tick's p99, whatever the tick computes.
 
     python benchmarks/host_jitter.py [--seconds 3] [--tick-us 65] [--json]
 """
@@ -26,18 +29,49 @@ import numpy as np
 LIMITS_US = (10, 20, 40, 80)
 
 
-def spin(seconds: float) -> list[int]:
-    """Gaps (ns) over 5 µs between consecutive clock readings of a busy loop."""
-    pc = time.perf_counter_ns
-    gaps: list[int] = []
+def spin(args: tuple[int, float]) -> list[tuple[int, int]]:
+    """On core ``args[0]`` for ``args[1]`` s: (start, end) in ns of each gap over 5 µs between
+    consecutive clock readings of a busy loop."""
+    core, seconds = args
+    os.sched_setaffinity(0, {core})
+    pc = time.perf_counter_ns  # CLOCK_MONOTONIC: one clock for every process
+    gaps: list[tuple[int, int]] = []
     end = pc() + int(seconds * 1e9)
     last = pc()
     while last < end:
         now = pc()
         if now - last > 5000:
-            gaps.append(now - last)
+            gaps.append((last, now))
         last = now
     return gaps
+
+
+def merged(spans: list[np.ndarray]) -> int:
+    """Number of stalls once the cores' overlapping ones are merged into one."""
+    s = np.concatenate(spans) if spans else np.empty((0, 2))
+    if not len(s):
+        return 0
+    s = s[np.argsort(s[:, 0])]
+    n, end = 1, s[0, 1]
+    for a, b in s[1:]:
+        if a > end:
+            n += 1
+        end = max(end, b)
+    return n
+
+
+def overlap_share(spans: list[np.ndarray]) -> float | None:
+    """Share of the stalls of each core that overlap some stall of another core."""
+    hit = total = 0
+    for i, x in enumerate(spans):
+        others = [y for j, y in enumerate(spans) if j != i and len(y)]
+        if not others:
+            continue
+        y = np.concatenate(others)
+        for a, b in x:
+            total += 1
+            hit += bool(((y[:, 0] < b) & (y[:, 1] > a)).any())
+    return round(hit / total, 3) if total else None
 
 
 def main() -> None:
@@ -46,27 +80,29 @@ def main() -> None:
     ap.add_argument("--tick-us", type=float, default=65.0, help="a tick, µs (1000 patches: about 65)")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
-    cores = len(os.sched_getaffinity(0))
-    with ProcessPoolExecutor(cores) as ex:
-        per_core = list(ex.map(spin, [a.seconds] * cores))
-    out: dict[str, object] = {"cores": cores, "seconds": a.seconds, "tick_us": a.tick_us}
-    rates = {lim: [] for lim in LIMITS_US}
+    cpus = sorted(os.sched_getaffinity(0))
+    with ProcessPoolExecutor(len(cpus)) as ex:
+        per_core = [np.array(g, dtype=np.int64).reshape(-1, 2)
+                    for g in ex.map(spin, [(c, a.seconds) for c in cpus])]
+    out: dict[str, object] = {"cores": len(cpus), "seconds": a.seconds, "tick_us": a.tick_us}
     cores_out = []
     for gaps in per_core:
-        g = np.array(gaps, dtype=float) * 1e-3
+        g = (gaps[:, 1] - gaps[:, 0]) * 1e-3
         row: dict[str, float | None] = {f"over_{lim}us_per_s": round(float((g > lim).sum()) / a.seconds, 1)
                                         for lim in LIMITS_US}
-        for lim in LIMITS_US:
-            rates[lim].append(float((g > lim).sum()) / a.seconds)
         row["p50_us"] = round(float(np.median(g)), 1) if g.size else None
         row["p99_us"] = round(float(np.percentile(g, 99)), 1) if g.size else None
         row["max_us"] = round(float(g.max()), 1) if g.size else None
         cores_out.append(row)
     out["per_core"] = cores_out
+    long20 = [x[(x[:, 1] - x[:, 0]) > 20_000] for x in per_core]
+    out["overlap_share_over_20us"] = overlap_share(long20)
     tick = a.tick_us * 1e-6
     for lim in (20, 40):
-        total = sum(rates[lim])  # any core's stall holds the tick
-        out[f"ticks_hit_over_{lim}us"] = round(1.0 - math.exp(-total * tick), 4)
+        spans = [x[(x[:, 1] - x[:, 0]) > lim * 1000] for x in per_core]
+        rate = merged(spans) / a.seconds  # any core's stall holds the tick; simultaneous ones once
+        out[f"stalls_over_{lim}us_per_s_merged"] = round(rate, 1)
+        out[f"ticks_hit_over_{lim}us"] = round(1.0 - math.exp(-rate * tick), 4)
     if not a.json:
         print(json.dumps(out, indent=1))
     print(json.dumps(out))
