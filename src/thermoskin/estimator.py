@@ -133,8 +133,13 @@ class TouchEstimator:
     """
 
     def __init__(self, cfg: Config, t_s: float | None = None,
-                 v_values: tuple[float, ...] = ()) -> None:
+                 v_values: tuple[float, ...] = (), background_fits: bool = False) -> None:
+        """``background_fits``: a contact's re-dating fit, due live in :meth:`step`, runs in a
+        worker thread; its event comes at a later sample (the same event; see
+        :mod:`~thermoskin.estimation.redate`). For a realtime loop, whose sample must not wait
+        for it."""
         self.cfg = cfg
+        self.background_fits = background_fits
         self.t_s = cfg.sampling.t_s if t_s is None else float(t_s)
         if not (math.isfinite(self.t_s) and self.t_s > 0):
             raise ValueError(f"TouchEstimator: t_s = {t_s} s must be > 0")
@@ -178,7 +183,11 @@ class TouchEstimator:
         """Everything afresh; disarmed until the set-point is held (if there is one)."""
         self.st = K.new_state()
         self.events: list[ContactEvent] = []
-        self._redater = Redater(self.cfg, self.t_s) if self.cfg.detector.redate_readings > 0 else None
+        old = getattr(self, "_redater", None)
+        if old is not None:
+            old.close()
+        self._redater = (Redater(self.cfg, self.t_s, self.background_fits)
+                         if self.cfg.detector.redate_readings > 0 else None)
         #: the events the last :meth:`step` wrote: a contact ended then, or (dated again,
         #: :mod:`~thermoskin.estimation.redate`) a while before
         self.written: list[ContactEvent] | tuple[()] = ()
@@ -238,10 +247,12 @@ class TouchEstimator:
                 self.written = [ContactEvent.from_kernel(self._ev)]
         else:
             rd.push((t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh))
+            if rd.busy:  # fits done in the background, in order
+                self.written = rd.ready()
             if self.started or self.ended or t >= rd.due:
-                self.written = rd.on_row(
+                self.written = [*self.written, *rd.on_row(
                     self, rd.n - 1, t, self.st[K.ONSET] if self.started else math.nan,
-                    ContactEvent.from_kernel(self._ev) if self.ended else None)
+                    ContactEvent.from_kernel(self._ev) if self.ended else None)]
         if self.written:
             self.events.extend(self.written)
         self.contact = code & K.C_CONTACT

@@ -45,6 +45,7 @@ import math
 import os
 import signal
 import struct
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -173,6 +174,8 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
     dev = _make_device(spec)
     is_sim = spec.device == "sim"
     ctrl = SkinController(cfg)
+    if ctrl.estimator is not None:  # a contact's re-dating fit in a worker, not in the sample
+        ctrl.estimator.background_fits = True
     sup = sv.Supervisor(cfg)
     lim = limits(cfg.plausible)
     _warm_up(cfg, sc.T_a)
@@ -199,6 +202,10 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
         gc.freeze()
     gc.disable()
     dev.open()  # DeviceError propagates: the parent reports it
+    # the re-dating worker's Python between its compiled parts holds the interpreter at most
+    # this long while the loop waits for it (the default, 5 ms, is five samples)
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(1e-4)
     try:
         s = dev.read_sample(spec.first_sample_timeout)
         if s is None:
@@ -326,6 +333,7 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
         return summary
     finally:
         gc.enable()
+        sys.setswitchinterval(switch)
         with contextlib.suppress(Exception):
             dev.close()  # safe state, then disconnect
 
