@@ -247,7 +247,7 @@ class TouchEstimator:
                 self.written = [ContactEvent.from_kernel(self._ev)]
         else:
             rd.push((t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh))
-            if rd.busy:  # fits done in the background, in order
+            if self.background_fits and rd.busy:  # fits done in the background, in order
                 self.written = rd.ready()
             if self.started or self.ended or t >= rd.due:
                 self.written = [*self.written, *rd.on_row(

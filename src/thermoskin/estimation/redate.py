@@ -354,7 +354,7 @@ class Redater:
         self.nr = math.ceil(span / t_s)
         self.buf = np.zeros((NCOL, self.nr))  # a column's rows contiguous (searched in place)
         self.n_buf = 0  # rows written to the buffer
-        self.n_pushed = 0  # rows pushed
+        self.n_handed = 0  # rows pushed and gone from the list (to the buffer, or the worker)
         self.rows: list[tuple[float, ...]] = []  # rows pushed one at a time, not yet written
         self.pending: ContactEvent | None = None
         self.due = math.inf
@@ -372,14 +372,13 @@ class Redater:
     @property
     def n(self) -> int:
         """Rows pushed."""
-        return self.n_pushed
+        return self.n_handed + len(self.rows)
 
     # -- the buffer -------------------------------------------------------------------------
     def push(self, row: tuple[float, ...]) -> None:
         """One row (the :data:`NCOL` inputs of a sample; kept in a list, written to the buffer
         a thousand at a time: a numpy row store costs more than the sample step)."""
         self.rows.append(row)
-        self.n_pushed += 1
         if len(self.rows) >= 1024:
             self._write()
 
@@ -389,6 +388,7 @@ class Redater:
         if not self.rows or getattr(_worker, "on", False):  # the list is the loop's alone
             return
         rows, self.rows = self.rows, []
+        self.n_handed += len(rows)
         if self.background and self._pool is not None:
             self._jobs.append(self._pool.submit(self._write_rows, rows))
         else:
@@ -404,7 +404,7 @@ class Redater:
         """Rows given as :data:`NCOL` columns, in order (only the last ``nr`` are kept)."""
         self._write()
         self._collect(True)  # the buffer is this thread's again
-        self.n_pushed += len(cols[0])
+        self.n_handed += len(cols[0])
         self._put(cols)
 
     def _put(self, cols: tuple[Array, ...]) -> None:
