@@ -280,9 +280,8 @@ def _update(st, pr, i, y, R):
         else:
             st[KAPPA] = kap * pr[PR_DOWN]
     inv = 1.0 / S
-    # the gain's column, read once (the stores below go to the same array: the compiler would
-    # read it again after each)
-    # P's row i (its column: P is symmetric)
+    # P's row i, which is its column (P is symmetric): the gain's, read once (the stores below
+    # go to the same array: the compiler would read it again after each)
     r = (st[_pu(i, 0)], st[_pu(i, 1)], st[_pu(i, 2)], st[_pu(i, 3)], st[_pu(i, 4)])
     k0 = r[0] * inv
     k1 = r[1] * inv

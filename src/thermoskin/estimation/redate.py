@@ -359,8 +359,7 @@ class Redater:
         self.pending: ContactEvent | None = None
         self.due = math.inf
         self.last_release = -math.inf  # the release of the last contact written
-        self.background = background
-        self._pool: ThreadPoolExecutor | None = None
+        self._pool: ThreadPoolExecutor | None = None  # the worker (background), until closed
         self._jobs: deque[Future[ContactEvent | None]] = deque()  # handed over, in order: fits,
         #                                                            and rows to write (None)
         self._done: list[ContactEvent] = []  # events of fits collected, not yet handed out
@@ -389,7 +388,7 @@ class Redater:
             return
         rows, self.rows = self.rows, []
         self.n_handed += len(rows)
-        if self.background and self._pool is not None:
+        if self._pool is not None:
             self._jobs.append(self._pool.submit(self._write_rows, rows))
         else:
             self._write_rows(rows)
@@ -479,10 +478,9 @@ class Redater:
               block: tuple[Array, ...] | None, n0: int) -> list[ContactEvent]:
         """``e`` dated again now; or, in the background (a live row), handed to the worker:
         nothing now, the event from :meth:`ready`."""
-        if not self.background or block is not None:
+        if self._pool is None or block is not None:
             return [self.redate(est, e, k, t_end, block, n0)]
         self._write()  # the rows up to k into the buffer, which alone the worker reads
-        assert self._pool is not None
         model = _Model(est.pr, est.tabs)  # as they are now (a new pump velocity adds tables)
         self._jobs.append(self._pool.submit(self.redate, model, e, k, t_end))
         return []
