@@ -101,3 +101,52 @@ def test_the_cli_looks_up_real_cached_functions() -> None:
         f = getattr(importlib.import_module(path), function)
         assert isinstance(getattr(f, "_cache", None), FunctionCache), name
         assert "/".join(path.split(".")[1:]) + ".py" in nc.SOURCES, name  # its cache is renewed
+
+
+def test_cached_code_loads_without_the_registries(tmp_path: Path) -> None:
+    """A fresh process loads the cached kernel without numba's typing and lowering registries
+    (``lean_loading``), and its numbers are still the plain-Python reference's; a compilation
+    afterwards in that process loads the registries itself and compiles correctly."""
+    import json
+
+    import numpy as np
+
+    from thermoskin.estimation.reference import ReferenceEstimator
+    from thermoskin.estimator import TouchEstimator
+    from thermoskin.params import load_config
+    from thermoskin.sim.run import simulate
+    from thermoskin.sim.scenarios import SCENARIOS
+
+    cfg = load_config().replace(detector={"redate_readings": 0.0})
+    log = simulate(SCENARIOS["one-finger"].with_duration(3.0), cfg)
+    keys = ("t", "T_w", "T_p", "v", "T_a")
+    np.savez(tmp_path / "log.npz", **{k: log[k] for k in keys})
+    TouchEstimator(cfg).run(*(log[k] for k in keys))  # compiled into the cache if it was cold
+    code = f"""
+import json, sys
+import numpy as np
+from thermoskin.estimator import TouchEstimator
+from thermoskin.params import load_config
+log = np.load({str(tmp_path / 'log.npz')!r})
+res = TouchEstimator(load_config().replace(detector={{"redate_readings": 0.0}})).run(
+    *(log[k] for k in {keys!r}))
+lean = not {{"numba.np.arraymath", "numba.typed.dictimpl"}} & set(sys.modules)  # refresh's imports
+from numba import njit
+f = njit(lambda a: np.cumsum(np.sort(a))[-1] + len(str(a.size)))  # needs the registries
+print(json.dumps({{"lean": lean, "f": f(np.array([3.0, 1.0, 2.0])),
+                  "q": res.columns["q_i_hat"].tolist(), "dq": res.columns["dq_i_hat"].tolist(),
+                  "linalg": "scipy.linalg" in sys.modules}}))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["lean"], "the cached kernel's load imported numba's registries"
+    assert got["f"] == 7.0 and not got["linalg"]  # 6 + len("3"); the BLAS probe still skipped
+    ref = ReferenceEstimator(cfg, cfg.sampling.t_s)
+    q, dq = np.array(got["q"]), np.array(got["dq"])
+    worst = 0.0
+    for i, row in enumerate(zip(*(log[k].tolist() for k in keys), strict=True)):
+        ref.step(*row)
+        for a, b in ((q[i], ref.q_i_hat), (dq[i], ref.dq)):
+            if a == a and b == b:
+                worst = max(worst, abs(a - b))
+    assert worst <= 1e-9, worst

@@ -1,9 +1,9 @@
 """numba, as the package's compiled modules import it: ``from thermoskin._jit import njit, prange``.
 
-Importing numba through here loads its array registry without the BLAS probe
-(:func:`thermoskin._numba_cache.skip_blas_probe`, which keeps ``scipy.linalg`` out of a short
-``observe``) before any compiled call, so that no compiled module can forget it. Also
-:func:`prefetch_w`, a cache hint numba has no word for.
+Importing numba through here makes it load cached code without what only compiling needs
+(:func:`thermoskin._numba_cache.lean_loading`: no registries, no BLAS probe, so no
+``scipy.linalg``, on a short ``observe``) before any compiled call, so that no compiled
+module can forget it. Also :func:`prefetch_w`, a cache hint numba has no word for.
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from numba import njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from thermoskin._numba_cache import skip_blas_probe
+from thermoskin._numba_cache import lean_loading
 
-skip_blas_probe()
+lean_loading()
 
 # LLVM 15 on has opaque pointers, and the intrinsic's name says so
 _PREFETCH = "llvm.prefetch.p0" if _llvm.llvm_version_info >= (15,) else "llvm.prefetch.p0i8"

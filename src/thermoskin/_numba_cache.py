@@ -86,6 +86,45 @@ def has_compiled(where: str) -> bool:
         return True
 
 
+def lean_loading() -> None:
+    """Load cached compiled code without what only compiling needs (about 0.1 s of every
+    command's start-up; each part harmless if numba is laid out otherwise).
+
+    - A cached function is loaded without refreshing numba's registries: numba's
+      ``Cache.load_overload`` first imports every module of its typing and lowering
+      implementations (``numba.np.arraymath``, ``numba.cpython.*``, ...) and installs their
+      registries, which a compilation reads but loading machine code from the cache does
+      not (the machine code is linked against numba's runtime, initialised here as numba
+      would). A compilation still refreshes them itself, first (``compiler.compile_extra``).
+    - When a compilation does load them, numba's probe for BLAS is skipped
+      (:func:`skip_blas_probe`).
+
+    Called by :mod:`thermoskin._jit`, through which every compiled module imports numba."""
+    try:
+        from numba.core import caching, cpu
+        from numba.core.runtime import rtsys
+    except ImportError:
+        return
+    cache, ctx = getattr(caching, "Cache", None), getattr(cpu, "CPUContext", None)
+    if cache is not None and hasattr(cache, "_load_overload") and hasattr(cache, "load_overload") \
+            and not getattr(cache.load_overload, "lean", False):
+        def load_overload(self, sig, target_context):  # type: ignore[no-untyped-def]
+            rtsys.initialize(target_context)  # what refresh did that loading needs
+            with self._guard_against_spurious_io_errors():
+                return self._load_overload(sig, target_context)
+
+        load_overload.lean = True  # type: ignore[attr-defined]
+        cache.load_overload = load_overload
+    registries = getattr(ctx, "load_additional_registries", None)
+    if registries is not None and not getattr(registries, "lean", False):
+        def load_additional_registries(self, _orig=registries):  # type: ignore[no-untyped-def]
+            skip_blas_probe()
+            return _orig(self)
+
+        load_additional_registries.lean = True  # type: ignore[attr-defined]
+        ctx.load_additional_registries = load_additional_registries
+
+
 def skip_blas_probe() -> None:
     """Load numba's array registry without its probe for BLAS, which imports ``scipy.linalg``.
 
@@ -96,8 +135,8 @@ def skip_blas_probe() -> None:
     of numpy). scipy is a dependency of this package, so the probe's answer is known: the
     module is imported here with the probe answering yes. Numba's linear algebra
     (``numba.np.linalg``, none of it used here) keeps its own checks. Called by
-    :mod:`thermoskin._jit`, through which every compiled module imports numba; harmless if
-    numba has loaded the registry already or is laid out otherwise."""
+    :func:`lean_loading` as numba loads its registries to compile; harmless if numba has
+    loaded the registry already or is laid out otherwise."""
     import sys
 
     if "numba.np.arraymath" in sys.modules:
