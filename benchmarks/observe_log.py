@@ -5,7 +5,8 @@ CSV and as Parquet; longer logs repeat it (time shifted). Each command runs as a
 its own, several times, alternating with its peer; wall time and peak resident memory (the
 process's own, from ``wait4``) are reported as medians. The peer is polars alone reading the
 file and writing the same columns plus two (what ``observe`` adds, less the estimation).
-Prints one JSON line.
+The package's bytecode is compiled first, as ``pip install`` does for polars' (see
+``startup.py``). Prints one JSON line.
 
     python benchmarks/observe_log.py [--hours 1] [--runs 3] [--memory-hours 4,8] [--events] [--json]
 """
@@ -13,6 +14,7 @@ Prints one JSON line.
 from __future__ import annotations
 
 import argparse
+import compileall
 import json
 import os
 import subprocess
@@ -65,10 +67,12 @@ def main() -> None:
                     help="also observe with --events (what touched: its 50 ms bins and each contact)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
+    import thermoskin
     from thermoskin.params import load_config
     from thermoskin.sim.run import simulate
     from thermoskin.sim.scenarios import random_scenario
 
+    compileall.compile_dir(Path(thermoskin.__file__).parent, quiet=1)
     cfg = load_config()
     sim = simulate(random_scenario(31, 600.0), cfg)
     base = {k: sim[k] for k in ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd")}
