@@ -712,3 +712,42 @@ def test_parquet_encodings_by_column(tmp_path: Path) -> None:
         np.testing.assert_array_equal(log[k], a, err_msg=k)
     e = write_log(tmp_path / "none.parquet", {k: np.zeros(0) for k in cols})
     assert pq.read_schema(e).names == list(cols)
+
+
+_ODD_FIELDS = ["1.", ".5", "5e", "e5", "1e", "--1", "1.2.3", "0x10", "+.5", "infinity", "-nan", "NaN1",
+               "1e400", "1e-400", "-inf", "+inf", "INF", "nAn", "1E5", "1e+5", "0001", "-0.0e0", "1d5",
+               "'1'", "1 ", " 1", "\t1", "true", "null", "N/A", "nan ", "1_000", "0b1", "-", "+", ".",
+               "", "NA", '"2.5"', "9" * 400, "0." + "0" * 330 + "1", "4.9e-324", "2.2250738585072014e-308"]
+
+
+@pytest.mark.parametrize("field", _ODD_FIELDS)
+def test_polars_parses_as_arrow_or_not_at_all(field: str) -> None:
+    """The CSV reader's first parser (polars) takes no field that Arrow's (the second) would
+    read otherwise: every value polars gives is Arrow's, bit for bit (so the parser a block
+    went through cannot change a log's numbers); what polars refuses goes to Arrow."""
+    from thermoskin.logio.csvlog import _arrow_parse, _fast_parse, _polars_parse
+
+    for block in (f"{field},1\n0,2\n".encode(), f"0,1\n2,{field}\n".encode()):
+        p, a = _polars_parse(block, ["a", "b"]), _arrow_parse(block, ["a", "b"])
+        if p is not None:
+            assert a is not None, (field, p)
+            for x, y in zip(p, a, strict=True):
+                assert x.tobytes() == y.tobytes(), (field, x, y)
+        f = _fast_parse(block, ["a", "b"])
+        assert (f is None) == (a is None)
+        if f is not None:
+            assert all(x.tobytes() == y.tobytes() for x, y in zip(f, a, strict=True))
+
+
+def test_a_row_short_of_fields_is_not_filled_in() -> None:
+    """polars fills a short row with nulls; the reader sees that and Arrow refuses the block,
+    so the line is named (the line-by-line pass) and nothing is read as NaN."""
+    from thermoskin.logio.csvlog import _fast_parse, _polars_parse, parse_block
+
+    block = b"0,1,2\n1,3\n2,5,6\n"
+    assert _polars_parse(block, ["a", "b", "c"]) is None and _fast_parse(block, ["a", "b", "c"]) is None
+    with pytest.raises(LogError, match="line 3: 2 fields, expected 3"):
+        parse_block(Path("x.csv"), block, ["a", "b", "c"], [True, True, True], 2)
+    # an empty last field is a NaN where allowed (Arrow reads that block)
+    cols = parse_block(Path("x.csv"), b"0,1,\n1,3,4\n", ["a", "b", "c"], [False, True, True], 2)
+    assert np.isnan(cols[2][0]) and cols[2][1] == 4.0
