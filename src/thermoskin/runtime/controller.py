@@ -35,14 +35,15 @@ class SkinController:
                  "probe", "pump", "v")
 
     def __init__(self, cfg: Config, probe: SetpointProbe | None = None, *,
-                 estimate: bool = True) -> None:
+                 estimate: bool = True, background_fits: bool = False) -> None:
         """``probe``: active sensing during a contact (module doc). ``estimate=False``:
         temperature control only (pump, MPC, inner loop), no estimator (``estimator`` is None,
         ``contact`` stays 0, so no probe either): a water loop of many patches, whose patches
-        are estimated elsewhere (``estimation.patches``)."""
+        are estimated elsewhere (``estimation.patches``). ``background_fits``: the estimator's
+        (:class:`~thermoskin.estimator.TouchEstimator`), for a realtime loop."""
         t_s = cfg.sampling.t_s
         self.probe = probe
-        self.estimator = TouchEstimator(cfg) if estimate else None
+        self.estimator = TouchEstimator(cfg, background_fits=background_fits) if estimate else None
         self.pump = PumpLogic(cfg.pump, t_s)
         self.mpc = Mpc(cfg.skin, cfg.control, t_s, v_on=cfg.pump.v_on)
         self.inner = InnerLoop(cfg.control, t_s, feedforward=model_feedforward(cfg.peltier_model))

@@ -173,9 +173,7 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
                                "device": spec.device}
     dev = _make_device(spec)
     is_sim = spec.device == "sim"
-    ctrl = SkinController(cfg)
-    if ctrl.estimator is not None:  # a contact's re-dating fit in a worker, not in the sample
-        ctrl.estimator.background_fits = True
+    ctrl = SkinController(cfg, background_fits=True)  # a contact's re-dating fit in a worker
     sup = sv.Supervisor(cfg)
     lim = limits(cfg.plausible)
     _warm_up(cfg, sc.T_a)
