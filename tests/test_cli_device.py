@@ -18,7 +18,8 @@ from thermoskin.logio import read_log
 from thermoskin.runtime.closed_loop import COLUMNS
 from thermoskin.runtime.record import iter_messages, read_mcap
 
-pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+pytestmark = [pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals"),
+              pytest.mark.usefixtures("compiled_estimator")]
 
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 CMD = [sys.executable, "-c", "from thermoskin.cli import main; main()"]

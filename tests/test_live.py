@@ -36,6 +36,8 @@ from thermoskin.params import Config  # noqa: E402
 from thermoskin.runtime.record import TOPIC_SCHEMAS, LoopRecorder, read_mcap  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.usefixtures("compiled_estimator")  # its runs time out as runs
+
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 CMD = [sys.executable, "-c", "from thermoskin.cli import main; main()"]
 SUBPROTOCOLS = ["foxglove.websocket.v1", "foxglove.sdk.v1"]

@@ -18,8 +18,9 @@ import pytest
 from thermoskin.logio import LogError, read_log
 from thermoskin.runtime.record import iter_messages, read_mcap
 
-pytestmark = pytest.mark.skipif(not hasattr(os, "openpty") or not Path("/proc").is_dir(),
-                                reason="needs pseudo-terminals and /proc")
+pytestmark = [pytest.mark.skipif(not hasattr(os, "openpty") or not Path("/proc").is_dir(),
+                                reason="needs pseudo-terminals and /proc"),
+              pytest.mark.usefixtures("compiled_estimator")]
 
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 CMD = [sys.executable, "-c", "from thermoskin.cli import main; main()"]
@@ -280,6 +281,7 @@ def _last_t(path: Path) -> float:
         return 0.0
 
 
+@pytest.mark.usefixtures("compiled_skin")
 def test_skin_run_stopped_by_sigterm_keeps_what_ran(tmp_path: Path) -> None:
     """`run --skin` stopped by SIGTERM mid-run: exit 143, one line; the log holds every sample up
     to the stop (no gap, every patch), the events and the recording are written."""

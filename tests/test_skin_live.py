@@ -46,6 +46,7 @@ from thermoskin.skin_inlet import InletStream, inlet_inputs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 FOREARM = ROOT / "examples" / "forearm.toml"
+pytestmark = pytest.mark.usefixtures("compiled_skin")  # its skin runs time out as runs
 
 
 # ----------------------------------------------------------------------------- protobuf, by hand
