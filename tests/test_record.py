@@ -212,7 +212,7 @@ def read_to_end_with_mcap(path: Path) -> int:
 # random moment while it writes 20-row blocks (as `thermoskin run` drains its loop), reports
 # how each child ended.
 INTERRUPTED = textwrap.dedent("""
-    import os, random, signal, sys, time
+    import faulthandler, os, random, signal, sys, time
     import numpy as np
     from thermoskin.runtime.record import LoopRecorder
     out, n = sys.argv[1], int(sys.argv[2])
@@ -224,6 +224,7 @@ INTERRUPTED = textwrap.dedent("""
         if pid == 0:
             os.close(r)
             code = 0
+            faulthandler.dump_traceback_later(60, exit=True)  # a child that hangs says where
             try:
                 rec = LoopRecorder(f"{out}/r{i}.mcap", {"i": i}, flush_interval=0.003)
                 try:
@@ -259,6 +260,7 @@ def test_signals_never_tear_a_recording(tmp_path: Path) -> None:
                        text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     ends = [tuple(map(int, line.split())) for line in r.stdout.splitlines()]
+    assert "Timeout" not in r.stderr, r.stderr  # a child hung (its stack, from faulthandler)
     assert len(ends) == n
     for i, sig, code in ends:
         # SIGINT: KeyboardInterrupt after the block, the file closed; SIGTERM: the file
