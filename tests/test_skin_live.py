@@ -46,7 +46,6 @@ from thermoskin.skin_inlet import InletStream, inlet_inputs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 FOREARM = ROOT / "examples" / "forearm.toml"
-pytestmark = pytest.mark.usefixtures("compiled_skin")  # its skin runs time out as runs
 
 
 # ----------------------------------------------------------------------------- protobuf, by hand
