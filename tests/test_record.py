@@ -215,6 +215,9 @@ INTERRUPTED = textwrap.dedent("""
     import faulthandler, os, random, signal, sys, time
     import numpy as np
     from thermoskin.runtime.record import LoopRecorder
+    # Python's own SIGINT handler, as in a terminal: a shell's background job (`cmd &`) starts
+    # with SIGINT ignored, which Python keeps, and the children would never see the signal
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     out, n = sys.argv[1], int(sys.argv[2])
     rng = random.Random(11)
     B = 20
