@@ -394,7 +394,7 @@ class Redater:
             self._write_rows(rows)
 
     def _write_rows(self, rows: list[tuple[float, ...]]) -> None:
-        # a hundred at a time: the conversion holds the interpreter, which a live loop waits
+        # 128 rows at a time: the conversion holds the interpreter, which a live loop waits
         # for when the worker converts (1024 rows at once: 0.3-0.8 ms)
         for i in range(0, len(rows), 128):
             self._put(tuple(np.array(rows[i:i + 128], dtype=float).T))

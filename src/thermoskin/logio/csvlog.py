@@ -1,4 +1,5 @@
-"""CSV logs: a header row, then one row per sample; read by blocks with Arrow, written with polars.
+"""CSV logs: a header row, then one row per sample; read by blocks with polars (Arrow where it
+refuses a block), written with polars.
 
 Reading: the file is cut into blocks of whole lines (about ``chunk_rows`` rows each) and each
 block is parsed by polars' CSV parser into float64 columns, or, where polars refuses the block
