@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-CLI = [sys.executable, "-c", "from thermoskin.cli import main; main()"]
+CLI = [sys.executable, "-c", "from thermoskin.__main__ import main; main()"]  # the `thermoskin` program
 
 
 def wall(cmd: list[str]) -> float:

@@ -26,7 +26,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from thermoskin import __version__
+from thermoskin import __version__, startup
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config, ConfigError, load_config
 from thermoskin.paths import PathError
@@ -86,6 +86,14 @@ def _user_errors(fn: F) -> F:
             sys.exit(2)
 
     return wrapper  # type: ignore[return-value]
+
+
+def _starts_itself(fn: F) -> F:
+    """Mark a command that ends its start-up (:func:`thermoskin.startup.resume`) itself, at
+    its first progress, after it has imported and loaded what it needs; every other command's
+    ends before it runs (:func:`main`)."""
+    fn.starts_itself = True  # type: ignore[attr-defined]
+    return fn
 
 
 def _config(path: Path | None, preset: str = "paper") -> Config:
@@ -312,6 +320,11 @@ class _Commands(click.Group):
 def main() -> None:
     """Thermoskin: touch sensing on a soft thermal robot skin (thermal exchange observer)."""
     atexit.register(_freeze_at_exit)
+    ctx = click.get_current_context()
+    name = ctx.invoked_subcommand
+    command = ctx.command.get_command(ctx, name) if isinstance(ctx.command, click.Group) and name else None
+    if not getattr(getattr(command, "callback", None), "starts_itself", False):
+        startup.resume()  # the command's start-up ends here (a run or an emulator may last hours)
 
 
 CONFIG_OPT = click.option("--config", "config_path", type=click.Path(path_type=Path),
@@ -334,6 +347,7 @@ CONFIG_OPT = click.option("--config", "config_path", type=click.Path(path_type=P
               help="With --skin: also write the body contacts (events on neighbouring patches "
                    "overlapping in time), one row each.")
 @_user_errors
+@_starts_itself
 def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
             config_path: Path | None, skin_path: Path | None = None, groups_path: Path | None = None) -> None:
     """Estimate the touch heat flow and detect contacts in a recorded log.
@@ -363,9 +377,13 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     _note_compile("estimation/kernel.run")
     with _progress_bar("observing") as bar:
         task = bar.add_task(f"observing {input_csv.name}", total=None)
-        res = observe_file(input_csv, output_csv, cfg,  # what touched: for the events file
-                           progress=lambda k, n: bar.update(task, completed=k, total=n),
-                           characterise=events_path is not None)
+
+        def progress(k: int, n: int | None) -> None:
+            startup.resume()  # the kernel is loaded and the first chunk estimated
+            bar.update(task, completed=k, total=n)
+
+        res = observe_file(input_csv, output_csv, cfg, progress=progress,
+                           characterise=events_path is not None)  # what touched: for the events file
     _write_events(events_path, res.events)
     t_s = res.t_s
     for w in res.warnings:
@@ -387,6 +405,7 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
 def _observe_skin(input_path: Path, output: Path, events_path: Path | None, groups_path: Path | None,
                   skin_path: Path, cfg: Config) -> None:
     """``observe --skin``: every patch of a skin over its long-format log (``skin_observe``)."""
+    startup.resume()  # the whole log is read at once: no progress to wait for
     from thermoskin.logio import write_log
     from thermoskin.skin import load_skin
     from thermoskin.skin_log import read_skin_log

@@ -1,0 +1,42 @@
+"""The command line's start-up: Python's cyclic garbage collector paused while modules load.
+
+A command imports numba, llvmlite, polars and this package and loads compiled code: some
+160 000 objects that the collector tracks. Each time they grow by a quarter, Python
+traverses them all again in a full collection, though nothing loaded is garbage. That was about 0.1 s of an
+``observe`` of a short log (paired runs, ``benchmarks/startup.py``). So the program's entry
+(:mod:`thermoskin.__main__`, the ``thermoskin`` command) pauses the collector, and the command
+resumes it once it has started: what was made by then is frozen (``gc.freeze``: kept out of
+every later collection, as it lives to the end anyway) and the collector runs as usual for
+the command's work. A program that imports the package is not affected: only the entry pauses.
+
+Reference counting frees everything that is not in a cycle as usual, paused or not.
+"""
+
+from __future__ import annotations
+
+import gc
+
+_paused = False
+
+
+def pause() -> None:
+    """Pause the cyclic collector for the start-up (the program's entry calls this first)."""
+    global _paused
+    if gc.isenabled():
+        gc.disable()
+        _paused = True
+
+
+def resume() -> None:
+    """End the start-up: freeze what exists (it is not garbage: loaded modules and code, the
+    command's set-up), then collect as usual. Does nothing unless :func:`pause` paused it."""
+    global _paused
+    if _paused:
+        _paused = False
+        gc.freeze()
+        gc.enable()
+
+
+def paused() -> bool:
+    """Whether the start-up's pause is on."""
+    return _paused

@@ -1,0 +1,111 @@
+"""The program's start-up: the cyclic collector paused while it loads, resumed for the work."""
+
+from __future__ import annotations
+
+import gc
+import json
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from thermoskin import startup
+from thermoskin.cli import main
+from thermoskin.logio import write_log
+from thermoskin.params import load_config
+from thermoskin.sim.run import simulate
+from thermoskin.sim.scenarios import SCENARIOS
+
+
+@pytest.fixture
+def restored_gc() -> Iterator[None]:
+    """The test process's collector as it was (enabled, nothing frozen) after the test."""
+    was = gc.isenabled()
+    yield
+    startup._paused = False
+    gc.unfreeze()
+    gc.enable() if was else gc.disable()
+
+
+def test_pause_and_resume(restored_gc: None) -> None:
+    gc.enable()
+    startup.pause()
+    assert not gc.isenabled() and startup.paused()
+    startup.resume()
+    assert gc.isenabled() and not startup.paused()
+    assert gc.get_freeze_count() > 0  # what the start-up made is kept out of collections
+    frozen = gc.get_freeze_count()
+    startup.resume()  # a second end changes nothing
+    assert gc.get_freeze_count() == frozen
+
+
+def test_a_collector_switched_off_by_the_caller_stays_off(restored_gc: None) -> None:
+    gc.disable()
+    startup.pause()
+    assert not startup.paused()
+    startup.resume()
+    assert not gc.isenabled() and gc.get_freeze_count() == 0
+
+
+def test_a_command_ends_the_start_up_as_it_begins(restored_gc: None) -> None:
+    """Every command but ``observe`` resumes the collector before its own work (a device
+    emulator or a run may last hours), whether it handles user errors or not."""
+    startup.pause()
+    res = CliRunner().invoke(main, ["scenarios"])
+    assert res.exit_code == 0, res.output
+    assert gc.isenabled() and not startup.paused()
+
+
+PROBE = """
+import gc, json, sys
+made = []  # collections (any generation) before the exit's own, the command line's handler
+exiting = []
+gc.callbacks.append(lambda phase, info: phase == "start" and not exiting and made.append(1))
+entry = sys.argv.pop(1)
+import atexit
+from thermoskin import startup
+@atexit.register
+def report():  # registered first: runs last, after the command's own exit handlers
+    print(json.dumps({"collections": len(made), "enabled": gc.isenabled(), "frozen": gc.get_freeze_count(),
+                      "paused": startup.paused()}), file=sys.stderr)
+if entry == "program":
+    from thermoskin.__main__ import main
+else:
+    from thermoskin.cli import main
+try:
+    main()
+finally:
+    exiting.append(1)
+"""
+
+
+def _probe(entry: str, *args: str) -> dict[str, object]:
+    r = subprocess.run([sys.executable, "-c", PROBE, entry, *args], capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stderr.strip().splitlines()[-1])
+
+
+def test_observe_starts_without_collections(tmp_path: Path) -> None:
+    """The program pauses the collector: an ``observe`` of a short log makes no collection
+    while it imports and loads its compiled code (the command line imported as a module,
+    unpaused, makes over two hundred: about 60 ms), then runs its work with the collector on
+    and what the start-up made frozen."""
+    log = tmp_path / "short.csv"
+    write_log(log, simulate(SCENARIOS["one-finger"].with_duration(2.0), load_config()))
+    program = _probe("program", "observe", str(log), "-o", str(tmp_path / "program.csv"))
+    module = _probe("module", "observe", str(log), "-o", str(tmp_path / "module.csv"))
+    assert module["collections"] >= 100, module  # what the pause takes out
+    assert program["collections"] <= 20, program  # those of the work after the start-up
+    assert program["enabled"] and not program["paused"] and program["frozen"] > 100_000, program
+    assert (tmp_path / "program.csv").read_bytes() == (tmp_path / "module.csv").read_bytes()
+
+
+def test_a_failing_command_still_exits_cleanly(tmp_path: Path) -> None:
+    """A user error during the start-up (the pause still on) is one line and exit 2."""
+    r = subprocess.run([sys.executable, "-m", "thermoskin", "observe", str(tmp_path / "none.csv"),
+                        "-o", str(tmp_path / "o.csv")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and r.stderr.startswith("thermoskin: error:") and "Traceback" not in r.stderr
