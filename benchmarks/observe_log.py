@@ -76,7 +76,7 @@ def main() -> None:
     cfg = load_config()
     sim = simulate(random_scenario(31, 600.0), cfg)
     base = {k: sim[k] for k in ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd")}
-    tool = [sys.executable, "-c", "from thermoskin.cli import main; main()"]
+    tool = [sys.executable, "-c", "from thermoskin.__main__ import main; main()"]  # the `thermoskin` program
     res: dict[str, object] = {"hours": a.hours, "runs": a.runs}
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
