@@ -78,7 +78,14 @@ GOOD_ROWS = "".join(f"{k * 0.001:.3f},24.0,24.3,0.141,20.0\n" for k in range(50)
     (lambda d: _write(d, "jump.csv", "t,T_w,T_p,v,T_a\n" + GOOD_ROWS + "0.070,24,24,0.1,20\n"),
      "non-uniform"),
 ])
-def test_observe_bad_input_one_line_exit_2(tmp_path: Path, make, needle: str) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("cached", [True, False], ids=["warm", "cold"])
+def test_observe_bad_input_one_line_exit_2(tmp_path: Path, make, needle: str, cached: bool,  # type: ignore[no-untyped-def]
+                                           monkeypatch) -> None:
+    """One line, whether the kernel is in numba's cache or not: on a cold cache (the first run
+    after an install) the log's first chunk is checked before the note that compiling begins."""
+    from thermoskin import _numba_cache
+
+    monkeypatch.setattr(_numba_cache, "has_compiled", lambda stem: cached)
     code, _, err = invoke("observe", str(make(tmp_path)), "-o", str(tmp_path / "o.csv"))
     assert code == 2
     lines = err.strip().splitlines()
@@ -404,6 +411,13 @@ def test_observe_skin_asks_for_the_estimators_only(tmp_path: Path, monkeypatch) 
         if missing is None:  # (with one missing, the lookup stops there)
             assert sorted(asked) == sorted(names)
         assert err.count("thermoskin: compiling the patches' estimators") == (missing is not None)
+    # a bad log on a cold cache: its error alone (the log is checked before the notice)
+    rows = log.read_text().splitlines()
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(rows[:9] + [rows[9].replace(",", ",x", 1)] + rows[10:]) + "\n")
+    monkeypatch.setattr(_numba_cache, "has_compiled", lambda w: False)
+    code, _, err = invoke("observe", "--skin", str(forearm), str(bad), "-o", str(tmp_path / "b.csv"))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "thermoskin: error:" in err, err
 
 
 def test_exit_freeze_still_finalises_garbage(tmp_path) -> None:  # type: ignore[no-untyped-def]

@@ -171,11 +171,21 @@ def _note_compile(where: str | tuple[str, ...], what: str = "the estimator",
     """Say so, once, when compiled code (``package/module.function``, or several: any of them)
     is not in numba's cache yet (the first run after an install or an update): compiling takes
     a while, with nothing else to show meanwhile."""
+    note = _compile_note(where, what, how_long)
+    if note is not None:
+        note()
+
+
+def _compile_note(where: str | tuple[str, ...], what: str = "the estimator",
+                  how_long: str = "20-60 s") -> Callable[[], None] | None:
+    """What :func:`_note_compile` would print, to print later (once the input has passed its
+    checks); None when the code is in the cache."""
     from thermoskin._numba_cache import has_compiled
 
-    if not all(has_compiled(w) for w in ((where,) if isinstance(where, str) else where)):
-        err_console.print(f"thermoskin: compiling {what} (once after an install or an update: "
-                          f"{how_long}; cached for the next runs)")
+    if all(has_compiled(w) for w in ((where,) if isinstance(where, str) else where)):
+        return None
+    return lambda: err_console.print(f"thermoskin: compiling {what} (once after an install or an "
+                                     f"update: {how_long}; cached for the next runs)")
 
 
 def _shown(events: list[ContactEvent], title: str) -> tuple[str, list[tuple[int, ContactEvent]]]:
@@ -374,7 +384,6 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     if partial_last_line(input_csv):
         click.echo(f"thermoskin: warning: {input_csv}: the last line is cut (its writer was stopped "
                    "while writing it): left out", err=True)
-    _note_compile("estimation/kernel.run")
     with _progress_bar("observing") as bar:
         task = bar.add_task(f"observing {input_csv.name}", total=None)
 
@@ -383,7 +392,8 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
             bar.update(task, completed=k, total=n)
 
         res = observe_file(input_csv, output_csv, cfg, progress=progress,
-                           characterise=events_path is not None)  # what touched: for the events file
+                           characterise=events_path is not None,  # what touched: for the events file
+                           compiling=_compile_note("estimation/kernel.run"))
     _write_events(events_path, res.events)
     t_s = res.t_s
     for w in res.warnings:
@@ -411,10 +421,10 @@ def _observe_skin(input_path: Path, output: Path, events_path: Path | None, grou
     from thermoskin.skin_log import read_skin_log
 
     skin = load_skin(skin_path, cfg)
-    _note_compile(skin_kernels(skin, plant=False), "the patches' estimators", "about 30 s")
     with _progress_bar("observing") as bar:
         bar.add_task(f"observing {input_path.name} on {skin.name}", total=None)
-        log = read_skin_log(input_path, skin)
+        log = read_skin_log(input_path, skin)  # checked whole before the note (a bad log: one line)
+        _note_compile(skin_kernels(skin, plant=False), "the patches' estimators", "about 30 s")
         from thermoskin.skin_log import long_columns
         from thermoskin.skin_observe import observe_skin
 

@@ -190,14 +190,17 @@ def _prepared(chunks: Iterable[dict[str, NDArray[np.float64]]], cfg: Config, fre
 
 def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg: Config,
                  progress: Callable[[int, int | None], None] | None = None, *,
-                 characterise: bool = True) -> StreamResult:
+                 characterise: bool = True, compiling: Callable[[], None] | None = None) -> StreamResult:
     """:func:`observe` streamed from a log file to another (CSV or Parquet each), in chunks:
     memory does not grow with the log's length. The output holds every input column, the
     input's own estimates renamed ``*_live``, then ``q_i_hat, dq_i_hat, contact, gap``.
     Implausible values are dropped per chunk as :func:`observe` drops them (a log still being
     written, or cut by a kill, is read to its last whole line). ``characterise``: say what
     touched, per contact as it closes (:mod:`thermoskin.characterise`; about 14 ms a contact);
-    False leaves the events' character fields empty."""
+    False leaves the events' character fields empty. ``compiling``: the kernel is not compiled
+    yet (a cold cache), so it is compiled only once the first chunk has passed every check
+    (a bad log is one error, not a compile first), and ``compiling()`` is called just before;
+    otherwise the kernel is loaded while the first chunk is read."""
     from thermoskin.logio import LogReader, LogWriter, WriteBehind, prefetch
 
     with LogReader(path, required=INPUT_COLUMNS, live=True, one_patch=True) as reader:
@@ -219,11 +222,15 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
         # read ahead and write behind in threads while the kernel (GIL released) estimates
         with (LogWriter(out, out_names, atomic=True) as writer, WriteBehind(writer) as behind,
               prefetch(_prepared(reader, cfg, fresh_inf), depth=PREFETCH_CHUNKS) as chunks):
-            warm_up(cfg)  # while the first chunks are read
+            if compiling is None:
+                warm_up(cfg)  # while the first chunks are read
             for chunk, fresh, clean, n_sw in chunks:
                 if est is None:
                     t_s = loop_t_s(sample_interval(chunk["t"]), cfg)
                     check_interval(t_s, str(path))
+                    if compiling is not None:
+                        compiling()
+                        warm_up(cfg)
                     est = TouchEstimator(cfg, t_s=t_s)
                 for k, n in clean.counts.items():
                     first.setdefault(k, clean.first[k])
