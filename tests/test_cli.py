@@ -414,7 +414,7 @@ def test_observe_skin_asks_for_the_estimators_only(tmp_path: Path, monkeypatch) 
     # a bad log on a cold cache: its error alone (the log is checked before the notice)
     rows = log.read_text().splitlines()
     bad = tmp_path / "bad.csv"
-    bad.write_text("\n".join(rows[:9] + [rows[9].replace(",", ",x", 1)] + rows[10:]) + "\n")
+    bad.write_text("\n".join([*rows[:9], rows[9].replace(",", ",x", 1), *rows[10:]]) + "\n")
     monkeypatch.setattr(_numba_cache, "has_compiled", lambda w: False)
     code, _, err = invoke("observe", "--skin", str(forearm), str(bad), "-o", str(tmp_path / "b.csv"))
     assert code == 2 and len(err.strip().splitlines()) == 1 and "thermoskin: error:" in err, err

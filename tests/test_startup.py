@@ -89,7 +89,7 @@ def _probe(entry: str, *args: str) -> dict[str, object]:
     return json.loads(r.stderr.strip().splitlines()[-1])
 
 
-def test_observe_starts_without_collections(tmp_path: Path) -> None:
+def test_observe_starts_without_collections(tmp_path: Path, compiled_estimator: None) -> None:
     """The program pauses the collector: an ``observe`` of a short log makes no collection
     while it imports and loads its compiled code (the command line imported as a module,
     unpaused, makes over two hundred: about 60 ms), then runs its work with the collector on
@@ -102,6 +102,43 @@ def test_observe_starts_without_collections(tmp_path: Path) -> None:
     assert program["collections"] <= 20, program  # those of the work after the start-up
     assert program["enabled"] and not program["paused"] and program["frozen"] > 100_000, program
     assert (tmp_path / "program.csv").read_bytes() == (tmp_path / "module.csv").read_bytes()
+
+
+def test_a_cold_cache_ends_the_start_up_before_compiling(tmp_path: Path, restored_gc: None,
+                                                         monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """On a cold cache ``observe`` compiles its kernel after the first chunk: the collector is
+    on by then, so the compiler's garbage (millions of objects) is collected, not frozen."""
+    from thermoskin import _numba_cache, pipeline
+
+    log = tmp_path / "short.csv"
+    write_log(log, simulate(SCENARIOS["one-finger"].with_duration(2.0), load_config()))
+    seen: list[tuple[bool, bool]] = []
+    warm_up = pipeline.warm_up
+
+    def watched(cfg):  # type: ignore[no-untyped-def]
+        seen.append((gc.isenabled(), startup.paused()))
+        warm_up(cfg)
+
+    monkeypatch.setattr(_numba_cache, "has_compiled", lambda stem: False)
+    monkeypatch.setattr(pipeline, "warm_up", watched)
+    startup.pause()
+    res = CliRunner().invoke(main, ["observe", str(log), "-o", str(tmp_path / "o.csv")])
+    assert res.exit_code == 0, res.output
+    assert seen == [(True, False)]
+    assert "compiling the estimator" in res.stderr
+
+
+def test_an_early_exit_turns_the_collector_back_on(restored_gc: None, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """``--help`` (or a usage error) ends before any command's start-up does; the program's
+    entry still turns the collector back on, unfrozen, for a caller that goes on."""
+    from thermoskin.__main__ import main as program
+
+    gc.enable()
+    for args in (["--help"], ["observe", "--help"], ["nonsense"]):
+        monkeypatch.setattr(sys, "argv", ["thermoskin", *args])
+        with pytest.raises(SystemExit):
+            program()
+        assert gc.isenabled() and not startup.paused() and gc.get_freeze_count() == 0, args
 
 
 def test_a_failing_command_still_exits_cleanly(tmp_path: Path) -> None:

@@ -10,9 +10,12 @@ def main() -> None:
     from thermoskin import startup
 
     startup.pause()
-    from thermoskin.cli import main as cli
+    try:
+        from thermoskin.cli import main as cli
 
-    cli()
+        cli()
+    finally:
+        startup.cancel()  # a command that exited before its start-up ended (--help, a usage error)
 
 
 if __name__ == "__main__":

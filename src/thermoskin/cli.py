@@ -391,9 +391,15 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
             startup.resume()  # the kernel is loaded and the first chunk estimated
             bar.update(task, completed=k, total=n)
 
+        note = _compile_note("estimation/kernel.run")
+
+        def compiling() -> None:  # a cold cache: the start-up ends before numba compiles, whose
+            startup.resume()      # garbage (millions of objects) must not be frozen
+            note()
+
         res = observe_file(input_csv, output_csv, cfg, progress=progress,
                            characterise=events_path is not None,  # what touched: for the events file
-                           compiling=_compile_note("estimation/kernel.run"))
+                           compiling=None if note is None else compiling)
     _write_events(events_path, res.events)
     t_s = res.t_s
     for w in res.warnings:

@@ -39,3 +39,12 @@ def resume() -> None:
 def paused() -> bool:
     """Whether the start-up's pause is on."""
     return _paused
+
+
+def cancel() -> None:
+    """Turn the collector back on without freezing (the program's entry, when a command ended
+    before its start-up did: ``--help``, a usage error; for a caller that goes on after it)."""
+    global _paused
+    if _paused:
+        _paused = False
+        gc.enable()
