@@ -6,8 +6,11 @@ times in turn with its peer, so that load on a shared machine falls on all of th
 The package's bytecode is compiled first, as ``pip install`` does for numpy's (an editable
 install leaves it to the first import, which ``PYTHONDONTWRITEBYTECODE``, set on some
 machines, forbids: each run would then compile the package's sources again, about 0.07 s).
-Prints one JSON line: per command the median and p99 wall time (s) and the ratio of medians
-to the peer's.
+Each command runs also as the command line entered as a module (``*_unpaused``: Python's
+collector never paused, :mod:`thermoskin.startup`), and one ``observe`` of each kind counts its
+collections and the time they took (``gc.callbacks``). Prints one JSON line: per command the
+median and p99 wall time (s), the ratio of medians to the peer's, and for the program's the
+median of its run-by-run ratio to the unpaused one; the collections.
 
     python benchmarks/startup.py [--runs 15] [--json]
 """
@@ -26,6 +29,29 @@ from pathlib import Path
 import numpy as np
 
 CLI = [sys.executable, "-c", "from thermoskin.__main__ import main; main()"]  # the `thermoskin` program
+#: the same command line entered as a module: the collector never paused (thermoskin.startup)
+UNPAUSED = [sys.executable, "-c", "from thermoskin.cli import main; main()"]
+
+#: counts the collections of a command (up to its exit handlers) and the time they took
+COUNTED = """
+import gc, json, sys, time
+n, spent, t0, done = [0], [0.0], [0.0], []
+def cb(phase, info):
+    if done: return
+    if phase == "start": t0[0] = time.perf_counter()
+    else: n[0] += 1; spent[0] += time.perf_counter() - t0[0]
+gc.callbacks.append(cb)
+entry = sys.argv.pop(1)
+try:
+    if entry == "program":
+        from thermoskin.__main__ import main
+    else:
+        from thermoskin.cli import main
+    main()
+finally:
+    done.append(1)
+    print(json.dumps({"collections": n[0], "ms": round(spent[0] * 1e3, 1)}), file=sys.stderr)
+"""
 
 
 def wall(cmd: list[str]) -> float:
@@ -48,16 +74,26 @@ def main() -> None:
                        stdout=subprocess.DEVNULL)
         cmds = {"numpy": [sys.executable, "-c", "import numpy"],
                 "help": [*CLI, "--help"],
-                "observe_2s": [*CLI, "observe", str(log), "-o", str(out)]}
+                "observe_2s": [*CLI, "observe", str(log), "-o", str(out)],
+                "help_unpaused": [*UNPAUSED, "--help"],
+                "observe_2s_unpaused": [*UNPAUSED, "observe", str(log), "-o", str(out)]}
         for c in cmds.values():  # caches (numba's, the file system's) warm, as a user's second call
             wall(c)
         times: dict[str, list[float]] = {k: [] for k in cmds}
         for _ in range(a.runs):
             for k, c in cmds.items():
                 times[k].append(wall(c))
+        counted = {}
+        for entry in ("program", "module"):
+            r = subprocess.run([sys.executable, "-c", COUNTED, entry, "observe", str(log), "-o", str(out)],
+                               capture_output=True, text=True, check=True)
+            counted[entry] = json.loads(r.stderr.strip().splitlines()[-1])
     peer = float(np.median(times["numpy"]))
     res = {k: {"median_s": round(float(np.median(v)), 3), "p99_s": round(float(np.percentile(v, 99)), 3),
                "ratio_to_numpy": round(float(np.median(v)) / peer, 2)} for k, v in times.items()}
+    for k in ("help", "observe_2s"):  # paired with the same command unpaused, run by run
+        res[k]["ratio_to_unpaused"] = round(float(np.median(np.array(times[k]) / times[f"{k}_unpaused"])), 2)
+    res["collections_observe_2s"] = {"paused": counted["program"], "unpaused": counted["module"]}
     res["runs"] = a.runs
     if not a.json:
         for k, v in res.items():

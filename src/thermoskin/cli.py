@@ -331,8 +331,7 @@ def main() -> None:
     """Thermoskin: touch sensing on a soft thermal robot skin (thermal exchange observer)."""
     atexit.register(_freeze_at_exit)
     ctx = click.get_current_context()
-    name = ctx.invoked_subcommand
-    command = ctx.command.get_command(ctx, name) if isinstance(ctx.command, click.Group) and name else None
+    command = main.get_command(ctx, ctx.invoked_subcommand) if ctx.invoked_subcommand else None
     if not getattr(getattr(command, "callback", None), "starts_itself", False):
         startup.resume()  # the command's start-up ends here (a run or an emulator may last hours)
 

@@ -1,8 +1,9 @@
 """The command line's start-up: Python's cyclic garbage collector paused while modules load.
 
 A command imports numba, llvmlite, polars and this package and loads compiled code: some
-160 000 objects that the collector tracks, and 245 collections over them as they load (55-60
-ms of an ``observe`` of a short log), though nothing loaded is garbage. So the program's entry
+160 000 objects that the collector tracks, and about 240 collections over them as they load
+(55-72 ms of an ``observe`` of a short log: ``benchmarks/startup.py``), though nothing loaded
+is garbage. So the program's entry
 (:mod:`thermoskin.__main__`, the ``thermoskin`` command) pauses the collector, and the command
 resumes it once it has started: what was made by then is frozen (``gc.freeze``: kept out of
 every later collection, as it lives to the end anyway) and the collector runs as usual for
