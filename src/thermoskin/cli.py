@@ -419,30 +419,24 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
 
 def _observe_skin(input_path: Path, output: Path, events_path: Path | None, groups_path: Path | None,
                   skin_path: Path, cfg: Config) -> None:
-    """``observe --skin``: every patch of a skin over its long-format log (``skin_observe``)."""
-    startup.resume()  # the whole log is read at once: no progress to wait for
-    from thermoskin.logio import write_log
+    """``observe --skin``: every patch of a skin over its long-format log (``skin_observe``),
+    streamed (:func:`~thermoskin.skin_observe.observe_skin_file`)."""
+    startup.resume()  # a progress of its own (pass 2), after a pass that checks the log
     from thermoskin.skin import load_skin
-    from thermoskin.skin_log import read_skin_log
+    from thermoskin.skin_observe import observe_skin_file
 
     skin = load_skin(skin_path, cfg)
     with _progress_bar("observing") as bar:
-        bar.add_task(f"observing {input_path.name} on {skin.name}", total=None)
-        log = read_skin_log(input_path, skin)  # checked whole before the note (a bad log: one line)
-        _note_compile(skin_kernels(skin, plant=False), "the patches' estimators", "about 30 s")
-        from thermoskin.skin_log import long_columns
-        from thermoskin.skin_observe import observe_skin
-
-        obs = observe_skin(log, skin)
-        live = [k for k in ("q_i_hat", "dq_i_hat", "contact", "gap") if k in log.cols]
-        extra = {f"{k}_live": log.cols[k] for k in live}
-        extra.update({"T_in": obs.T_in, **obs.columns})
-        write_log(output, long_columns(log, extra, drop=tuple(live)))
+        task = bar.add_task(f"observing {input_path.name} on {skin.name}", total=1.0)
+        obs = observe_skin_file(input_path, skin, output,  # checked whole before the compile note
+                                compiling=_compile_note(skin_kernels(skin, plant=False),
+                                                        "the patches' estimators", "about 30 s"),
+                                progress=lambda f: bar.update(task, completed=f))
     for w in obs.warnings:
         click.echo(f"thermoskin: warning: {input_path}: {w}", err=True)
     _skin_report(skin, obs.events, output.with_suffix(".png"), events_path, groups_path,
                  f"thermoskin observe {input_path.name}")
-    console.print(f"{log.n} samples of {len(skin.patches)} patches at {1 / log.t_s:.0f} Hz, "
+    console.print(f"{obs.n} samples of {len(skin.patches)} patches at {1 / obs.t_s:.0f} Hz, "
                   f"{len(obs.events)} contacts; wrote {output} and {output.with_suffix('.png')}"
                   + (f", {events_path}" if events_path else "") + (f", {groups_path}" if groups_path else ""))
 

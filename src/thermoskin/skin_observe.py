@@ -45,9 +45,11 @@ contact and the samples before it, so it is computed from the log (:func:`observ
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
-from collections.abc import Mapping
+import os
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -61,8 +63,8 @@ from thermoskin.patches import PatchEstimators
 from thermoskin.pipeline import loop_t_s
 from thermoskin.skin import NETWORK_KEYS, Skin, tc_fresh_bit
 from thermoskin.skin_inlet import InletStream
-from thermoskin.skin_log import SkinLog
-from thermoskin.skin_position import NAN_POSITION, PatchLocator, Position
+from thermoskin.skin_log import CHUNK_SAMPLES, SkinLog, SkinLogReader, long_block
+from thermoskin.skin_position import NAN_POSITION, PatchLocator, Position, window
 from thermoskin.skin_transport import TransportCorrection
 
 Array = NDArray[np.float64]
@@ -298,6 +300,15 @@ class ReadingCounter:
         return 1.0 / (float((j * w).sum()) / float(w.sum()) * self.t_s)
 
 
+def boards_period(skin: Skin, t_s: float, rate: float) -> float | None:
+    """The pipe thermocouples' period from their readings a second ``rate`` (a log's, counted by
+    :class:`ReadingCounter`), as :func:`log_boards_period` takes it; None where the config gives
+    one or the boards read as fast as the loop."""
+    if skin.cfg.sensor.period_T_w != 0.0 or skin.cfg.sensor.period_T_p != 0.0:
+        return None
+    return 1.0 / rate if 0.0 < rate <= 1.0 / (1.5 * t_s) else None
+
+
 def log_boards_period(log: SkinLog, skin: Skin, t_s: float,
                       fresh: NDArray[np.int64] | None = None) -> float | None:
     """The pipe thermocouples' period read from ``log`` (s) where the config gives none
@@ -311,8 +322,7 @@ def log_boards_period(log: SkinLog, skin: Skin, t_s: float,
         return None
     rc = ReadingCounter(len(skin.patches), t_s)
     rc.count(SkinFreshInference(skin).feed(log.cols) if fresh is None else fresh)
-    r = rc.rate
-    return 1.0 / r if 0.0 < r <= 1.0 / (1.5 * t_s) else None
+    return boards_period(skin, t_s, rc.rate)
 
 
 class SkinEstimator:
@@ -402,6 +412,134 @@ class SkinEstimator:
         self.est.finish(t)
 
 
+@dataclass
+class SkinFileObservation:
+    """What :func:`observe_skin_file` found: the events in order of onset, the log's samples and
+    interval, the new pipe readings a second, the warnings (:func:`board_warnings`)."""
+
+    events: list[SkinEvent]
+    n: int
+    t_s: float
+    reading_rate: float
+    warnings: list[str]
+
+
+def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os.PathLike[str], *,
+                      locate: bool = True, chunk_samples: int = CHUNK_SAMPLES,
+                      compiling: Callable[[], None] | None = None,
+                      progress: Callable[[float], None] | None = None) -> SkinFileObservation:
+    """:func:`observe_skin` on the log at ``path``, streamed: the log's columns and the estimates
+    (as ``observe --skin`` writes them) go to ``output`` block by block, so memory does not grow
+    with the log's length. Three passes:
+
+    1. the log is read and checked whole, and its boards' readings counted
+       (:func:`boards_period`), before anything is written or compiled (a bad log: one
+       :class:`~thermoskin.logio.LogError`; ``compiling`` is called after it, before the first
+       estimate);
+    2. the :class:`SkinEstimator` takes it block by block (as ``run --skin`` does live) and
+       the blocks are written to ``output`` (whole or not at all), ``progress`` told the share done;
+    3. ``output`` is read back for the samples each contact's position needs
+       (:func:`~thermoskin.skin_position.window`: a few seconds each), which alone are kept.
+
+    The same outputs and events as :func:`observe_skin` on the whole log (tested)."""
+    from thermoskin.logio import LogWriter
+
+    P = len(skin.patches)
+    reader = SkinLogReader(path, skin, chunk_samples)
+    infer = SkinFreshInference(skin)
+    counter: ReadingCounter | None = None
+    t0 = t_end = math.nan
+    for t, cols in reader:  # 1: checked whole, readings counted
+        if counter is None:
+            t0 = float(t[0])
+            counter = ReadingCounter(P, loop_t_s(reader.t_s, skin.cfg))
+        counter.count(infer.feed(cols))
+        t_end = float(t[-1])
+    assert counter is not None  # a log has 2 samples at least (SkinLogReader)
+    n, log_t_s = reader.n, reader.t_s
+    t_s = loop_t_s(log_t_s, skin.cfg)
+    period = boards_period(skin, t_s, counter.rate)
+    if compiling is not None:
+        compiling()
+    est = SkinEstimator(skin, t_s, period)
+    live = [k for k in ("q_i_hat", "dq_i_hat", "contact", "gap") if k in reader.names]
+    writer: LogWriter | None = None
+    done = 0
+    with contextlib.ExitStack() as stack:  # 2: estimated and written block by block
+        for t, cols in SkinLogReader(path, skin, chunk_samples):
+            b = est.block(t, cols)
+            extra = {f"{k}_live": cols[k] for k in live}
+            extra.update({"T_in": b.T_in, **b.columns})
+            block = long_block(cols, reader.names, extra, drop=tuple(live))
+            if writer is None:
+                writer = stack.enter_context(LogWriter(output, list(block), atomic=True))
+            writer.write(block)
+            done += len(t)
+            if progress is not None:
+                progress(done / n)
+    est.finish(t_end)
+    windows = []
+    for e, (i, ev) in enumerate(est.events):
+        if locate and len(skin.patches[i].thermocouples) >= 2:
+            k_on = round((ev.onset - t0) / t_s)
+            k_off = round((ev.release - t0) / t_s)
+            windows.append((e, i, k_on, k_off, *window(k_on, k_off, n, t_s)))
+    pos = _locate_windows(output, skin, windows, t_s, chunk_samples)
+    events = [SkinEvent(i, skin.patches[i].name, ev, pos.get(e, NAN_POSITION))
+              for e, (i, ev) in enumerate(est.events)]
+    events.sort(key=lambda e: (e.event.onset, e.patch))
+    return SkinFileObservation(events, n, log_t_s, est.reading_rate,
+                               board_warnings(skin, est.reading_rate, period))
+
+
+_Window = tuple[int, int, int, int, int, int, int]
+"""A contact's index among the events, its patch, onset and release samples, and its
+:func:`window` (kb, k0, k1)."""
+
+
+def _locate_windows(output: str | os.PathLike[str], skin: Skin, windows: list[_Window], t_s: float,
+                    chunk_samples: int) -> dict[int, Position]:
+    """Pass 3 of :func:`observe_skin_file`: each window's samples of its patch gathered from the
+    written ``output`` (its log columns, ``T_in``, ``dq_i_hat``; the fresh bits inferred again from
+    the same columns) and located (the model at the estimator's ``t_s``: the configured interval
+    where the log's is that, not the median of its times, whose last bits follow how the log
+    was cut); by the event's index."""
+    out: dict[int, Position] = {}
+    if not windows:
+        return out
+    windows = sorted(windows, key=lambda w: w[4])
+    parts: dict[int, list[dict[str, Array]]] = {}
+    locators: dict[int, PatchLocator] = {}
+    infer = SkinFreshInference(skin)
+    k = 0
+    nxt = 0  # windows[:nxt] have begun
+    for _, cols in SkinLogReader(output, skin, chunk_samples):
+        m = len(cols["t"])
+        fresh = infer.feed(cols)
+        Y = block_thermocouples(cols, skin)
+        while nxt < len(windows) and windows[nxt][4] < k + m:
+            parts[nxt] = []
+            nxt += 1
+        for w in list(parts):
+            e, i, k_on, k_off, kb, _, k1 = windows[w]
+            a, b = max(kb, k) - k, min(k1, k + m) - k
+            if b > a:
+                parts[w].append({"T_in": cols["T_in"][a:b, i], "T_a": cols["T_a"][a:b, i],
+                                 "v": cols["v"][a:b, i], "dq": cols["dq_i_hat"][a:b, i],
+                                 "fresh": fresh[a:b, i], **{f"Y{j}": y[a:b, i] for j, y in enumerate(Y)}})
+            if k1 <= k + m:  # the window is whole: locate, let its samples go
+                got = parts.pop(w)
+                c = {key: np.concatenate([g[key] for g in got]) if got else np.zeros(0) for key in
+                     ("T_in", "T_a", "v", "dq", "fresh", *(f"Y{j}" for j in range(len(Y))))}
+                ntc = len(skin.patches[i].thermocouples)
+                fr = [(c["fresh"].astype(np.int64) & tc_fresh_bit(j)) != 0 for j in range(ntc)]
+                loc = locators.get(i) or locators.setdefault(i, PatchLocator(skin, i, t_s))
+                out[e] = loc.locate(k_on - kb, k_off - kb, c["T_in"], c["T_a"], c["v"],
+                                         [c[f"Y{j}"] for j in range(ntc)], fr, c["dq"])
+        k += m
+    return out
+
+
 def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObservation:
     """Estimate, detect and locate on every patch of ``skin`` over ``log`` (module doc): the
     :class:`SkinEstimator` fed the whole log as one block."""
@@ -419,9 +557,9 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
     for i, ev in est.events:
         pos = NAN_POSITION
         if locate and len(skin.patches[i].thermocouples) >= 2:
-            loc = locators.get(i) or locators.setdefault(i, PatchLocator(skin, i, log.t_s))
-            k_on = round((ev.onset - log.t[0]) / log.t_s)
-            k_off = round((ev.release - log.t[0]) / log.t_s)
+            loc = locators.get(i) or locators.setdefault(i, PatchLocator(skin, i, t_s))
+            k_on = round((ev.onset - log.t[0]) / t_s)
+            k_off = round((ev.release - log.t[0]) / t_s)
             bits = [tc_fresh_bit(j) for j in range(len(skin.patches[i].thermocouples))]
             fr_i = [(fresh[:, i] & b_) != 0 for b_ in bits]
             pos = loc.locate(k_on, k_off, T_in[:, i], c["T_a"][:, i], c["v"][:, i],

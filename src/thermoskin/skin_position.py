@@ -74,6 +74,16 @@ class Position:
 NAN_POSITION = Position(math.nan, math.nan, math.nan, math.nan)
 
 
+def window(k_on: int, k_off: int, n: int, t_s: float) -> tuple[int, int, int]:
+    """The samples :meth:`PatchLocator.locate` reads for a contact from sample ``k_on`` to
+    ``k_off`` of a log of ``n``: the model's start-up from ``kb``, the fitted window ``k0`` to
+    ``k1`` (:data:`BURN_S`, :data:`PRE_S` before the onset, at most :data:`MAX_S` of the contact).
+    Only ``[kb, k1)`` is read, so a log streamed by (``observe --skin``) keeps just those samples."""
+    k0 = max(0, k_on - round(PRE_S / t_s))
+    k1 = min(n, k_off, k_on + round(MAX_S / t_s))
+    return max(0, k0 - round(BURN_S / t_s)), k0, k1
+
+
 class PatchLocator:
     """The spatial model of one patch of a skin, discretised for the pump running and stopped."""
 
@@ -125,15 +135,12 @@ class PatchLocator:
         patch's inlet ``T_in``, air ``T_a``, pump ``v``, thermocouple readings ``Y[j]`` and the
         estimated heat ``dq`` (all over the whole log; ``fresh[j]`` marks the readings to use,
         default all; ``dq`` None: a step of 1 W)."""
-        t_s = self.t_s
-        k0 = max(0, k_on - round(PRE_S / t_s))
-        k1 = min(len(v), k_off, k_on + round(MAX_S / t_s))
+        kb, k0, k1 = window(k_on, k_off, len(v), self.t_s)
         if k1 - k_on < 2 or k_on - k0 < 2:
             return NAN_POSITION
         vv = np.nan_to_num(v[k0:k1])
         if not np.any(vv[k_on - k0:] > 0.0):
             return NAN_POSITION  # the pump did not run during the contact
-        kb = max(0, k0 - round(BURN_S / t_s))
         vb = np.nan_to_num(v[kb:k0])
         mats = {float(x): self._matrices(float(x)) for x in np.unique(np.concatenate((vb, vv)))}
         p = self.patch

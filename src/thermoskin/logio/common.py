@@ -51,7 +51,10 @@ def nan_allowed(name: str) -> bool:
 
 
 def allow_nan(names: list[str], nan_columns: object = None) -> list[bool]:
-    """Per column, whether NaN is allowed: ``nan_columns`` if given, else :func:`nan_allowed`; never ``t``."""
+    """Per column, whether NaN is allowed: ``nan_columns`` if given (the names, or a rule taking a
+    name), else :func:`nan_allowed`; never ``t``."""
+    if callable(nan_columns):
+        return [(n != "t") and bool(nan_columns(n)) for n in names]
     nan_set = set(nan_columns) if nan_columns is not None else None  # type: ignore[call-overload]
     return [(n != "t") and (n in nan_set if nan_set is not None else nan_allowed(n)) for n in names]
 

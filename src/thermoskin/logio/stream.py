@@ -62,6 +62,9 @@ class LogReader:
     a last line without its line end is left out instead of read as a cut row.
     ``one_patch=True``: a skin's long-format log (a ``patch`` column) is refused at once, in
     one line saying what it is (the single patch's commands read logs this way).
+    ``rows_per_sample=P``: a skin's long format, each sample ``P`` rows (one per patch) of one
+    ``t``: chunks hold whole samples, ``t`` is checked sample by sample, a row whose ``t`` is
+    not its sample's and a last sample cut short are faults, and a log needs 2 samples.
 
     Attributes: ``names`` (column order of the file), ``n_rows`` (Parquet: from the footer;
     CSV: None until read to the end), ``rows`` (rows given so far), ``t_s`` (the first
@@ -78,11 +81,15 @@ class LogReader:
         chunk_rows: int = CHUNK_ROWS,
         live: bool = False,
         one_patch: bool = False,
+        rows_per_sample: int = 1,
     ) -> None:
         self.path = p = Path(path)
         self.format = log_format(p)
         if chunk_rows < 1:
             raise ValueError(f"LogReader: chunk_rows must be >= 1, got {chunk_rows}")
+        if rows_per_sample < 1:
+            raise ValueError(f"LogReader: rows_per_sample must be >= 1, got {rows_per_sample}")
+        self.rows_per_sample = rows_per_sample
         _check_file(p)
         self.chunk_rows = chunk_rows
         self.uniform = uniform
@@ -114,63 +121,97 @@ class LogReader:
         if self._started:
             raise RuntimeError(f"LogReader({self.path}) can be iterated once; open a new one")
         self._started = True
-        pending: list[Array] | None = None  # a first chunk of one row waits for the next
+        R = self.rows_per_sample
+        pending: list[Array] | None = None  # a first chunk of one sample waits for the next
         for cols in self._chunks():
             if pending is not None:
                 cols = [np.concatenate((a, b)) for a, b in zip(pending, cols, strict=True)]
                 pending = None
-            if self.rows < 2:
+            if self.rows < 2 * R:
                 pending = cols
                 continue
             yield dict(zip(self.names, cols, strict=True))
         if self.rows == 0:
             where = " (only the header on line 1)" if self.format == "csv" else ""
             raise LogError(f"{self.path}: no data rows{where}")
-        if self.rows == 1:
-            where = " (line 2)" if self.format == "csv" else ""
-            raise LogError(f"{self.path}: only 1 data row{where}; a log needs at least 2 samples")
+        if self.rows == R:
+            where = " (line 2)" if self.format == "csv" and R == 1 else ""
+            what = "data row" if R == 1 else f"sample ({R} rows)"
+            raise LogError(f"{self.path}: only 1 {what}{where}; a log needs at least 2 samples")
         if self.n_rows is None:
             self.n_rows = self.rows
 
     def _where(self, k: int) -> str:
         """Place of the chunk's row ``k``: CSV file line or Parquet row (1-based)."""
-        i = self.rows + k
-        return f"line {i + 2}" if self.format == "csv" else f"row {i + 1}"
+        return self.place(self.rows + k)
+
+    def place(self, row: int) -> str:
+        """Place of the log's data row ``row`` (0-based): its CSV file line or Parquet row (1-based)."""
+        return f"line {row + 2}" if self.format == "csv" else f"row {row + 1}"
 
     def _chunks(self) -> Iterator[list[Array]]:
+        carry: list[Array] | None = None  # rows of a sample the chunk cut (rows_per_sample > 1)
         try:
-            if isinstance(self._src, CsvSource):
-                for block in self._src.blocks(self.chunk_rows):
-                    cols = parse_block(self.path, block, self.names, self._allow, self.rows + 2)
-                    yield self._timed(cols)
-            else:
-                for cols, nulls in self._src.batches(self.chunk_rows):
-                    bad = first_bad_value(cols, self._allow)
-                    if bad is not None:
-                        k, j = bad
-                        null = nulls[j] is not None and bool(nulls[j][k])  # type: ignore[index]
-                        raise LogError(
-                            bad_value_message(self.path, self.rows + k, self.names[j], cols[j][k], null)
-                        )
-                    yield self._timed(cols)
+            for cols in self._checked():
+                if self.rows_per_sample > 1:
+                    if carry is not None:
+                        cols = [np.concatenate((a, b)) for a, b in zip(carry, cols, strict=True)]
+                    whole = len(cols[0]) - len(cols[0]) % self.rows_per_sample
+                    carry = [a[whole:] for a in cols]
+                    cols = [a[:whole] for a in cols]
+                yield self._timed(cols)
         except OSError as exc:
             raise LogError(f"{self.path}: cannot read: {exc.strerror or exc}") from exc
+        if carry is not None and len(carry[0]):
+            R, r = self.rows_per_sample, len(carry[0])
+            raise LogError(f"{self.path}: the last sample ({self._where(0)} on) has {r} of its {R} rows "
+                           "(one per patch): the log is cut")
+
+    def _checked(self) -> Iterator[list[Array]]:
+        """The source's chunks, their values checked (the rows before them: ``self.rows`` plus
+        a cut sample's rows carried, which only a skin's log has and which were checked)."""
+        if isinstance(self._src, CsvSource):
+            line = 2
+            for block in self._src.blocks(self.chunk_rows):
+                cols = parse_block(self.path, block, self.names, self._allow, line)
+                line += len(cols[0])
+                yield cols
+        else:
+            row = 0
+            for cols, nulls in self._src.batches(self.chunk_rows):
+                bad = first_bad_value(cols, self._allow)
+                if bad is not None:
+                    k, j = bad
+                    null = nulls[j] is not None and bool(nulls[j][k])  # type: ignore[index]
+                    raise LogError(bad_value_message(self.path, row + k, self.names[j], cols[j][k], null))
+                row += len(cols[0])
+                yield cols
 
     def _timed(self, cols: list[Array]) -> list[Array]:
         """Check the chunk's ``t`` against the previous chunk's; count its rows."""
         t = cols[self._it]
+        R = self.rows_per_sample
+        if R > 1:
+            ts = t.reshape(-1, R)
+            off = np.flatnonzero((ts != ts[:, :1]).any(axis=1))
+            if off.size:
+                k = int(off[0])
+                j = int(np.flatnonzero(ts[k] != ts[k, 0])[0])
+                raise LogError(f"{self.path}: {self._where(k * R + j)}, column 't': {ts[k, j]!r} where its "
+                               f"sample's rows (one per patch) have t = {ts[k, 0]!r}")
+            t = ts[:, 0]
         fault = check_time(t, t_prev=self._t_prev, t_s=self.t_s, uniform=self.uniform)
         if fault is not None:
             k, reason = fault
             if reason.startswith("time not"):  # "(t = a after b)" -> "(t = a after b on line n)"
-                reason = f"{reason[:-1]} on {self._where(k - 1)})"
-            raise LogError(f"{self.path}: {self._where(k)}, column 't': {reason}")
+                reason = f"{reason[:-1]} on {self._where((k - 1) * R)})"
+            raise LogError(f"{self.path}: {self._where(k * R)}, column 't': {reason}")
         if self.t_s is None and t.size + (self._t_prev is not None) >= 2:
             full = t if self._t_prev is None else np.concatenate(([self._t_prev], t))
             self.t_s = float(np.median(np.diff(full)))
         if t.size:
             self._t_prev = float(t[-1])
-        self.rows += t.size
+        self.rows += t.size * R
         return cols
 
     # ------------------------------------------------------------------ closing
