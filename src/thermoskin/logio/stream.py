@@ -197,8 +197,9 @@ class LogReader:
             if off.size:
                 k = int(off[0])
                 j = int(np.flatnonzero(ts[k] != ts[k, 0])[0])
-                raise LogError(f"{self.path}: {self._where(k * R + j)}, column 't': {ts[k, j]!r} where its "
-                               f"sample's rows (one per patch) have t = {ts[k, 0]!r}")
+                got, own = float(ts[k, j]), float(ts[k, 0])
+                raise LogError(f"{self.path}: {self._where(k * R + j)}, column 't': {got!r} where its "
+                               f"sample's rows (one per patch) have t = {own!r}")
             t = ts[:, 0]
         fault = check_time(t, t_prev=self._t_prev, t_s=self.t_s, uniform=self.uniform)
         if fault is not None:

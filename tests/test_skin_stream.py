@@ -1,0 +1,196 @@
+"""`observe --skin` streams its log: the same outputs, events and positions as the whole log, block
+by block, memory that does not grow with the log, and a fault in a late block still one line."""
+
+from __future__ import annotations
+
+import math
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thermoskin.logio import LogError, LogReader, write_log
+from thermoskin.physics.finger import Touch
+from thermoskin.sim.scenarios import Scenario
+from thermoskin.sim.skin_scenarios import SkinContact, SkinScenario
+from thermoskin.skin import load_skin
+
+ROOT = Path(__file__).resolve().parent.parent
+FOREARM = ROOT / "examples" / "forearm.toml"
+
+
+@pytest.fixture(scope="module")
+def skin_log(tmp_path_factory):  # type: ignore[no-untyped-def]
+    """A forearm's closed loop with three touches on the patches with two thermocouples (whose
+    positions are located), as Parquet and as CSV."""
+    from thermoskin.runtime.skin_loop import run_skin
+    from thermoskin.skin_log import long_columns, read_skin_log
+
+    skin = load_skin(FOREARM)
+    base = Scenario("t", "test", duration=19.0, T_w_cmd=24.0, T_a=20.0, pump="logic")
+    touches = [SkinContact(Touch(t_on=10.0, duration=2.5, n_fingers=3, person="man1"), patch="dorsal1",
+                           position=0.015),
+               SkinContact(Touch(t_on=11.0, duration=3.0, n_fingers=2, person="man1"), patch="ventral1",
+                           position=0.01),
+               SkinContact(Touch(t_on=15.0, duration=1.5, n_fingers=3, person="man1"), patch="dorsal2",
+                           position=0.02)]
+    d = tmp_path_factory.mktemp("skinlog")
+    pq = d / "log.parquet"
+    run_skin(skin, SkinScenario("t", "test", base, tuple(touches)), pq)
+    csv = d / "log.csv"
+    write_log(csv, long_columns(read_skin_log(pq, skin), {}))
+    return skin, pq, csv
+
+
+@pytest.mark.parametrize("fmt", ["parquet", "csv"])
+def test_streamed_observation_is_the_whole_logs(skin_log, tmp_path, fmt) -> None:  # type: ignore[no-untyped-def]
+    """Blocks of 997 samples (cut anywhere: mid-contact, mid-window of a position) give the outputs,
+    events and positions of :func:`observe_skin` on the whole log read at once."""
+    from thermoskin.skin_log import SkinLogReader, long_columns, read_skin_log
+    from thermoskin.skin_observe import observe_skin, observe_skin_file
+
+    skin, pq, csv = skin_log
+    path = pq if fmt == "parquet" else csv
+    log = read_skin_log(path, skin)
+    whole = observe_skin(log, skin)
+    out = tmp_path / f"o.{fmt}"
+    got = observe_skin_file(path, skin, out, chunk_samples=997)
+    assert got.n == log.n and got.t_s == pytest.approx(log.t_s, rel=1e-9)  # the first block's median
+    assert [(e.patch, e.event) for e in got.events] == [(e.patch, e.event) for e in whole.events]
+    located = [e for e in whole.events if math.isfinite(e.position.mean)]
+    assert len(located) >= 2, whole.events  # the windows are exercised
+    for a, b in zip(whole.events, got.events, strict=True):
+        assert (a.position.mean, a.position.sd, a.position.heat) == pytest.approx(
+            (b.position.mean, b.position.sd, b.position.heat), nan_ok=True, rel=0, abs=0)
+    expect = long_columns(log, {"T_in": whole.T_in, **whole.columns})
+    read: dict[str, list[np.ndarray]] = {}
+    for _, cols in SkinLogReader(out, skin):
+        for k, v in cols.items():
+            read.setdefault(k, []).append(v)
+    assert list(read) == list(expect)
+    for k, v in expect.items():
+        np.testing.assert_array_equal(np.concatenate(read[k]).ravel(), np.asarray(v, dtype=float), err_msg=k)
+
+
+def test_streamed_memory_does_not_follow_the_log(skin_log, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The arrays the streamed observation holds at once (``tracemalloc``: numpy's allocations;
+    CSV out, whose writer hands its rows over every 65 536) are a few blocks' and a few seconds'
+    for each contact's position, not the log's: no more for a log twice as long, where the whole
+    log's observation holds 1.6 times as much. (A Parquet output holds a row group, 262 144 rows,
+    before writing it: bounded too.)"""
+    from thermoskin.skin_log import long_columns, read_skin_log
+    from thermoskin.skin_observe import observe_skin, observe_skin_file
+
+    skin, pq, _ = skin_log
+    log = read_skin_log(pq, skin)
+    twice = tmp_path / "twice.parquet"
+    cols = long_columns(log, {})
+    n = log.n * len(skin.patches)
+    write_log(twice, {k: np.concatenate((v, v + (log.t[-1] - log.t[0] + log.t_s) if k == "t" else v))
+                      for k, v in cols.items()})
+    del log, cols
+
+    def peak(fn) -> int:  # type: ignore[no-untyped-def]
+        tracemalloc.start()
+        try:
+            fn()
+            return tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+
+    observe_skin_file(pq, skin, tmp_path / "warm.csv", chunk_samples=1000)  # compiled, imported
+    p_whole = peak(lambda: observe_skin(read_skin_log(pq, skin), skin))
+    p_whole2 = peak(lambda: observe_skin(read_skin_log(twice, skin), skin))
+    p_one = peak(lambda: observe_skin_file(pq, skin, tmp_path / "a.csv", chunk_samples=1000))
+    p_two = peak(lambda: observe_skin_file(twice, skin, tmp_path / "b.csv", chunk_samples=1000))
+    assert p_whole > 8 * n * 8  # the whole log's arrays: (n, P) columns of 8 bytes, many of them
+    assert p_whole2 > 1.6 * p_whole, (p_whole, p_whole2)
+    assert p_two < 1.1 * p_one, (p_one, p_two)
+    assert p_one < p_whole, (p_one, p_whole)
+
+
+def _rows(P: int, n: int) -> dict[str, np.ndarray]:
+    t = np.repeat(np.arange(n) * 1e-3, P)
+    return {"t": t, "patch": np.tile(np.arange(P), n), "T_w": np.full(n * P, 24.0),
+            "T_p": np.full(n * P, 25.0), "v": np.zeros(n * P), "T_a": np.full(n * P, 20.0)}
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_a_skin_log_read_in_whole_samples(tmp_path, fmt) -> None:  # type: ignore[no-untyped-def]
+    """``LogReader(rows_per_sample=P)`` gives chunks of whole samples whatever ``chunk_rows`` (7 rows
+    of a 3-patch log: 2 samples, the row left over carried to the next chunk), with ``t_s`` the
+    sample interval, not 0 between a sample's rows."""
+    p = tmp_path / f"s.{fmt}"
+    write_log(p, _rows(3, 50))
+    with LogReader(p, rows_per_sample=3, chunk_rows=7) as r:
+        chunks = list(r)
+    assert all(len(c["t"]) % 3 == 0 for c in chunks) and sum(len(c["t"]) for c in chunks) == 150
+    assert r.t_s == pytest.approx(1e-3) and r.rows == 150
+    np.testing.assert_array_equal(np.concatenate([c["patch"] for c in chunks]), np.tile(np.arange(3), 50))
+
+
+@pytest.mark.parametrize(("fault", "needle"), [
+    ("patch", "line 1203, column 'patch': 0 where patch 1 was due"),
+    ("t", "line 1203, column 't': 0.5 where its sample's rows (one per patch) have t = 0.4"),
+    ("cut", "the last sample (line 1502 on) has 1 of its 3 rows"),
+    ("order", "line 1202, column 't': time not strictly increasing"),
+    ("text", "line 1202, column 'T_w'"),
+])
+def test_a_fault_in_a_late_block_is_one_line_naming_its_line(tmp_path, fault, needle) -> None:  # type: ignore[no-untyped-def]
+    """A skin log's fault past the first block (about row 1200 of 1500, blocks of 64 samples): one
+    :class:`LogError` naming the file's line, whether from the reader (``t``, a cut sample, text
+    in a number's place) or from the skin's own check (the patches' order)."""
+    from thermoskin.skin_log import SkinLogReader
+
+    P = 3
+    cols = _rows(P, 500)
+    p = tmp_path / "bad.csv"
+    if fault == "patch":
+        cols["patch"][1201] = 0
+    elif fault == "t":
+        cols["t"][1201] = 0.5
+    elif fault == "cut":
+        cols = {k: np.r_[v, v[-P:][:1]] for k, v in cols.items()}
+    elif fault == "order":
+        cols["t"][1200:1203] = cols["t"][1197]
+    write_log(p, cols)
+    if fault == "text":
+        lines = p.read_text().splitlines()
+        f = lines[1201].split(",")
+        f[2] = "warm"
+        lines[1201] = ",".join(f)
+        p.write_text("\n".join(lines) + "\n")
+
+    class ThreePatches:  # what SkinLogReader asks of a skin
+        name = "three"
+        patches = (0, 1, 2)
+
+    with pytest.raises(LogError) as e:
+        for _ in SkinLogReader(p, ThreePatches(), chunk_samples=64):  # type: ignore[arg-type]
+            pass
+    msg = str(e.value)
+    assert "\n" not in msg and msg.startswith(str(p)) and needle in msg, msg
+
+
+def test_observe_skin_of_a_bad_late_row_writes_nothing(skin_log, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """`observe --skin` on a log whose patch order breaks far into it: one error line, exit 2, no
+    output (the log is checked whole before the first estimate is written)."""
+    from click.testing import CliRunner
+
+    from thermoskin.cli import main
+
+    _, _, csv = skin_log
+    lines = csv.read_text().splitlines()
+    k = len(lines) - 40
+    f = lines[k].split(",")
+    f[1] = "7" if f[1] != "7" else "6"
+    lines[k] = ",".join(f)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "o.csv"
+    r = CliRunner().invoke(main, ["observe", "--skin", str(FOREARM), str(bad), "-o", str(out)])
+    err = r.stderr.strip().splitlines() if r.stderr else r.output.strip().splitlines()
+    assert r.exit_code == 2 and len(err) == 1, r.output
+    assert f"line {k + 1}, column 'patch'" in err[0], err
+    assert not out.exists() and not list(tmp_path.glob(".o.csv*"))
