@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+import sys
+
 
 def main() -> None:
     """Run the command line as a program."""
@@ -15,7 +17,11 @@ def main() -> None:
 
         cli()
     finally:
-        startup.cancel()  # a command that exited before its start-up ended (--help, a usage error)
+        if startup.paused():  # a command that exited before its start-up ended (--help, a usage error)
+            startup.cancel()  # the collector back on, nothing frozen, for a caller that goes on
+            cli_module = sys.modules.get("thermoskin.cli")
+            if cli_module is not None:  # and the exit's teardown as quick as a command's
+                cli_module.freeze_at_exit()
 
 
 if __name__ == "__main__":

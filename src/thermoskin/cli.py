@@ -48,6 +48,13 @@ def _freeze_at_exit() -> None:
     gc.freeze()
 
 
+def freeze_at_exit() -> None:
+    """Have the interpreter's exit run :func:`_freeze_at_exit` (once, however often asked: a
+    program that runs commands in-process registers it again with each)."""
+    atexit.unregister(_freeze_at_exit)
+    atexit.register(_freeze_at_exit)
+
+
 F = TypeVar("F", bound=Callable[..., Any])
 console = Console(highlight=False, soft_wrap=True)
 err_console = Console(stderr=True, highlight=False, soft_wrap=True)
@@ -329,7 +336,7 @@ class _Commands(click.Group):
 @click.version_option(__version__, prog_name="thermoskin")
 def main() -> None:
     """Thermoskin: touch sensing on a soft thermal robot skin (thermal exchange observer)."""
-    atexit.register(_freeze_at_exit)
+    freeze_at_exit()
     ctx = click.get_current_context()
     command = main.get_command(ctx, ctx.invoked_subcommand) if ctx.invoked_subcommand else None
     if not getattr(getattr(command, "callback", None), "starts_itself", False):
