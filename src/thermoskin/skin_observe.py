@@ -38,9 +38,11 @@ A key the user's config sets above these is kept.
 (``thermoskin run --skin`` hands it every block of the closed loop as it is written); its inlet
 water is :class:`~thermoskin.skin_inlet.InletStream` and every patch's filter and detector keep
 their state from block to block, so the outputs do not depend on where the blocks are cut.
-:func:`observe_skin` is the same estimator fed the whole log as one block: ``observe --skin`` on a
-run's log gives the run's live contacts again. The position along the pipe needs the whole
-contact and the samples before it, so it is computed from the log (:func:`observe_skin`).
+:func:`observe_skin` is the same estimator fed a log in memory as one block, and
+:func:`observe_skin_file` (``observe --skin``) fed a log file block by block, memory bounded
+whatever its length: on a run's log they give the run's live contacts again. The position along
+the pipe needs the whole contact and the samples before it, so it is computed from the log
+(:func:`observe_skin_file` reads back only those samples, :func:`~thermoskin.skin_position.window`).
 """
 
 from __future__ import annotations
