@@ -8,7 +8,12 @@ over many ticks after a warm-up) and the largest difference of ``dq_i_hat`` and 
 from stepping the plain-Python one-patch reference (``estimation/reference.py``) on the same
 data, over ``--check`` patches (the reference is slow).
 
-    python benchmarks/patches.py --n 1000 [--ticks 5000] [--check 3] [--skin-detector] [--json]
+    python benchmarks/patches.py --n 1000 [--ticks 5000] [--check 3] [--skin-detector]
+        [--period-ms P] [--json]
+
+``--period-ms P``: each tick starts ``P`` ms after the last began (a busy wait), as a live loop
+steps them (default 0: back to back, the worker thread still spinning and the states still in
+the caches from the tick before).
 
 ``--skin-detector``: the detector of a skin's patch (``observe --skin``, ``run --skin``), whose
 onset moves ``q_i`` alone, so the kernel keeps no step signatures.
@@ -42,6 +47,8 @@ def main() -> None:
     ap.add_argument("--skin-detector", action="store_true",
                     help="also a skin patch's detector (q_i alone jumps at an onset, no step signatures "
                          "kept), stepped in turn with the single patch's on the same ticks")
+    ap.add_argument("--period-ms", type=float, default=0.0,
+                    help="start a tick every this many ms, as a live loop (default 0: back to back)")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
     cfg = load_config()
@@ -66,10 +73,16 @@ def main() -> None:
     worst = dict.fromkeys(cfgs, 0.0)
     t_s = cfg.sampling.t_s
     iv = ests["single"].index(v[0])
+    period_ns = round(a.period_ms * 1e6)
+    due = time.perf_counter_ns()
     for k in range(n_s):
         if k and not np.array_equal(v[k], v[k - 1]):
             iv = ests["single"].index(v[k])  # the same tables' rows for both detectors
         t = k * t_s
+        if period_ns:
+            due += period_ns
+            while time.perf_counter_ns() < due:
+                pass
         for name, est in ests.items():  # in turn on the same tick: load falls on both alike
             t0 = time.perf_counter_ns()
             est._step_many(est.ST, est.PR, est.mid, *est._tabs, t, T_w[k], T_p[k], T_a[k], est_cmd(a.n),
@@ -91,7 +104,7 @@ def main() -> None:
                 "contacts": int(len(est.events) + (est.codes & 1).sum()),
                 "parallel": est._step_many is K.step_many_parallel}
 
-    out: dict[str, object] = {"n": a.n, **summary("single")}
+    out: dict[str, object] = {"n": a.n, **summary("single"), "period_ms": a.period_ms}
     if a.skin_detector:
         out["skin_detector"] = summary("skin")
     if not a.json:
