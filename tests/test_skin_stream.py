@@ -130,47 +130,156 @@ def test_a_skin_log_read_in_whole_samples(tmp_path, fmt) -> None:  # type: ignor
     np.testing.assert_array_equal(np.concatenate([c["patch"] for c in chunks]), np.tile(np.arange(3), 50))
 
 
+class ThreePatches:
+    """What :class:`~thermoskin.skin_log.SkinLogReader` asks of a skin."""
+
+    name = "three"
+    patches = (0, 1, 2)
+
+
+def _carried_edges(p: Path, monkeypatch, chunk_rows: int) -> list[int]:  # type: ignore[no-untyped-def]
+    """The log's rows where its source's raw chunks end, among them those that cut a sample (the
+    rows after it carried to the next chunk)."""
+    edges: list[int] = []
+    checked = LogReader._checked
+
+    def spy(self):  # type: ignore[no-untyped-def]
+        for cols in checked(self):
+            edges.append((edges[-1] if edges else 0) + len(cols[0]))
+            yield cols
+
+    with monkeypatch.context() as m:
+        m.setattr(LogReader, "_checked", spy)
+        with LogReader(p, rows_per_sample=3, chunk_rows=chunk_rows) as r:
+            for _ in r:
+                pass
+    return [e for e in edges[:-1] if e % 3]
+
+
+FAULTS = ("patch", "t", "order", "inf", "text", "dropped")
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_a_fault_at_a_carried_sample_is_one_line_naming_its_row(tmp_path, monkeypatch, fmt) -> None:  # type: ignore[no-untyped-def]
+    """A skin log's fault on either side of a raw chunk's end that cuts a sample (its rows carried
+    to the next chunk: CSV blocks of 64 KiB; Parquet batches of 100 rows, which the skin's reader,
+    asking whole samples, never cuts by itself), far into the log: one
+    :class:`LogError` naming the file's line (CSV) or row (Parquet) of the fault, whether from the
+    reader (``t`` within a sample, ``t`` not increasing, an infinite or a text value) or from the
+    skin's own check of the patches' order, which comes first (a dropped row is a patch out of
+    place, not a sample of two times)."""
+    from thermoskin.logio import LogWriter
+    from thermoskin.skin_log import RTOL, SkinLogReader, _nan_ok
+
+    P, n = 3, 20_000
+    base = tmp_path / f"base.{fmt}"
+    with LogWriter(base, list(_rows(P, 1)), row_group_rows=100) as w:
+        w.write(_rows(P, n))
+    chunk_rows = 192 if fmt == "csv" else 100
+    edges = [e for e in _carried_edges(base, monkeypatch, chunk_rows) if e > 6000]
+    assert len(edges) >= 2, edges  # the faults below do fall at carried samples
+    place = (lambda r: f"line {r + 2}") if fmt == "csv" else (lambda r: f"row {r + 1}")
+    checked = 0
+    for e in edges[:2]:
+        for r in (e - 1, e, e + 1):
+            for fault in FAULTS:
+                if fault == "text" and fmt == "parquet":
+                    continue
+                cols = _rows(P, n)
+                if fault == "patch" or fault == "dropped":
+                    if r % P == 0:
+                        continue  # patch 0 set to 0 is no fault
+                    if fault == "patch":
+                        cols["patch"][r] = 0
+                    else:
+                        cols = {k: np.delete(v, r) for k, v in cols.items()}
+                    want = f"{place(r)}, column 'patch'"
+                elif fault == "t":
+                    if r % P == 0:
+                        continue
+                    cols["t"][r] += 0.5e-3
+                    want = f"{place(r)}, column 't'"
+                elif fault == "order":
+                    k0 = r - r % P  # the sample's first row
+                    cols["t"][k0:k0 + P] = cols["t"][k0 - P]
+                    want = f"{place(k0)}, column 't': time not strictly increasing"
+                elif fault == "inf":
+                    cols["T_w"][r] = np.inf
+                    want = f"{place(r)}, column 'T_w'"
+                p = tmp_path / f"bad.{fmt}"
+                with LogWriter(p, list(cols), row_group_rows=100) as w:
+                    w.write(cols)
+                if fault == "text":
+                    lines = p.read_text().splitlines()
+                    f = lines[r + 1].split(",")
+                    f[2] = "warm"
+                    lines[r + 1] = ",".join(f)
+                    p.write_text("\n".join(lines) + "\n")
+                    want = f"{place(r)}, column 'T_w'"
+                reader = SkinLogReader(p, ThreePatches(), chunk_samples=64)  # type: ignore[arg-type]
+                reader._r = LogReader(p, ("t",), _nan_ok, chunk_rows=chunk_rows, rows_per_sample=P,
+                                      check=reader._patches, rtol=RTOL)
+                with pytest.raises(LogError) as exc:
+                    for _ in reader:
+                        pass
+                msg = str(exc.value)
+                assert "\n" not in msg and msg.startswith(str(p)) and want in msg, (fault, r, msg)
+                checked += 1
+    assert checked >= 20
+
+
 @pytest.mark.parametrize(("fault", "needle"), [
-    ("patch", "line 1203, column 'patch': 0 where patch 1 was due"),
-    ("t", "line 1203, column 't': 0.5 where its sample's rows (one per patch) have t = 0.4"),
     ("cut", "the last sample (line 1502 on) has 1 of its 3 rows"),
-    ("order", "line 1202, column 't': time not strictly increasing"),
-    ("text", "line 1202, column 'T_w'"),
+    ("jitter", "line 1202, column 't': non-uniform sampling"),
+    ("one patch", "column(s) patch missing (a skin log has t, patch"),
+    ("one sample", "only 1 sample (3 rows)"),
 ])
-def test_a_fault_in_a_late_block_is_one_line_naming_its_line(tmp_path, fault, needle) -> None:  # type: ignore[no-untyped-def]
-    """A skin log's fault past the first block (about row 1200 of 1500, blocks of 64 samples): one
-    :class:`LogError` naming the file's line, whether from the reader (``t``, a cut sample, text
-    in a number's place) or from the skin's own check (the patches' order)."""
+def test_a_skin_log_fault_of_its_own(tmp_path, fault, needle) -> None:  # type: ignore[no-untyped-def]
+    """Faults a skin log alone has, one line each: its last sample cut short, an interval 0.5 %
+    long (a skin log's tolerance is 0.1 %, as before it was streamed), a single patch's log given
+    for a skin's (said so), a log of one sample."""
     from thermoskin.skin_log import SkinLogReader
 
-    P = 3
-    cols = _rows(P, 500)
+    cols = _rows(3, 500)
+    if fault == "cut":
+        cols = {k: np.r_[v, v[-3:][:1]] for k, v in cols.items()}
+    elif fault == "jitter":
+        cols["t"][1200:] += 0.005e-3
+    elif fault == "one patch":
+        cols = {k: v[::3] for k, v in cols.items() if k != "patch"}
+    elif fault == "one sample":
+        cols = {k: v[:3] for k, v in cols.items()}
     p = tmp_path / "bad.csv"
-    if fault == "patch":
-        cols["patch"][1201] = 0
-    elif fault == "t":
-        cols["t"][1201] = 0.5
-    elif fault == "cut":
-        cols = {k: np.r_[v, v[-P:][:1]] for k, v in cols.items()}
-    elif fault == "order":
-        cols["t"][1200:1203] = cols["t"][1197]
     write_log(p, cols)
-    if fault == "text":
-        lines = p.read_text().splitlines()
-        f = lines[1201].split(",")
-        f[2] = "warm"
-        lines[1201] = ",".join(f)
-        p.write_text("\n".join(lines) + "\n")
-
-    class ThreePatches:  # what SkinLogReader asks of a skin
-        name = "three"
-        patches = (0, 1, 2)
-
-    with pytest.raises(LogError) as e:
+    with pytest.raises(LogError) as exc:
         for _ in SkinLogReader(p, ThreePatches(), chunk_samples=64):  # type: ignore[arg-type]
             pass
-    msg = str(e.value)
+    msg = str(exc.value)
     assert "\n" not in msg and msg.startswith(str(p)) and needle in msg, msg
+    if fault == "one patch":
+        assert "looks like one patch's log" in msg
+
+
+def test_contacts_are_placed_by_the_logs_own_times(skin_log, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """A log whose clock runs 0.09 % slow (within the 0.1 % at which the estimator takes the
+    configured interval): each contact's samples are found from the log's own times, so the
+    positions are those of the same log with the configured interval, and a contact's window
+    does not slide along the log (1.6 s in 30 minutes)."""
+    from thermoskin.skin_log import long_columns, read_skin_log
+    from thermoskin.skin_observe import observe_skin_file
+
+    skin, pq, _ = skin_log
+    cols = long_columns(read_skin_log(pq, skin), {})
+    slow = tmp_path / "slow.parquet"
+    write_log(slow, {**cols, "t": cols["t"] * 1.0009})
+    a = observe_skin_file(pq, skin, tmp_path / "a.parquet")
+    b = observe_skin_file(slow, skin, tmp_path / "b.parquet")
+    assert [e.patch for e in a.events] == [e.patch for e in b.events]
+    assert sum(math.isfinite(e.position.mean) for e in a.events) >= 2
+    for x, y in zip(a.events, b.events, strict=True):
+        assert y.event.onset == pytest.approx(1.0009 * x.event.onset, rel=1e-9)
+        assert (y.position.mean, y.position.sd) == pytest.approx((x.position.mean, x.position.sd),
+                                                                 rel=1e-9, nan_ok=True)
 
 
 def test_observe_skin_of_a_bad_late_row_writes_nothing(skin_log, tmp_path) -> None:  # type: ignore[no-untyped-def]

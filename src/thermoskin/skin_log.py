@@ -33,6 +33,8 @@ TRUTH = ("q_i", "contact_true", "position_true")
 """The simulator's truth columns (kept, never used by the estimator)."""
 CHUNK_SAMPLES = 16_384
 """Samples per block of :class:`SkinLogReader` (times the patches: rows)."""
+RTOL = 1e-3
+"""A skin log's sample intervals are within this share of the first block's median."""
 
 
 @dataclass
@@ -65,20 +67,28 @@ class SkinLogReader:
     gives ``(t, cols)``, ``t`` the block's sample times ``(m,)`` and ``cols[name]`` its ``(m, P)``
     columns (sample ``k``, patch ``i``). Memory holds one block whatever the log's length.
 
-    The checks of :class:`~thermoskin.logio.LogReader` (every value a number, NaN only where
-    :func:`_nan_ok`, ``t`` uniform, each sample's rows of one ``t``, the last sample whole) and the
-    patches' order within each sample; a fault is a :class:`LogError` of one line naming the
-    file, the CSV line or Parquet row and the column, when its block is reached. Attributes:
-    ``names`` (the file's columns), ``t_s`` (the first block's interval, once read), ``n``
-    (samples read so far)."""
+    The patches' order within each sample, then the checks of :class:`~thermoskin.logio.LogReader`
+    (every value a number, NaN only where :func:`_nan_ok`, nothing infinite, no empty line, each
+    sample's rows of one ``t``, ``t`` uniform within :data:`RTOL`, the last sample whole); a
+    fault is a :class:`LogError` of one line naming the file, the CSV line or Parquet row and
+    the column, when its block is reached. Attributes: ``names`` (the file's columns), ``t_s``
+    (the first block's interval, once read), ``n`` (samples read so far)."""
 
     def __init__(self, path: str | os.PathLike[str], skin: Skin, chunk_samples: int = CHUNK_SAMPLES) -> None:
         from thermoskin.logio import LogReader
 
         self.path, self.skin, self.P = Path(path), skin, len(skin.patches)
-        self._r = LogReader(path, REQUIRED, _nan_ok, chunk_rows=max(1, chunk_samples) * self.P,
-                            rows_per_sample=self.P)
+        self._r = LogReader(path, ("t",), _nan_ok, chunk_rows=max(1, chunk_samples) * self.P,
+                            rows_per_sample=self.P, check=self._patches, rtol=RTOL)
         self.names: list[str] = list(self._r.names)
+        missing = [c for c in REQUIRED if c not in self.names]
+        if missing:
+            self._r.close()
+            hint = ("; it looks like one patch's log: observe reads it without --skin"
+                    if "patch" in missing and "T_w" in self.names else "")
+            raise LogError(f"{self.path}: column(s) {', '.join(missing)} missing (a skin log has "
+                           f"{', '.join(REQUIRED)}, one row per sample and patch){hint}")
+        self._ip = self.names.index("patch")
 
     @property
     def t_s(self) -> float:
@@ -89,19 +99,22 @@ class SkinLogReader:
     def n(self) -> int:
         return self._r.rows // self.P
 
+    def _patches(self, cols: list[Array], row0: int) -> None:
+        """The patches in order in every sample of a chunk (``row0``: the log's row of its first)."""
+        patch = cols[self._ip]
+        P = self.P
+        wrong = np.flatnonzero(patch != np.tile(np.arange(P, dtype=float), len(patch) // P))
+        if wrong.size:
+            j = int(wrong[0])
+            raise LogError(f"{self.path}: {self._r.place(row0 + j)}, column 'patch': {patch[j]:g} where "
+                           f"patch {j % P} was due: the skin {self.skin.name!r} has {P} patches (0 to "
+                           f"{P - 1}), every sample one row each, in order")
+
     def __iter__(self) -> Iterator[tuple[Array, dict[str, Array]]]:
         P = self.P
         with self._r:
             for cols in self._r:
                 m = len(cols["t"]) // P
-                row0 = self._r.rows - m * P
-                wrong = np.flatnonzero(cols["patch"].reshape(m, P) != np.arange(P))
-                if wrong.size:
-                    j = int(wrong[0])
-                    raise LogError(f"{self.path}: {self._r.place(row0 + j)}, column 'patch': "
-                                   f"{cols['patch'][j]:g} where patch {j % P} was due: the skin "
-                                   f"{self.skin.name!r} has {P} patches (0 to {P - 1}), every sample one "
-                                   "row each, in order")
                 yield cols["t"][::P].copy(), {k: v.reshape(m, P) for k, v in cols.items()}
 
 

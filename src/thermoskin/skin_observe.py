@@ -481,10 +481,11 @@ def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os
                 progress(done / n)
     est.finish(t_end)
     windows = []
+    dt = (t_end - t0) / (n - 1)  # the log's own interval (sample k at t0 + k dt)
     for e, (i, ev) in enumerate(est.events):
         if locate and len(skin.patches[i].thermocouples) >= 2:
-            k_on = round((ev.onset - t0) / t_s)
-            k_off = round((ev.release - t0) / t_s)
+            k_on = round((ev.onset - t0) / dt)
+            k_off = round((ev.release - t0) / dt)
             windows.append((e, i, k_on, k_off, *window(k_on, k_off, n, t_s)))
     pos = _locate_windows(output, skin, windows, t_s, chunk_samples)
     events = [SkinEvent(i, skin.patches[i].name, ev, pos.get(e, NAN_POSITION))
@@ -505,7 +506,8 @@ def _locate_windows(output: str | os.PathLike[str], skin: Skin, windows: list[_W
     written ``output`` (its log columns, ``T_in``, ``dq_i_hat``; the fresh bits inferred again from
     the same columns) and located (the model at the estimator's ``t_s``: the configured interval
     where the log's is that, not the median of its times, whose last bits follow how the log
-    was cut); by the event's index."""
+    was cut; a contact's samples from its times and the log's mean interval, first to last, the
+    same however the log is cut); by the event's index."""
     out: dict[int, Position] = {}
     if not windows:
         return out
@@ -546,6 +548,7 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
     """Estimate, detect and locate on every patch of ``skin`` over ``log`` (module doc): the
     :class:`SkinEstimator` fed the whole log as one block."""
     t_s = loop_t_s(log.t_s, skin.cfg)
+    dt = (float(log.t[-1]) - float(log.t[0])) / (log.n - 1)  # the log's own interval (sample index)
     bits = SkinFreshInference(skin).feed(log.cols)
     period = log_boards_period(log, skin, t_s, bits)
     est = SkinEstimator(skin, t_s, period)
@@ -560,8 +563,8 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
         pos = NAN_POSITION
         if locate and len(skin.patches[i].thermocouples) >= 2:
             loc = locators.get(i) or locators.setdefault(i, PatchLocator(skin, i, t_s))
-            k_on = round((ev.onset - log.t[0]) / t_s)
-            k_off = round((ev.release - log.t[0]) / t_s)
+            k_on = round((ev.onset - log.t[0]) / dt)
+            k_off = round((ev.release - log.t[0]) / dt)
             bits = [tc_fresh_bit(j) for j in range(len(skin.patches[i].thermocouples))]
             fr_i = [(fresh[:, i] & b_) != 0 for b_ in bits]
             pos = loc.locate(k_on, k_off, T_in[:, i], c["T_a"][:, i], c["v"][:, i],

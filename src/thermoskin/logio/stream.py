@@ -11,7 +11,7 @@ import contextlib
 import os
 import tempfile
 import time
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike
 from thermoskin.logio.common import (
     CHUNK_ROWS,
     DEFAULT_REQUIRED,
+    UNIFORM_RTOL,
     Array,
     LogError,
     allow_nan,
@@ -65,6 +66,9 @@ class LogReader:
     ``rows_per_sample=P``: a skin's long format, each sample ``P`` rows (one per patch) of one
     ``t``: chunks hold whole samples, ``t`` is checked sample by sample, a row whose ``t`` is
     not its sample's and a last sample cut short are faults, and a log needs 2 samples.
+    ``check(cols, row)``: the caller's own check of each chunk (``row``: the log's row of its
+    first), run before the time's (a skin's patches out of order would otherwise show as a
+    sample whose rows have different times). ``rtol``: the uniform sampling's tolerance.
 
     Attributes: ``names`` (column order of the file), ``n_rows`` (Parquet: from the footer;
     CSV: None until read to the end), ``rows`` (rows given so far), ``t_s`` (the first
@@ -82,6 +86,8 @@ class LogReader:
         live: bool = False,
         one_patch: bool = False,
         rows_per_sample: int = 1,
+        check: Callable[[list[Array], int], None] | None = None,
+        rtol: float = UNIFORM_RTOL,
     ) -> None:
         self.path = p = Path(path)
         self.format = log_format(p)
@@ -90,6 +96,7 @@ class LogReader:
         if rows_per_sample < 1:
             raise ValueError(f"LogReader: rows_per_sample must be >= 1, got {rows_per_sample}")
         self.rows_per_sample = rows_per_sample
+        self._check, self.rtol = check, rtol
         _check_file(p)
         self.chunk_rows = chunk_rows
         self.uniform = uniform
@@ -159,6 +166,8 @@ class LogReader:
                     whole = len(cols[0]) - len(cols[0]) % self.rows_per_sample
                     carry = [a[whole:] for a in cols]
                     cols = [a[:whole] for a in cols]
+                if self._check is not None:
+                    self._check(cols, self.rows)
                 yield self._timed(cols)
         except OSError as exc:
             raise LogError(f"{self.path}: cannot read: {exc.strerror or exc}") from exc
@@ -201,7 +210,7 @@ class LogReader:
                 raise LogError(f"{self.path}: {self._where(k * R + j)}, column 't': {got!r} where its "
                                f"sample's rows (one per patch) have t = {own!r}")
             t = ts[:, 0]
-        fault = check_time(t, t_prev=self._t_prev, t_s=self.t_s, uniform=self.uniform)
+        fault = check_time(t, t_prev=self._t_prev, t_s=self.t_s, uniform=self.uniform, rtol=self.rtol)
         if fault is not None:
             k, reason = fault
             if reason.startswith("time not"):  # "(t = a after b)" -> "(t = a after b on line n)"
