@@ -420,6 +420,32 @@ def test_observe_skin_asks_for_the_estimators_only(tmp_path: Path, monkeypatch) 
     assert code == 2 and len(err.strip().splitlines()) == 1 and "thermoskin: error:" in err, err
 
 
+@pytest.mark.parametrize("args", [
+    ["run", "--skin", "FOREARM", "--live", ":abc"],
+    ["run", "--live", ":abc"],
+    ["run", "--live", "8765", "--live-rate", "0"],
+    ["replay", "REC", "-o", "OUT", "--live", "[::1"],
+])
+def test_a_bad_live_address_is_its_line_alone_on_a_cold_cache(tmp_path: Path, monkeypatch, args) -> None:  # type: ignore[no-untyped-def]
+    """A bad ``--live`` (address, rate) is one error line, exit 2, before anything is compiled or
+    written: on a cold cache no compile notice comes first (the skin's run said it was compiling,
+    then gave the error), and ``replay -o`` writes nothing."""
+    from thermoskin import _numba_cache
+
+    forearm = Path(__file__).parents[1] / "examples" / "forearm.toml"
+    rec = tmp_path / "r.mcap"
+    rec.write_bytes(b"")  # never opened: the address is checked first
+    out = tmp_path / "o.csv"
+    args = [str(forearm) if a == "FOREARM" else str(rec) if a == "REC" else str(out) if a == "OUT" else a
+            for a in args]
+    monkeypatch.setattr(_numba_cache, "has_compiled", lambda w: False)
+    monkeypatch.chdir(tmp_path)
+    code, _, err = invoke(*args)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert err.startswith("thermoskin: error: --live"), err
+    assert not out.exists() and not (tmp_path / "run.csv").exists()
+
+
 def test_exit_freeze_still_finalises_garbage(tmp_path) -> None:  # type: ignore[no-untyped-def]
     """The command line freezes its objects at exit (a faster teardown), after one last
     collection: an object in a reference cycle, garbage by then, is still finalised (its

@@ -811,18 +811,29 @@ def _live_options(fn: F) -> F:
                              f"{DEFAULT_ADDRESS}) and a live page on PORT+1.")(fn)  # type: ignore[return-value]
 
 
-def _start_live(addr: str, rate: float, wait: float, cfg: Any,
-                view: str = "layout docs/foxglove-layout.json", **kw: Any) -> Any:
-    """The live server at ``addr`` (one-line errors), its addresses printed; waits for a viewer.
-    ``view``: how to look at it in Foxglove; ``kw``: a skin's ``topics`` and ``params`` (``LiveServer``)."""
-    from thermoskin.live import LiveError, LiveServer, parse_address
+def _live_address(addr: str, rate: float, wait: float) -> tuple[str, int]:
+    """``--live``'s ``(host, port)``, and ``--live-rate``, ``--live-wait`` checked: a user error of
+    one line, before the command compiles or starts anything (``run`` checks them at once)."""
+    from thermoskin.live import LiveError, parse_address
 
     if not (rate > 0 and math.isfinite(rate)):
         raise UserError(f"--live-rate {rate}: must be > 0 Hz")
     if not (wait >= 0 and math.isfinite(wait)):
         raise UserError(f"--live-wait {wait}: must be >= 0 s")
     try:
-        live = LiveServer(*parse_address(addr), config=cfg, rate=rate, **kw)
+        return parse_address(addr)
+    except LiveError as e:
+        raise UserError(str(e)) from None
+
+
+def _start_live(addr: str, rate: float, wait: float, cfg: Any,
+                view: str = "layout docs/foxglove-layout.json", **kw: Any) -> Any:
+    """The live server at ``addr`` (one-line errors), its addresses printed; waits for a viewer.
+    ``view``: how to look at it in Foxglove; ``kw``: a skin's ``topics`` and ``params`` (``LiveServer``)."""
+    from thermoskin.live import LiveError, LiveServer
+
+    try:
+        live = LiveServer(*_live_address(addr, rate, wait), config=cfg, rate=rate, **kw)
     except LiveError as e:
         raise UserError(str(e)) from None
     console.print(f"[bold]live[/]: Foxglove WebSocket {live.ws_url} (Foxglove or Lichtblick: open "
@@ -938,6 +949,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     from thermoskin.runtime.runlog import RunLog
     from thermoskin.runtime.stopping import StopRequest
 
+    if live_addr is not None:  # a bad address: its one line, before any compile notice
+        _live_address(live_addr, live_rate, live_wait)
     if skin_path is not None:
         single_only = (device != "sim", realtime, setpoint is not None, probe_amp is not None)
         if any(single_only):
@@ -1553,6 +1566,8 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
         raise UserError("--speed plays into the live server: give --live too")
     if speed is not None and not (speed > 0 and math.isfinite(speed)):
         raise UserError(f"--speed {speed}: must be > 0")
+    if live_addr is not None:  # a bad address: its one line, before the replay writes anything
+        _live_address(live_addr, live_rate, live_wait)
     from thermoskin.paths import LOG_SUFFIXES
 
     _outputs(("-o", output, LOG_SUFFIXES, "log"))
