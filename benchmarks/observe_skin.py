@@ -6,7 +6,8 @@ Simulates the forearm (`examples/forearm.toml`, 9 patches, scenario `multi`) for
 memory from the kernel (``wait4``). Prints one JSON line: per length, the log's rows, the
 command's wall time (median of ``--runs``) and its peak memory (MiB, the largest of the runs).
 The observation streams its log (``skin_observe.observe_skin_file``), so the peak should not
-follow the length.
+follow the length. ``--run``: also ``thermoskin run --skin`` of each length (one run each), which
+reads its log back the same way at its end.
 
     python benchmarks/observe_skin.py [--seconds 120,480] [--runs 3] [--format parquet] [--json]
 """
@@ -47,6 +48,9 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=3, help="runs of observe per length")
     ap.add_argument("--format", choices=("parquet", "csv"), default="parquet", help="the logs' format")
     ap.add_argument("--dir", default=None, help="folder for the logs (default: a temporary one)")
+    ap.add_argument("--run", action="store_true",
+                    help="also `thermoskin run --skin` of each length (one run: its loop, its log, "
+                         "and the log read back at the end for positions)")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
     folder = Path(a.dir) if a.dir else Path(tempfile.mkdtemp(prefix="observe_skin_"))
@@ -70,6 +74,10 @@ def main() -> None:
         row = {"seconds": s, "rows": round(s / skin.cfg.sampling.t_s) * len(skin.patches),
                "wall_s": round(statistics.median(walls), 2),
                "peak_mib": round(max(peaks), 1)}
+        if a.run:
+            w, m = run(["run", "--skin", str(SKIN), "--scenario", "multi", "--duration", f"{s:g}",
+                        "--log", str(folder / f"run.{a.format}")])
+            row.update({"run_wall_s": round(w, 2), "run_peak_mib": round(m, 1)})
         out["lengths"].append(row)  # type: ignore[attr-defined]
         if not a.json:
             print(row, file=sys.stderr)

@@ -73,6 +73,26 @@ def test_streamed_observation_is_the_whole_logs(skin_log, tmp_path, fmt) -> None
         np.testing.assert_array_equal(np.concatenate(read[k]).ravel(), np.asarray(v, dtype=float), err_msg=k)
 
 
+def test_without_an_output_the_observation_leaves_nothing(skin_log, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """``output=None`` (``run --skin``'s check of its live contacts): the same events and positions
+    as with an output, through a temporary file beside the log that is gone afterwards."""
+    import shutil
+
+    from thermoskin.skin_observe import observe_skin_file
+
+    skin, pq, _ = skin_log
+    log = tmp_path / "log.parquet"
+    shutil.copy(pq, log)
+    a = observe_skin_file(log, skin, tmp_path / "o.parquet")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    b = observe_skin_file(log, skin, None)
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    def rows(o):  # type: ignore[no-untyped-def]
+        return [(e.patch, e.event, e.position) for e in o.events]
+
+    assert rows(a) == rows(b) and any(math.isfinite(e.position.mean) for e in b.events)
+
+
 def test_streamed_memory_does_not_follow_the_log(skin_log, tmp_path) -> None:  # type: ignore[no-untyped-def]
     """The arrays the streamed observation holds at once (``tracemalloc``: numpy's allocations;
     CSV out, whose writer hands its rows over every 65 536) are a few blocks' and a few seconds'

@@ -1166,7 +1166,8 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     ``runtime/skin_loop.py``), every patch estimated and its contacts detected block by block as
     the loop goes (``skin_observe.SkinEstimator``), printed as they come and served live / recorded
     (``runtime/skin_topics.py``); at the end the positions and body contacts from the log
-    (``observe_skin``, which gives the live contacts again), the layout picture beside the log."""
+    (``observe_skin_file``, streamed, which gives the live contacts again), the layout picture
+    beside the log."""
     from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.sim.skin_scenarios import skin_scenario
     from thermoskin.skin import load_skin
@@ -1220,8 +1221,7 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
     from thermoskin.events import EventsStream
     from thermoskin.runtime.skin_loop import run_skin
     from thermoskin.runtime.skin_topics import figures
-    from thermoskin.skin_log import read_skin_log
-    from thermoskin.skin_observe import SKIN_EVENT_COLUMNS, SkinEvent, observe_skin
+    from thermoskin.skin_observe import SKIN_EVENT_COLUMNS, SkinEvent, observe_skin_file
 
     sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait)
     P = len(skin.patches)
@@ -1284,7 +1284,7 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
         console.print(f"{res.n} samples; wrote {log_path}" if res.n else
                       "no sample: an earlier run's files at these paths are kept as they were")
         return
-    obs = observe_skin(read_skin_log(log_path, skin), skin)
+    obs = observe_skin_file(log_path, skin, None)  # streamed: an hour's run is read back in blocks
     live = sorted(((i, e) for i, e in est.events), key=lambda x: (x[1].onset, x[0]))
     if live != [(e.patch, e.event) for e in obs.events]:  # one estimator: never, unless a bug
         click.echo(f"thermoskin: warning: the contacts estimated from {log_path} differ from the live ones "

@@ -51,8 +51,10 @@ import contextlib
 import dataclasses
 import math
 import os
+import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -426,13 +428,14 @@ class SkinFileObservation:
     warnings: list[str]
 
 
-def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os.PathLike[str], *,
+def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os.PathLike[str] | None, *,
                       locate: bool = True, chunk_samples: int = CHUNK_SAMPLES,
                       compiling: Callable[[], None] | None = None,
                       progress: Callable[[float], None] | None = None) -> SkinFileObservation:
     """:func:`observe_skin` on the log at ``path``, streamed: the log's columns and the estimates
     (as ``observe --skin`` writes them) go to ``output`` block by block, so memory does not grow
-    with the log's length. Three passes:
+    with the log's length (``output`` None: a temporary file beside the log, removed at the end;
+    ``run --skin`` checks its live contacts so). Three passes:
 
     1. the log is read and checked whole, and its boards' readings counted
        (:func:`boards_period`), before anything is written or compiled (a bad log: one
@@ -445,6 +448,11 @@ def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os
 
     The same outputs and events as :func:`observe_skin` on the whole log (tested)."""
     from thermoskin.logio import LogWriter
+
+    if output is None:
+        with tempfile.TemporaryDirectory(prefix=".thermoskin-observe-", dir=Path(path).parent) as d:
+            return observe_skin_file(path, skin, Path(d) / "observed.parquet", locate=locate,
+                                     chunk_samples=chunk_samples, compiling=compiling, progress=progress)
 
     P = len(skin.patches)
     reader = SkinLogReader(path, skin, chunk_samples)
