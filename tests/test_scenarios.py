@@ -278,3 +278,21 @@ def test_simulate_logs_fresh_and_the_true_ambient_seen_through_the_air_sensor_la
     k = np.arange(len(t))
     np.testing.assert_array_equal(r["fresh"], np.where(k % 100 == 0, 7, 6))
     assert np.all(r["T_w"] == r["T_w"][k - k % 100])
+
+
+@pytest.mark.parametrize("name", ["fingers", "touchers"])
+def test_simulation_in_blocks_is_the_same_samples(name: str) -> None:
+    """:func:`simulate_blocks` (``thermoskin simulate`` writes each block as it comes): blocks of 997
+    samples, cut anywhere (mid-touch, mid-board-interval), join to the same log, column for column
+    and type for type, as one block the length of the run (the plant, pump and boards keep their
+    state from block to block); and each block holds only its own samples."""
+    from thermoskin.sim.run import simulate_blocks
+
+    whole = next(simulate_blocks(name, CFG, 21.0, block=10**9))
+    blocks = list(simulate_blocks(name, CFG, 21.0, block=997))
+    assert len(blocks) == math.ceil(21000 / 997) and all(len(b["t"]) <= 997 for b in blocks)
+    assert list(blocks[0]) == list(whole)
+    for k, a in whole.items():
+        joined = np.concatenate([b[k] for b in blocks])
+        assert joined.dtype == np.asarray(a).dtype and np.array_equal(joined, a, equal_nan=True), k
+    assert whole["contact_true"].any()  # touches fall in the run

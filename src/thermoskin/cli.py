@@ -731,9 +731,9 @@ def scenarios() -> None:
 def simulate(scenario: str | None, duration: float | None, config_path: Path | None,
              output_csv: Path, skin_path: Path | None) -> None:
     """Simulate the skin under a named scenario and write its log."""
-    from thermoskin.logio import write_log
+    from thermoskin.logio import LogWriter, write_log
     from thermoskin.paths import LOG_SUFFIXES
-    from thermoskin.sim.run import simulate as run_sim
+    from thermoskin.sim.run import simulate_blocks
 
     _outputs(("-o", output_csv, LOG_SUFFIXES, "log"))
     cfg = _config(config_path)
@@ -757,12 +757,17 @@ def simulate(scenario: str | None, duration: float | None, config_path: Path | N
     sc = _scenario(scenario, duration, cfg.sampling.t_s)
     if duration is None:
         _check_duration(sc.duration, cfg.sampling.t_s, "the scenario's duration")
-    with _progress_bar(f"simulating {sc.name}") as bar:
+    rows = 0
+    with _progress_bar(f"simulating {sc.name}") as bar, contextlib.ExitStack() as stack:
         task = bar.add_task(f"simulating {sc.name}", total=1.0)
-        log = run_sim(sc, cfg, progress=lambda f: bar.update(task, completed=f))
-    write_log(output_csv, log)
+        writer = None  # written block by block (whole or not at all): memory does not follow the length
+        for block in simulate_blocks(sc, cfg, progress=lambda f: bar.update(task, completed=f)):
+            if writer is None:
+                writer = stack.enter_context(LogWriter(output_csv, list(block), atomic=True))
+            writer.write(block)
+            rows += len(block["t"])
     console.print(f"simulated {sc.duration:g} s of '{sc.name}' ({len(sc.touches)} touches, "
-                  f"{len(log['t'])} samples); wrote {output_csv}")
+                  f"{rows} samples); wrote {output_csv}")
 
 
 def _simulate_skin(skin_path: Path, scenario: str, duration: float | None, cfg: Config,

@@ -27,7 +27,7 @@ in the network's equilibrium for the initial inputs.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -40,9 +40,24 @@ COLUMNS = ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd", "T_w_true", "T_g", "q_i", "
            "fresh", "T_a_true")
 
 
+BLOCK = 65_536
+"""Samples per block of :func:`simulate_blocks`."""
+
+
 def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = None,
              progress: Callable[[float], None] | None = None) -> dict[str, np.ndarray]:
-    """Simulate ``scenario`` (or its name) for its duration (or ``duration`` s); see the module doc."""
+    """Simulate ``scenario`` (or its name) for its duration (or ``duration`` s); see the module doc.
+    The whole log in memory: :func:`simulate_blocks` joined."""
+    blocks = list(simulate_blocks(scenario, cfg, duration, progress))
+    return {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
+
+
+def simulate_blocks(scenario: Scenario | str, cfg: Config, duration: float | None = None,
+                    progress: Callable[[float], None] | None = None,
+                    block: int = BLOCK) -> Iterator[dict[str, np.ndarray]]:
+    """:func:`simulate`, its log given ``block`` samples at a time (``thermoskin simulate`` writes
+    each as it comes): the same samples, and only a block's columns held at once (the plant's
+    scenario profiles, a few numbers a sample, are whole)."""
     sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
     if duration is not None:
         sc = sc.with_duration(duration)
@@ -61,50 +76,54 @@ def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = Non
         plant.reset("equilibrium", v=v_const)
 
     cmd_l = cmd.tolist()
-    cols = [[0.0] * n for _ in range(6)]
-    T_w_true, T_g, T_w_m, T_p_m, T_a_m, v_col = cols
-    fresh = [0] * n
     skin = plant.skin
     touchers = bool(plant.touchers)
-    q_col = [0.0] * n if touchers else []
     truth = plant.truth
     measure, apply, pump_step = plant.measure, plant.apply, pump.step
     every = max(1, n // 100)
     next_report = every if progress is not None else n + 1
-    for k in range(n):
-        T_w_true[k] = skin.T_w
-        T_g[k] = skin.T_g
-        m, T_p_m[k], T_a_m[k] = measure()
-        T_w_m[k] = m
-        fresh[k] = plant.fresh
-        v = pump_step(m, cmd_l[k], bool(fresh[k] & 1)) if logic else v_const
-        v_col[k] = v
-        if touchers:
-            q_col[k] = truth()[0]
-        apply(0.0, v)
-        if k + 1 >= next_report:
-            progress((k + 1) / n)  # type: ignore[misc]
-            next_report += every
-    if progress is not None and next_report - every < n:
-        progress(1.0)
-
-    G_c, T_f = np.asarray(plant.G_c), np.asarray(plant.T_f)
-    T_g_arr = np.asarray(T_g)
-    out = {
-        "t": t,
-        "T_w": np.asarray(T_w_m),
-        "T_p": np.asarray(T_p_m),
-        "v": np.asarray(v_col),
-        "T_a": np.asarray(T_a_m),
-        "T_w_cmd": cmd,
-        "T_w_true": np.asarray(T_w_true),
-        "T_g": T_g_arr,
-        "q_i": np.asarray(q_col) if touchers else G_c * (T_f - T_g_arr),
-        "contact_true": (G_c > 0.0).astype(np.int8),
-        "n_fingers": plant.n_fingers.astype(np.int8),
-        "fresh": np.asarray(fresh, dtype=np.int8),
-        "T_a_true": plant.T_a_true,
-    }
-    if touchers:
-        out.update(plant.truth_columns())
-    return out
+    G_c, T_f = plant.G_c, plant.T_f
+    truth_cols = plant.truth_columns() if touchers else {}
+    for k0 in range(0, n, max(1, block)):
+        k1 = min(n, k0 + max(1, block))
+        m = k1 - k0
+        cols = [[0.0] * m for _ in range(6)]
+        T_w_true, T_g, T_w_m, T_p_m, T_a_m, v_col = cols
+        fresh = [0] * m
+        q_col = [0.0] * m if touchers else []
+        for k in range(k0, k1):
+            j = k - k0
+            T_w_true[j] = skin.T_w
+            T_g[j] = skin.T_g
+            mw, T_p_m[j], T_a_m[j] = measure()
+            T_w_m[j] = mw
+            fresh[j] = plant.fresh
+            v = pump_step(mw, cmd_l[k], bool(fresh[j] & 1)) if logic else v_const
+            v_col[j] = v
+            if touchers:
+                q_col[j] = truth()[0]
+            apply(0.0, v)
+            if k + 1 >= next_report:
+                progress((k + 1) / n)  # type: ignore[misc]
+                next_report += every
+        if progress is not None and k1 == n and next_report - every < n:
+            progress(1.0)
+        G_b, T_f_b = np.asarray(G_c[k0:k1]), np.asarray(T_f[k0:k1])
+        T_g_arr = np.asarray(T_g)
+        out = {
+            "t": t[k0:k1],
+            "T_w": np.asarray(T_w_m),
+            "T_p": np.asarray(T_p_m),
+            "v": np.asarray(v_col),
+            "T_a": np.asarray(T_a_m),
+            "T_w_cmd": cmd[k0:k1],
+            "T_w_true": np.asarray(T_w_true),
+            "T_g": T_g_arr,
+            "q_i": np.asarray(q_col) if touchers else G_b * (T_f_b - T_g_arr),
+            "contact_true": (G_b > 0.0).astype(np.int8),
+            "n_fingers": plant.n_fingers[k0:k1].astype(np.int8),
+            "fresh": np.asarray(fresh, dtype=np.int8),
+            "T_a_true": np.asarray(plant.T_a_true[k0:k1]),
+        }
+        out.update({c: a[k0:k1] for c, a in truth_cols.items()})
+        yield out
