@@ -751,3 +751,28 @@ def test_a_row_short_of_fields_is_not_filled_in() -> None:
     # an empty last field is a NaN where allowed (Arrow reads that block)
     cols = parse_block(Path("x.csv"), b"0,1,\n1,3,4\n", ["a", "b", "c"], [False, True, True], 2)
     assert np.isnan(cols[2][0]) and cols[2][1] == 4.0
+
+
+@pytest.mark.parametrize("ext", [".csv", ".parquet"])
+def test_write_blocks_is_one_log_or_none(tmp_path: Path, ext: str) -> None:
+    """:func:`write_blocks`: chunks made as they are asked for become one log, the same as
+    :func:`write_log` of them joined; blocks that raise leave no file and no temporary file."""
+    from thermoskin.logio import write_blocks
+
+    def blocks(n: int, fail: bool = False):  # type: ignore[no-untyped-def]
+        for k in range(n):
+            t = np.arange(k * 100, (k + 1) * 100) * 1e-3
+            yield {"t": t, "T_w": 24.0 + t, "contact": (t > 0.15).astype(np.int8)}
+            if fail and k == 1:
+                raise RuntimeError("the source broke")
+
+    p = tmp_path / f"b{ext}"
+    assert write_blocks(p, blocks(3)) == 300
+    whole = {k: np.concatenate([b[k] for b in blocks(3)]) for k in ("t", "T_w", "contact")}
+    write_log(tmp_path / f"w{ext}", whole)
+    got, ref = read_log(p, required=("t",)), read_log(tmp_path / f"w{ext}", required=("t",))
+    assert list(got) == list(ref) and all(np.array_equal(got[k], ref[k]) for k in ref)
+    with pytest.raises(RuntimeError):
+        write_blocks(tmp_path / f"x{ext}", blocks(3, fail=True))
+    assert sorted(q.name for q in tmp_path.iterdir()) == sorted([f"b{ext}", f"w{ext}"])
+    assert write_blocks(tmp_path / f"none{ext}", iter(())) == 0 and not (tmp_path / f"none{ext}").exists()

@@ -731,7 +731,7 @@ def scenarios() -> None:
 def simulate(scenario: str | None, duration: float | None, config_path: Path | None,
              output_csv: Path, skin_path: Path | None) -> None:
     """Simulate the skin under a named scenario and write its log."""
-    from thermoskin.logio import LogWriter, write_log
+    from thermoskin.logio import write_blocks, write_log
     from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.sim.run import simulate_blocks
 
@@ -757,15 +757,11 @@ def simulate(scenario: str | None, duration: float | None, config_path: Path | N
     sc = _scenario(scenario, duration, cfg.sampling.t_s)
     if duration is None:
         _check_duration(sc.duration, cfg.sampling.t_s, "the scenario's duration")
-    rows = 0
-    with _progress_bar(f"simulating {sc.name}") as bar, contextlib.ExitStack() as stack:
+    with _progress_bar(f"simulating {sc.name}") as bar:
         task = bar.add_task(f"simulating {sc.name}", total=1.0)
-        writer = None  # written block by block (whole or not at all): memory does not follow the length
-        for block in simulate_blocks(sc, cfg, progress=lambda f: bar.update(task, completed=f)):
-            if writer is None:
-                writer = stack.enter_context(LogWriter(output_csv, list(block), atomic=True))
-            writer.write(block)
-            rows += len(block["t"])
+        # written block by block (whole or not at all): memory does not follow the length
+        blocks = simulate_blocks(sc, cfg, progress=lambda f: bar.update(task, completed=f))
+        rows = write_blocks(output_csv, blocks)
     console.print(f"simulated {sc.duration:g} s of '{sc.name}' ({len(sc.touches)} touches, "
                   f"{rows} samples); wrote {output_csv}")
 

@@ -47,12 +47,11 @@ the pipe needs the whole contact and the samples before it, so it is computed fr
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
 import os
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -447,7 +446,7 @@ def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os
        (:func:`~thermoskin.skin_position.window`: a few seconds each), which alone are kept.
 
     The same outputs and events as :func:`observe_skin` on the whole log (tested)."""
-    from thermoskin.logio import LogWriter
+    from thermoskin.logio import write_blocks
 
     if output is None:
         with tempfile.TemporaryDirectory(prefix=".thermoskin-observe-", dir=Path(path).parent) as d:
@@ -466,34 +465,31 @@ def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os
         counter.count(infer.feed(cols))
         t_end = float(t[-1])
     assert counter is not None  # a log has 2 samples at least (SkinLogReader)
-    n, log_t_s = reader.n, reader.t_s
-    t_s = loop_t_s(log_t_s, skin.cfg)
+    n, log_t_s, t_s = reader.n, reader.t_s, counter.t_s
     period = boards_period(skin, t_s, counter.rate)
     if compiling is not None:
         compiling()
     est = SkinEstimator(skin, t_s, period)
     live = [k for k in ("q_i_hat", "dq_i_hat", "contact", "gap") if k in reader.names]
-    writer: LogWriter | None = None
-    done = 0
-    with contextlib.ExitStack() as stack:  # 2: estimated and written block by block
+
+    def estimated() -> Iterator[dict[str, Array]]:  # 2: estimated block by block, as written
+        done = 0
         for t, cols in SkinLogReader(path, skin, chunk_samples):
             b = est.block(t, cols)
             extra = {f"{k}_live": cols[k] for k in live}
             extra.update({"T_in": b.T_in, **b.columns})
-            block = long_block(cols, reader.names, extra, drop=tuple(live))
-            if writer is None:
-                writer = stack.enter_context(LogWriter(output, list(block), atomic=True))
-            writer.write(block)
+            yield long_block(cols, reader.names, extra, drop=tuple(live))
             done += len(t)
             if progress is not None:
                 progress(done / n)
+
+    write_blocks(output, estimated())
     est.finish(t_end)
     windows = []
     dt = (t_end - t0) / (n - 1)  # the log's own interval (sample k at t0 + k dt)
     for e, (i, ev) in enumerate(est.events):
         if locate and len(skin.patches[i].thermocouples) >= 2:
-            k_on = round((ev.onset - t0) / dt)
-            k_off = round((ev.release - t0) / dt)
+            k_on, k_off = _samples(ev, t0, dt)
             windows.append((e, i, k_on, k_off, *window(k_on, k_off, n, t_s)))
     pos = _locate_windows(output, skin, windows, t_s, chunk_samples)
     events = [SkinEvent(i, skin.patches[i].name, ev, pos.get(e, NAN_POSITION))
@@ -501,6 +497,22 @@ def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os
     events.sort(key=lambda e: (e.event.onset, e.patch))
     return SkinFileObservation(events, n, log_t_s, est.reading_rate,
                                board_warnings(skin, est.reading_rate, period))
+
+
+def _samples(ev: ContactEvent, t0: float, dt: float) -> tuple[int, int]:
+    """The samples of a contact's onset and release in a log whose sample ``k`` is at ``t0 + k dt``
+    (its own mean interval: the same however the log is cut, and right on a clock a little off
+    the configured one)."""
+    return round((ev.onset - t0) / dt), round((ev.release - t0) / dt)
+
+
+def _located(loc: PatchLocator, k_on: int, k_off: int, T_in: Array, T_a: Array, v: Array,
+             Y: list[Array], fresh: NDArray[np.int64], dq: Array) -> Position:
+    """:meth:`PatchLocator.locate` on one patch's columns, each thermocouple ``Y[j]`` (of the
+    patch's own) read where its fresh bit is set."""
+    ntc = len(loc.patch.thermocouples)
+    fr = [(fresh & tc_fresh_bit(j)) != 0 for j in range(ntc)]
+    return loc.locate(k_on, k_off, T_in, T_a, v, Y[:ntc], fr, dq)
 
 
 _Window = tuple[int, int, int, int, int, int, int]
@@ -543,11 +555,9 @@ def _locate_windows(output: str | os.PathLike[str], skin: Skin, windows: list[_W
                 got = parts.pop(w)
                 c = {key: np.concatenate([g[key] for g in got]) if got else np.zeros(0) for key in
                      ("T_in", "T_a", "v", "dq", "fresh", *(f"Y{j}" for j in range(len(Y))))}
-                ntc = len(skin.patches[i].thermocouples)
-                fr = [(c["fresh"].astype(np.int64) & tc_fresh_bit(j)) != 0 for j in range(ntc)]
                 loc = locators.get(i) or locators.setdefault(i, PatchLocator(skin, i, t_s))
-                out[e] = loc.locate(k_on - kb, k_off - kb, c["T_in"], c["T_a"], c["v"],
-                                         [c[f"Y{j}"] for j in range(ntc)], fr, c["dq"])
+                out[e] = _located(loc, k_on - kb, k_off - kb, c["T_in"], c["T_a"], c["v"],
+                                  [c[f"Y{j}"] for j in range(len(Y))], c["fresh"].astype(np.int64), c["dq"])
         k += m
     return out
 
@@ -571,12 +581,9 @@ def observe_skin(log: SkinLog, skin: Skin, *, locate: bool = True) -> SkinObserv
         pos = NAN_POSITION
         if locate and len(skin.patches[i].thermocouples) >= 2:
             loc = locators.get(i) or locators.setdefault(i, PatchLocator(skin, i, t_s))
-            k_on = round((ev.onset - log.t[0]) / dt)
-            k_off = round((ev.release - log.t[0]) / dt)
-            bits = [tc_fresh_bit(j) for j in range(len(skin.patches[i].thermocouples))]
-            fr_i = [(fresh[:, i] & b_) != 0 for b_ in bits]
-            pos = loc.locate(k_on, k_off, T_in[:, i], c["T_a"][:, i], c["v"][:, i],
-                             [y[:, i] for y in Y[:len(bits)]], fr_i, out["dq_i_hat"][:, i])
+            k_on, k_off = _samples(ev, float(log.t[0]), dt)
+            pos = _located(loc, k_on, k_off, T_in[:, i], c["T_a"][:, i], c["v"][:, i],
+                           [y[:, i] for y in Y], fresh[:, i], out["dq_i_hat"][:, i])
         events.append(SkinEvent(i, skin.patches[i].name, ev, pos))
     events.sort(key=lambda e: (e.event.onset, e.patch))
     return SkinObservation(out, events, T_in, fr, reading_rate=est.reading_rate,

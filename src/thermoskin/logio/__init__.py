@@ -8,8 +8,8 @@ the same float64 values bit for bit (CSV: shortest round-trip decimal form).
 - :func:`read_log` / :func:`write_log`: a whole log in memory (small logs); ``write_log`` is
   atomic (temporary file, then rename).
 - :class:`LogReader` / :class:`LogWriter`: streaming, in chunks; memory bounded whatever
-  the log's length. A CSV being written is readable up to its last flush; a Parquet file
-  only once closed.
+  the log's length; :func:`write_blocks` writes a stream of chunks as one log, atomically. A
+  CSV being written is readable up to its last flush; a Parquet file only once closed.
 
 Bad input raises :class:`LogError` (a ``ValueError``) with a one-line message naming the
 file, the line (CSV, 1-based, the header is line 1) or row (Parquet), the column and the
@@ -20,6 +20,7 @@ elsewhere, and in ``t`` always, every value must be a finite number.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import warnings
 from collections.abc import Iterable, Mapping
@@ -64,6 +65,7 @@ __all__ = [
     "prefetch",
     "read_log",
     "sample_time",
+    "write_blocks",
     "write_log",
 ]
 
@@ -171,3 +173,19 @@ def write_log(
         for i in range(0, n_rows, _WRITE_SLICE):
             w.write({n: a[i : i + _WRITE_SLICE] for n, a in arrays.items()})
     return Path(path)
+
+
+def write_blocks(path: str | os.PathLike[str], blocks: Iterable[Mapping[str, ArrayLike]]) -> int:
+    """Write the column chunks ``blocks`` one after the other as one log (CSV or Parquet by the
+    extension), atomically: whole, or nothing if the blocks raise; the columns are the first
+    block's. Memory holds one block (the blocks may be made as they are asked for). Returns the
+    rows written (0: no block, nothing written)."""
+    rows = 0
+    with contextlib.ExitStack() as stack:
+        writer: LogWriter | None = None
+        for block in blocks:
+            if writer is None:
+                writer = stack.enter_context(LogWriter(path, list(block), atomic=True))
+            writer.write(block)
+            rows += len(next(iter(block.values())))
+    return rows

@@ -84,8 +84,9 @@ def simulate_blocks(scenario: Scenario | str, cfg: Config, duration: float | Non
     next_report = every if progress is not None else n + 1
     G_c, T_f = plant.G_c, plant.T_f
     truth_cols = plant.truth_columns() if touchers else {}
-    for k0 in range(0, n, max(1, block)):
-        k1 = min(n, k0 + max(1, block))
+    block = max(1, block)
+    for k0 in range(0, n, block):
+        k1 = min(n, k0 + block)
         m = k1 - k0
         cols = [[0.0] * m for _ in range(6)]
         T_w_true, T_g, T_w_m, T_p_m, T_a_m, v_col = cols
