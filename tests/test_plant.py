@@ -49,7 +49,7 @@ def test_open_loop_log_is_the_plant_stepped_by_the_pump_logic() -> None:
 def test_closed_loop_and_sim_device_share_the_plants_truth() -> None:
     sc = SCENARIOS["one-finger"].with_duration(7.0)
     c = run_closed_loop(sc, CFG).columns
-    G = np.asarray(SimulatedPlant(CFG, sc).G_c)
+    G = SimulatedPlant(CFG, sc).profile()["G_c"]
     from thermoskin.physics.finger import contact_profile
 
     G2, T_f, _ = contact_profile(sc.touches, c["t"])
@@ -72,7 +72,7 @@ def test_the_true_ambient_drives_the_tanks_loss() -> None:
     """One step of the tank from the air's 20 °C with the air at 30 °C: the loss term by hand."""
     sc = Scenario("amb", "", 2.0, ambient=((0.0, 30.0), (1.0, 30.0)), T_a=20.0)
     plant = SimulatedPlant(CFG, sc)
-    assert plant.T_a_true[0] == 30.0
+    assert plant.profile(0, 1)["T_a_true"][0] == 30.0
     # start the tank, its sink and the skin at 20 °C against air at 30 °C
     plant.tank.reset(20.0, 20.0)
     plant.skin.reset(20.0, 20.0)
@@ -135,3 +135,63 @@ def test_plant_bad_arguments() -> None:
         SimulatedPlant(CFG, SCENARIOS["none"], tank="kettle")
     with pytest.raises(ValueError, match="start"):
         SimulatedPlant(CFG, SCENARIOS["none"]).reset("somewhere")
+
+
+@pytest.mark.parametrize("path", ["open", "closed", "spatial", "device"])
+def test_the_profiles_window_changes_nothing(monkeypatch: pytest.MonkeyPatch, path: str) -> None:
+    """The plant holds its scenario's profiles a window at a time (``plant.WINDOW`` samples):
+    windows of 1009 samples, cut mid-touch and mid-toucher, give every sample of one window the
+    length of the run (the profiles whole, as the plant held them before), on the open loop
+    (prescribed tank, touchers), the closed loop, the spatial skin and the emulator's repeating
+    plant across its wrap."""
+    import thermoskin.sim.plant as plant_mod
+
+    def go() -> dict[str, np.ndarray]:
+        if path == "open":
+            return simulate("touchers", CFG, 24.0)
+        if path == "closed":
+            return run_closed_loop(SCENARIOS["touchers"].with_duration(24.0), CFG).columns
+        if path == "spatial":
+            sc = SCENARIOS["mixed"].with_duration(12.0)
+            return run_closed_loop(sc, CFG, skin_model="spatial").columns
+        core = DeviceCore(CFG, SCENARIOS["touchers"].with_duration(8.0))  # a cold can at 6.7 s
+        rows = []
+        for k in range(20_000):  # 2.5 scenario durations
+            rows.append(core.plant.measure() + core.plant.truth() + core.plant.contact())
+            core.plant.apply(0.3, 0.141 if k % 700 < 400 else 0.0)
+        return {"rows": np.array(rows)}
+
+    monkeypatch.setattr(plant_mod, "WINDOW", 10**9)
+    whole = go()
+    monkeypatch.setattr(plant_mod, "WINDOW", 1009)
+    cut = go()
+    for k, a in whole.items():
+        assert np.array_equal(cut[k], a, equal_nan=True), k
+    if path != "device":
+        assert whole["contact_true"].sum() > 2000  # touches cross the windows' edges
+    else:
+        assert np.abs(whole["rows"][:, 3]).max() > 1.0  # q_i: the cold can in each repeat
+
+
+def test_profile_is_the_touches_and_ambient_at_each_sample() -> None:
+    """:meth:`SimulatedPlant.profile` by hand: a two-finger touch's ramp (``RAMP_S``) and its
+    position, the ambient's interpolation, a prescribed tank's command, over any cut."""
+    from thermoskin.physics.finger import RAMP_S, full_conductance
+
+    tc = Touch(t_on=1.0, duration=2.0, n_fingers=2, position=0.12)
+    sc = Scenario("p", "", 4.0, touches=(tc,), ambient=((0.0, 20.0), (4.0, 24.0)), T_a=20.0)
+    plant = SimulatedPlant(CFG, sc, tank="prescribed")
+    t_s = CFG.sampling.t_s
+    p = plant.profile(900, 3100)
+    t = np.arange(900, 3100) * t_s
+    G = full_conductance(tc) * np.clip(np.minimum(t - 1.0, 3.0 - t) / RAMP_S, 0.0, 1.0)
+    G[(t <= 1.0) | (t > 3.0)] = 0.0
+    np.testing.assert_allclose(p["G_c"], G, rtol=1e-12, atol=0)
+    assert np.array_equal(p["n_fingers"], np.where(G > 0, 2, 0))
+    assert np.array_equal(p["position"], np.where((t >= 1.0) & (t < 3.0), 0.12, 0.0))
+    np.testing.assert_allclose(p["T_a_true"], 20.0 + t, rtol=1e-12)
+    np.testing.assert_array_equal(p["T_p"], sc.T_p(t))
+    assert np.array_equal(p["current"], np.where((t > 1.0) & (t < 3.0), 0, -1))
+    whole = plant.profile()
+    for k, x in p.items():
+        np.testing.assert_array_equal(whole[k][900:3100], x, err_msg=k)

@@ -97,19 +97,80 @@ class Tracking:
 
 
 def tracking_errors(log: dict[str, NDArray[np.float64]], window: float = 60.0) -> list[Tracking]:
-    """Per command segment of ``log["T_w_cmd"]``: errors over its last ``window`` s (or half)."""
-    t, cmd, T_w = log["t"], log["T_w_cmd"], log["T_w"]
-    edges = np.flatnonzero(np.diff(cmd) != 0) + 1
-    bounds = [0, *edges.tolist(), len(t)]
-    out = []
-    for a, b in itertools.pairwise(bounds):
-        t_end = t[b - 1]
-        t_start = max(t[a] + 0.5 * (t_end - t[a]), t_end - window)
-        w = slice(int(np.searchsorted(t, t_start)), b)
+    """Per command segment of ``log["T_w_cmd"]``: errors over its last ``window`` s (or half).
+    The whole log at once: :class:`TrackingStream` fed one chunk."""
+    ts = TrackingStream(window)
+    ts.feed(log["t"], log["T_w"], log["T_w_cmd"], log.get("T_p_cmd"))
+    return ts.finish()
+
+
+class TrackingStream:
+    """:func:`tracking_errors` fed chunk by chunk (a run as it goes), in bounded memory.
+
+    A segment is a run of equal ``T_w_cmd``; it ends where the command changes (between
+    chunks too) or at :meth:`finish`. Its errors ``T_w - T_w_cmd`` (finite ones) are
+    averaged over ``[max(t_a + (t_end - t_a)/2, t_end - window), t_end]``, ``t_a`` and
+    ``t_end`` its first and last sample; ``T_p_cmd``'s range (NaN without it) is over the
+    whole segment. Only the last ``window`` s of the current segment are held, so any
+    chunking gives the same numbers as the whole log.
+    """
+
+    def __init__(self, window: float = 60.0) -> None:
+        self.window = float(window)
+        self.out: list[Tracking] = []
+        self._held: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]] = []
+        self._cmd = math.nan  # the segment's command
+        self._t_a = math.nan  # its first sample's time
+        self._pc = (math.nan, math.nan)  # T_p_cmd's min and max over it
+        self._open = False
+
+    def feed(self, t: NDArray[np.float64], T_w: NDArray[np.float64], T_w_cmd: NDArray[np.float64],
+             T_p_cmd: NDArray[np.float64] | None = None) -> None:
+        """The next samples (``t`` increasing)."""
+        t, T_w, cmd = (np.asarray(x, dtype=np.float64) for x in (t, T_w, T_w_cmd))
+        if not len(t):
+            return
+        pc = np.full(len(t), np.nan) if T_p_cmd is None else np.asarray(T_p_cmd, dtype=np.float64)
+        cuts = (np.flatnonzero(np.diff(cmd) != 0) + 1).tolist()
+        new_first = self._open and bool(cmd[0] != self._cmd)  # NaN != NaN: a change, as np.diff
+        for a, b in itertools.pairwise([0, *cuts, len(t)]):
+            if a > 0 or new_first or not self._open:
+                self._close()
+                self._open = True
+                self._cmd, self._t_a = float(cmd[a]), float(t[a])
+                self._pc = (float(np.min(pc[a:b])), float(np.max(pc[a:b])))
+            else:
+                self._pc = (float(np.minimum(self._pc[0], np.min(pc[a:b]))),
+                            float(np.maximum(self._pc[1], np.max(pc[a:b]))))
+            self._held.append((t[a:b], T_w[a:b], cmd[a:b]))
+        self._trim(float(t[-1]) - self.window)
+
+    def _trim(self, cutoff: float) -> None:
+        """Drop the held samples before ``cutoff`` (s): no segment's window reaches them."""
+        held = self._held
+        while held and held[0][0][-1] < cutoff:
+            held.pop(0)
+        if held:
+            i = int(np.searchsorted(held[0][0], cutoff))
+            if i:
+                held[0] = tuple(x[i:] for x in held[0])  # type: ignore[assignment]
+
+    def _close(self) -> None:
+        if not self._open:
+            return
+        t, T_w, cmd = (np.concatenate([h[i] for h in self._held]) for i in range(3))
+        self._held = []
+        self._open = False
+        t_end = float(t[-1])
+        t_start = max(self._t_a + 0.5 * (t_end - self._t_a), t_end - self.window)
+        w = slice(int(np.searchsorted(t, t_start)), len(t))
         e = T_w[w] - cmd[w]
         e = e[np.isfinite(e)]
-        T_pc = log["T_p_cmd"][a:b] if "T_p_cmd" in log else np.full(1, np.nan)
-        out.append(Tracking(T_w_cmd=float(cmd[a]), t0=float(t_start), t1=float(t_end),
-                            mean_abs_error=float(np.mean(np.abs(e))), mean_error=float(np.mean(e)),
-                            T_p_cmd_min=float(np.min(T_pc)), T_p_cmd_max=float(np.max(T_pc))))
-    return out
+        self.out.append(Tracking(T_w_cmd=self._cmd, t0=float(t_start), t1=t_end,
+                                 mean_abs_error=float(np.mean(np.abs(e))), mean_error=float(np.mean(e)),
+                                 T_p_cmd_min=self._pc[0], T_p_cmd_max=self._pc[1]))
+
+    def finish(self) -> list[Tracking]:
+        """Close the last segment; every segment's :class:`Tracking`, in order."""
+        self._close()
+        return self.out

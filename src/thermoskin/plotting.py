@@ -101,7 +101,9 @@ def plot_run(
     Panels: ``T_w`` and, if present, ``T_p``, ``T_g`` (true), ``T_w_cmd``, ``T_a`` (°C);
     ``q_i_hat`` (W, raw and a 0.1 s mean) with, on a twin axis, its change from the
     no-touch baseline ``dq_i_hat``; the simulator's true ``q_i`` if present; ``T_p_cmd``,
-    the Peltier drive and the pump if present. Detected
+    the Peltier drive and the pump if present. The trailing means are computed here, or
+    taken from ``q_i_hat_mean`` and ``v_mean`` if given (a long run's digest,
+    :class:`thermoskin.plot_digest.PlotDigest`). Detected
     contacts (``events``: objects or mappings with ``onset``/``release`` in s) are shaded
     in both panels; true contacts (``contact_true``) are a thin band at the top of each
     panel. Returns the path.
@@ -144,8 +146,8 @@ def plot_run(
     handles_q = []
     if "q_i_hat" in cols:
         handles_q.append(line(ax_q, "q_i_hat", "q_i_hat (eq. 8, left)", "tab:blue", lw=0.6, alpha=0.35))
-        handles_q.append(line(ax_q, "q_i_hat", "q_i_hat, 0.1 s mean", "tab:blue", lw=1.0,
-                              y=_moving_mean(t, cols["q_i_hat"], 0.1)))
+        mean = cols["q_i_hat_mean"] if "q_i_hat_mean" in cols else _moving_mean(t, cols["q_i_hat"], 0.1)
+        handles_q.append(line(ax_q, "q_i_hat", "q_i_hat, 0.1 s mean", "tab:blue", lw=1.0, y=mean))
     ax_q.set_ylabel("q_i_hat (W)")
     if "dq_i_hat" in cols:
         ax_r = ax_q.twinx() if "q_i_hat" in cols else ax_q
@@ -169,8 +171,8 @@ def plot_run(
             if "v" in cols:
                 v = cols["v"]
                 vmax = float(np.nanmax(v)) if np.any(v > 0) else 1.0
-                handles_c.append(line(ax_d, "v", "pump duty, 1 s mean (right)", "tab:gray", lw=1.0,
-                                      y=_moving_mean(t, v / vmax, 1.0)))
+                duty = cols["v_mean"] / vmax if "v_mean" in cols else _moving_mean(t, v / vmax, 1.0)
+                handles_c.append(line(ax_d, "v", "pump duty, 1 s mean (right)", "tab:gray", lw=1.0, y=duty))
             ax_d.set_ylabel("drive, pump")
     panels = [(ax_t, handles_t), (ax_q, handles_q)]
     if ax_i is not None:

@@ -90,7 +90,8 @@ def open_loop_spatial(sc: Scenario, cfg: Config, *, stop_in_contact: bool, inlet
     cmd = float(sc.T_w_cmd)
     plant.reset("command", T_w0=cmd)
     pump = PumpLogic(cfg.pump, t_s)
-    G_l = plant.G_c
+    prof = plant.profile()
+    G_l = prof["G_c"].tolist()
     T_w, T_p_m, T_a_m, T_w_true, T_g, v = (np.zeros(n) for _ in range(6))
     fresh = np.zeros(n, dtype=np.int64)
     skin = plant.skin
@@ -107,9 +108,9 @@ def open_loop_spatial(sc: Scenario, cfg: Config, *, stop_in_contact: bool, inlet
         plant.apply(0.0, vk)
     t = np.arange(n) * t_s
     out = TouchEstimator(cfg, t_s=t_s).run(t, T_w, T_p_m, v, T_a_m, fresh=fresh)
-    G, T_f = np.asarray(G_l), np.asarray(plant.T_f)
+    G, T_f = prof["G_c"], prof["T_f"]
     return out.events, {"t": t, "T_w": T_w, "T_p": T_p_m, "v": v, "T_a": T_a_m, "T_w_cmd": np.full(n, cmd),
-            "T_p_cmd": np.asarray(plant.T_p_prescribed), "q_i_hat": out.columns["q_i_hat"],
+            "T_p_cmd": prof["T_p"], "q_i_hat": out.columns["q_i_hat"],
             "dq_i_hat": out.columns["dq_i_hat"],
             "q_i": G * (T_f - T_g), "T_g": T_g, "T_w_true": T_w_true, "contact_true": (G > 0).astype(float)}
 

@@ -66,46 +66,59 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
                     progress: Callable[[float], None] | None = None,
                     on_block: Callable[[dict[str, Any]], None] | None = None,
                     block: int = 1000, stop: Any = None,
-                    probe: SetpointProbe | None = None) -> LoopResult:
+                    probe: SetpointProbe | None = None, keep: bool = True) -> LoopResult:
     """Run ``scenario`` (its touches at their times) in closed loop from ambient.
 
     ``skin_model``: ``"network"`` (two-node, as the observer assumes) or ``"spatial"``.
-    ``on_block(columns)`` (a recorder) gets every ``block`` rows as column slices, with a
-    ``fault`` column (the supervisor's code, non-zero on the row that tripped).
+    ``on_block(columns)`` (a recorder) gets every ``block`` rows as column arrays of its own,
+    with a ``fault`` column (the supervisor's code, non-zero on the row that tripped).
     ``stop`` (anything with ``is_set()``, e.g. a
     :class:`~thermoskin.runtime.stopping.StopRequest`) is polled every sample: once set, the
     loop commands the safe state and ends with the rows so far (``summary["interrupted"]``).
     ``probe``: active sensing during contacts (:class:`~thermoskin.control.probe.SetpointProbe`).
+    ``keep``: the result holds every row (``LoopResult.columns``); False holds only the
+    current block (``columns`` empty), so memory does not grow with the run's length
+    (``thermoskin run``, whose ``on_block`` writes them). ``summary["rows"]`` counts the rows.
     """
     plant = SimulatedPlant(cfg, scenario, skin_model=skin_model)
     ctrl = SkinController(cfg, probe)
     ctrl.reset(scenario.T_a)
     n, t_s = plant.n, cfg.sampling.t_s
-    rec = {k: np.zeros(n) for k in COLUMNS}
-    cols = [rec[k] for k in COLUMNS]
-    (c_t, c_Tw, c_Tp, c_v, c_Ta, c_cmd, c_Tpc, c_drv, c_qi, c_dq, c_con, c_gap, c_fr, c_q, c_Tg,
-     c_Twt, c_Tpt, _, _) = cols
+    block = max(1, int(block))
     est = ctrl.estimator
     sup = sv.Supervisor(cfg)
     check = sup.check
     lim = limits(cfg.plausible)
     truth = plant.truth
     k_sent = 0
+    kept: list[dict[str, Any]] = []
+    rec: dict[str, NDArray[np.float64]] = {}
+    recorded = COLUMNS[:-2]  # the plant's contact truth comes from its profile
+
+    def new_block() -> list[NDArray[np.float64]]:
+        """The columns of the next ``block`` rows (each block arrays of its own)."""
+        rec.update({k: np.zeros(min(block, n - k_sent)) for k in recorded})
+        return [rec[k] for k in recorded]
 
     def send(k1: int, code: int = 0) -> None:
         nonlocal k_sent
-        if on_block is None or k1 <= k_sent:
+        if k1 <= k_sent:
             return
-        part = {k: rec[k][k_sent:k1] for k in COLUMNS if k not in ("contact_true", "n_fingers")}
-        part["contact_true"] = (np.asarray(plant.G_c[k_sent:k1]) > 0).astype(np.int8)
-        part["n_fingers"] = np.asarray(plant.n_fingers[k_sent:k1])
-        f = np.zeros(k1 - k_sent)
-        if code:
-            f[-1] = code
-        part["fault"] = f
-        on_block(part)
+        part = {k: rec[k][:k1 - k_sent] for k in recorded}
+        prof = plant.profile(k_sent, k1)
+        part["contact_true"] = (prof["G_c"] > 0).astype(np.int8)
+        part["n_fingers"] = prof["n_fingers"]
+        if keep:
+            kept.append(part)
+        if on_block is not None:
+            f = np.zeros(k1 - k_sent)
+            if code:
+                f[-1] = code
+            on_block({**part, "fault": f})
         k_sent = k1
 
+    (c_t, c_Tw, c_Tp, c_v, c_Ta, c_cmd, c_Tpc, c_drv, c_qi, c_dq, c_con, c_gap, c_fr, c_q, c_Tg,
+     c_Twt, c_Tpt) = new_block()
     n_run = n
     cmd_at = scenario.T_w_cmd_at
     setpoint_changes = sorted({0.0, *(t0 for t0, _ in scenario.setpoints)})
@@ -113,6 +126,7 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     every = max(1, n // 200)
     stopped = stop.is_set if stop is not None else None
     wall0 = time.perf_counter()
+    j = 0  # the row in the block
     for k in range(n):
         t = k * t_s
         if stopped is not None and stopped():
@@ -132,23 +146,23 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
         else:
             ctrl.step(t, w, p, a, cmd, fresh)
         q_i, T_g, T_w_true, T_p_true = truth()
-        c_t[k] = t
-        c_Tw[k] = T_w
-        c_Tp[k] = T_p
-        c_Ta[k] = T_a
-        c_v[k] = ctrl.v
-        c_cmd[k] = cmd
-        c_Tpc[k] = ctrl.T_p_cmd
-        c_drv[k] = ctrl.drive
-        c_qi[k] = est.q_i_hat
-        c_dq[k] = est.dq_i_hat
-        c_con[k] = ctrl.contact
-        c_gap[k] = est.gap
-        c_fr[k] = fresh
-        c_q[k] = q_i
-        c_Tg[k] = T_g
-        c_Twt[k] = T_w_true
-        c_Tpt[k] = T_p_true
+        c_t[j] = t
+        c_Tw[j] = T_w
+        c_Tp[j] = T_p
+        c_Ta[j] = T_a
+        c_v[j] = ctrl.v
+        c_cmd[j] = cmd
+        c_Tpc[j] = ctrl.T_p_cmd
+        c_drv[j] = ctrl.drive
+        c_qi[j] = est.q_i_hat
+        c_dq[j] = est.dq_i_hat
+        c_con[j] = ctrl.contact
+        c_gap[j] = est.gap
+        c_fr[j] = fresh
+        c_q[j] = q_i
+        c_Tg[j] = T_g
+        c_Twt[j] = T_w_true
+        c_Tpt[j] = T_p_true
         if est.started and on_start is not None:
             on_start(t)
         if est.written and on_event is not None:
@@ -160,8 +174,12 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
             break
         if progress is not None and k % every == 0:
             progress(k / n)
-        if on_block is not None and k + 1 - k_sent >= block:
+        j += 1
+        if j == block and k + 1 < n:
             send(k + 1)
+            (c_t, c_Tw, c_Tp, c_v, c_Ta, c_cmd, c_Tpc, c_drv, c_qi, c_dq, c_con, c_gap, c_fr, c_q, c_Tg,
+             c_Twt, c_Tpt) = new_block()
+            j = 0
     fault_code = sup.code if sup.code != sv.STOPPED else 0
     send(n_run, fault_code)
     n_events = len(est.events)
@@ -172,13 +190,12 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     wall = time.perf_counter() - wall0
     if progress is not None:
         progress(1.0)
-    rec["contact_true"] = (np.asarray(plant.G_c) > 0).astype(np.int8)
-    rec["n_fingers"] = np.asarray(plant.n_fingers, dtype=np.int8)
-    for k in ("contact", "gap", "fresh"):
-        rec[k] = rec[k].astype(np.int8)
-    if n_run < n:
-        rec = {k: x[:n_run] for k, x in rec.items()}
+    columns: dict[str, NDArray[Any]] = {}
+    if keep:
+        columns = {k: (np.concatenate([b[k] for b in kept]) if kept else np.zeros(0)) for k in COLUMNS}
+        for k in ("contact", "gap", "fresh", "contact_true", "n_fingers"):
+            columns[k] = columns[k].astype(np.int8)
     summary = {"fault": sup.code, "fault_name": sv.FAULTS[sup.code], "detail": sup.detail,
                "t_fault": sup.t_fault, "fault_value": sup.value, "t_safe": sup.t_fault,
-               "interrupted": sup.code == sv.STOPPED}
-    return LoopResult(columns=rec, events=est.events, scenario=scenario, wall_s=wall, summary=summary)
+               "interrupted": sup.code == sv.STOPPED, "rows": n_run}
+    return LoopResult(columns=columns, events=est.events, scenario=scenario, wall_s=wall, summary=summary)

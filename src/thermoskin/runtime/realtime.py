@@ -256,9 +256,8 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
                     T_p_cmd = ctrl.T_p_cmd
                 if truth is not None:
                     q_i, T_g, T_wt, T_pt = truth()
-                    kk = plant.k
-                    c_true = 1.0 if plant.G_c[kk] > 0 else 0.0
-                    n_f = float(plant.n_fingers[kk])
+                    c_on, n_on = plant.contact()
+                    c_true, n_f = float(c_on), float(n_on)
                 else:
                     q_i = T_g = T_wt = T_pt = c_true = n_f = nan
                 if not code:

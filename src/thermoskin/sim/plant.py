@@ -72,6 +72,8 @@ if TYPE_CHECKING:
 SKIN_MODELS = ("network", "spatial")
 TANKS = ("peltier", "prescribed")
 STARTS = ("ambient", "command", "equilibrium")
+WINDOW = 16_384
+"""Samples of the scenario's profiles the plant holds at a time (:meth:`SimulatedPlant._window`)."""
 
 
 #: ``toucher_true`` in a log: the toucher as a number.
@@ -82,8 +84,9 @@ class SimulatedPlant:
     """One scenario on the simulated skin, sample by sample (see the module doc).
 
     ``n`` samples (default: the scenario's duration); with ``repeat`` the profiles span one
-    scenario duration and repeat. Profiles over those samples: ``G_c``, ``T_f``, ``position``
-    (lists), ``n_fingers``, ``T_a_true`` and, for a prescribed tank, ``T_p_prescribed`` (arrays).
+    scenario duration and repeat. The scenario's profiles over those samples (contacts,
+    positions, ambient, a prescribed tank: :meth:`profile`) are computed :data:`WINDOW`
+    samples at a time as the plant reaches them, so its memory does not grow with ``n``.
     """
 
     def __init__(self, cfg: Config, scenario: Scenario, n: int | None = None,
@@ -99,36 +102,80 @@ class SimulatedPlant:
         self.t_s = t_s
         self.repeat = bool(repeat)
         self.n = n if n is not None else max(1, math.floor(scenario.duration / t_s + 1e-9))
-        t = np.arange(self.n) * t_s
-        G_c, T_f, n_f = contact_profile(scenario.touches, t)
-        self.G_c: list[float] = G_c.tolist()
-        self.T_f: list[float] = T_f.tolist()
-        self.n_fingers: NDArray[np.int64] = n_f
-        self._init_touchers(scenario, t)
         self.spatial = skin_model == "spatial"
         if self.spatial:
             from thermoskin.sim.spatial_skin import SpatialSkin
 
-            pos = np.zeros(self.n)
-            for tc in scenario.touches:
-                pos[(t >= tc.t_on) & (t < tc.t_off)] = tc.position
-            self.position: list[float] = pos.tolist()
             self.skin: SimulatedSkin = SpatialSkin(cfg, spatial)  # type: ignore[assignment]
             self.skin.track_exchange = tank == "peltier"  # type: ignore[attr-defined]
         else:
-            self.position = [0.0] * self.n
             self.skin = SimulatedSkin(cfg)
         self.prescribed = tank == "prescribed"
-        self.T_p_prescribed = np.asarray(scenario.T_p(t), dtype=float) if self.prescribed else None
-        self._T_p = self.T_p_prescribed.tolist() if self.T_p_prescribed is not None else []
         self.tank = PeltierTank(cfg.peltier, t_s, (cfg.control.drive_min, cfg.control.drive_max))
         self.R_w = FlowResistance(cfg.skin)
         self.sensors = Sensors(cfg.sensor, t_s)
-        self.T_a_true: NDArray[np.float64] = np.asarray(scenario.T_a_at(t), dtype=float)
-        """The true ambient at each sample (the scenario's profile), °C."""
-        self._T_a = self.T_a_true.tolist()
+        self._init_touchers(scenario)
+        self._w0, self._w1 = 0, 0  # the profiles' window: samples [w0, w1) (``_window``)
         self.k = 0
         self.reset()
+
+    # -- profiles ------------------------------------------------------------------------
+    def profile(self, k0: int = 0, k1: int | None = None) -> dict[str, NDArray[np.generic]]:
+        """The scenario's profiles over samples ``[k0, k1)`` of the profile (default: all
+        ``n``), computed afresh (nothing is held): ``t`` (s), ``G_c`` (W/K), ``T_f`` (°C) and
+        ``n_fingers`` of the fixed touches and touchers' ramps together
+        (:func:`~thermoskin.physics.finger.contact_profile`), ``position`` (m, the touch's
+        on the spatial skin, 0 elsewhere), ``T_a_true`` (°C, the true ambient), ``T_p`` (°C,
+        the prescribed tank, NaN for a Peltier tank) and ``current`` (the index in
+        ``scenario.touches`` of the contact, -1 none). Each is a function of ``t_k = k t_s``
+        alone, so any cut of the samples gives the same values."""
+        k1 = self.n if k1 is None else min(int(k1), self.n)
+        k0 = min(max(0, int(k0)), k1)
+        sc = self.scenario
+        t = np.arange(k0, k1) * self.t_s
+        G_c, T_f, n_f = contact_profile(sc.touches, t)
+        pos = np.zeros(t.size)
+        cur = np.full(t.size, -1, dtype=np.int64)
+        for j, tc in enumerate(sc.touches):
+            on = (t >= tc.t_on) & (t < tc.t_off)
+            pos[on] = tc.position
+            cur[(t > tc.t_on) & (t < tc.t_off)] = j
+        T_p = (np.asarray(sc.T_p(t), dtype=float) if self.prescribed else np.full(t.size, math.nan))
+        return {"t": t, "G_c": G_c, "T_f": T_f, "n_fingers": n_f, "position": pos,
+                "T_a_true": np.asarray(sc.T_a_at(t), dtype=float), "T_p": T_p, "current": cur}
+
+    def _window(self, i: int) -> int:
+        """Sample ``i``'s place in the profiles' window, which is moved to hold it if it does
+        not: :data:`WINDOW` samples from a multiple of it, as plain lists for the per-sample
+        path. The plant holds only this window, so its memory does not grow with ``n``."""
+        if self._w0 <= i < self._w1:
+            return i - self._w0
+        w0 = i - i % WINDOW
+        w1 = min(self.n, w0 + WINDOW)
+        p = self.profile(w0, w1)
+        self._G_c: list[float] = p["G_c"].tolist()
+        self._T_f: list[float] = p["T_f"].tolist()
+        self._n_f: list[int] = p["n_fingers"].tolist()
+        self._pos: list[float] = p["position"].tolist()
+        self._T_a: list[float] = p["T_a_true"].tolist()
+        self._T_p: list[float] = p["T_p"].tolist()
+        self._cur: list[int] = p["current"].tolist()
+        if self.touchers:
+            t = p["t"]
+            fixed = [tc for tc, tch in zip(self.scenario.touches, self._has_toucher, strict=True) if not tch]
+            G_x, T_x, _ = contact_profile(fixed, t)
+            self._G_x: list[float] = G_x.tolist()
+            self._T_x: list[float] = T_x.tolist()
+            self._wt: list[tuple[int, int, list[float], Toucher]] = []
+            """``(lo, hi, G_j over [lo, hi), Toucher)`` of each toucher in contact within the
+            window, ``lo, hi`` window places, in the scenario's order."""
+            for tc, tch in self.touchers:
+                lo, hi = (int(x) for x in np.searchsorted(t, [tc.t_on, tc.t_off], side="right"))
+                if lo < hi:
+                    g, _, _ = contact_profile([tc], t[lo:hi])
+                    self._wt.append((lo, hi, g.tolist(), tch))
+        self._w0, self._w1 = w0, w1
+        return i - w0
 
     # -- state ---------------------------------------------------------------------------
     def reset(self, start: str = "ambient", *, T_w0: float | None = None, v: float = 0.0) -> None:
@@ -145,7 +192,8 @@ class SimulatedPlant:
         self.fresh = 0
         self.sensors.reset()
         self._rest_touchers()
-        T_a, G0, T_f0 = self._T_a[0], self.G_c[0], self.T_f[0]
+        j = self._window(0)
+        T_a, G0, T_f0 = self._T_a[j], self._G_c[j], self._T_f[j]
         skin, tank = self.skin, self.tank
         if start == "ambient":
             tank.reset(T_a, T_a, T_a)
@@ -160,69 +208,51 @@ class SimulatedPlant:
             skin.reset_equilibrium(T_p0, v, T_a, G0, T_f0)
 
     # -- touchers ------------------------------------------------------------------------
-    def _init_touchers(self, scenario: Scenario, t: NDArray[np.float64]) -> None:
-        """Touchers of the touches that name one, the fixed touches' profile, the contact truth."""
+    def _init_touchers(self, scenario: Scenario) -> None:
+        """The touchers of the touches that name one, and each touch's contact truth."""
         touches = scenario.touches
-        self.touchers: list[tuple[int, int, list[float], Toucher]] = []
-        """``(lo, hi, G_j over [lo, hi), Toucher)`` per touch naming a toucher."""
+        self.touchers: list[tuple[Touch, Toucher]] = []
+        """``(touch, its Toucher)`` per touch naming a toucher, in the scenario's order."""
+        self._has_toucher = [tc.toucher is not None for tc in touches]
         self._rest: list[list[float]] = []
-        fixed: list[Touch] = []
+        rows = []
         for tc in touches:
             if tc.toucher is None:
-                fixed.append(tc)
+                who = "human" if tc.n_fingers > 0 else ""
+                rows.append((who, "human" if who else "", body_temperature(tc), full_conductance(tc)))
                 continue
             from thermoskin.physics.contact import toucher
 
-            lo, hi = (int(x) for x in np.searchsorted(t, [tc.t_on, tc.t_off], side="right"))
-            g, _, _ = contact_profile([tc], t[lo:hi])
             tch = toucher(tc.toucher, body_temperature(tc), tc.area, tc.pressure, t_s=self.t_s,
                           T_env=float(scenario.T_a_at(tc.t_on)))
-            self.touchers.append((lo, hi, g.tolist(), tch))
+            self.touchers.append((tc, tch))
             self._rest.append(list(tch.T))
-        if self.touchers:
-            G_x, T_x, _ = contact_profile(fixed, t)
-            self._G_x: list[float] = G_x.tolist()
-            self._T_x: list[float] = T_x.tolist()
-        # the contact truth per sample: the latest touch begun
-        cur = np.full(t.size, -1, dtype=np.int64)
-        for j, tc in enumerate(touches):
-            cur[(t > tc.t_on) & (t < tc.t_off)] = j
-        self.current: NDArray[np.int64] = cur
-        """Index in ``scenario.touches`` of the contact at each sample (-1: none)."""
-        rows = []
-        k = 0
-        for tc in touches:
-            if tc.toucher is not None:
-                tr = self.touchers[k][3].truth
-                k += 1
-                rows.append((tr["toucher_true"], tr["class_true"], tr["T_f_true"], tr["G_true"]))
-            else:
-                who = "human" if tc.n_fingers > 0 else ""
-                rows.append((who, "human" if who else "", body_temperature(tc), full_conductance(tc)))
+            tr = tch.truth
+            rows.append((tr["toucher_true"], tr["class_true"], tr["T_f_true"], tr["G_true"]))
         self.touch_truth: list[tuple[str, str, float, float]] = rows
         """``(toucher_true, material_true, T_f_true, G_true)`` per touch (``material_true``: the
         class, one of ``contact.CLASSES``)."""
 
     def _rest_touchers(self) -> None:
         """Every toucher back to its rest before its touch."""
-        for (_, _, _, tch), T0 in zip(self.touchers, self._rest, strict=True):
+        for (_, tch), T0 in zip(self.touchers, self._rest, strict=True):
             tch.set_state(T0)
 
     def contact_truth(self) -> tuple[str, str, float, float]:
         """``(toucher_true, material_true, T_f_true, G_true)`` of the contact now (module doc);
         ``("", "", nan, nan)`` outside contacts."""
-        j = int(self.current[self.index()])
+        j = self._cur[self._window(self.index())]
         return self.touch_truth[j] if j >= 0 else ("", "", math.nan, math.nan)
 
-    def truth_columns(self) -> dict[str, NDArray[np.generic]]:
-        """:meth:`contact_truth` over the profile's samples as numbers a log holds (the log
-        schema is numeric): ``toucher_true`` (:data:`TOUCHER_CODES`: 1 human, 0 object, -1 no
-        contact), ``material_true`` (the index of the class in
-        :data:`thermoskin.physics.contact.CLASSES`, -1 no contact), ``T_f_true`` (°C, NaN
-        outside contacts), ``G_true`` (W/K, 0 outside contacts)."""
+    def truth_columns(self, k0: int = 0, k1: int | None = None) -> dict[str, NDArray[np.generic]]:
+        """:meth:`contact_truth` over samples ``[k0, k1)`` of the profile (default: all) as
+        numbers a log holds (the log schema is numeric): ``toucher_true``
+        (:data:`TOUCHER_CODES`: 1 human, 0 object, -1 no contact), ``material_true`` (the
+        index of the class in :data:`thermoskin.physics.contact.CLASSES`, -1 no contact),
+        ``T_f_true`` (°C, NaN outside contacts), ``G_true`` (W/K, 0 outside contacts)."""
         from thermoskin.physics.contact import CLASSES
 
-        cur = self.current
+        cur = self.profile(k0, k1)["current"]
         rows = [*self.touch_truth, ("", "", math.nan, 0.0)]  # index -1: no contact
         who = np.array([TOUCHER_CODES.get(r[0], -1) for r in rows], dtype=np.int8)
         mat = np.array([CLASSES.index(r[1]) if r[1] in CLASSES else -1 for r in rows], dtype=np.int8)
@@ -237,7 +267,7 @@ class SimulatedPlant:
     @property
     def T_p_true(self) -> float:
         """The tank's true temperature now, °C."""
-        return self._T_p[self.index()] if self.prescribed else self.tank.T_p
+        return self._T_p[self._window(self.index())] if self.prescribed else self.tank.T_p
 
     def measure(self) -> tuple[float, float, float]:
         """``(T_w, T_p, T_a)`` as the thermocouples read them now (°C); ``fresh`` their bit mask.
@@ -246,10 +276,10 @@ class SimulatedPlant:
         """
         k = self.k
         if self._k_read != k:
-            i = k % self.n if self.repeat else k
+            j = self._window(k % self.n if self.repeat else k)
             sens = self.sensors
-            T_p = self._T_p[i] if self.prescribed else self.tank.T_p
-            self._reading = r = sens.read(self.skin.T_w, T_p, self._T_a[i])
+            T_p = self._T_p[j] if self.prescribed else self.tank.T_p
+            self._reading = r = sens.read(self.skin.T_w, T_p, self._T_a[j])
             self.fresh = sens.fresh
             self._k_read = k
             return r
@@ -257,61 +287,62 @@ class SimulatedPlant:
 
     def truth(self) -> tuple[float, float, float, float]:
         """``(q_i, T_g, T_w, T_p)`` now (W, °C): ``q_i`` with the contact applied from now on."""
-        i = self.index()
+        j = self._window(self.index())
         skin = self.skin
         T_g = skin.T_g
+        T_p = self._T_p[j] if self.prescribed else self.tank.T_p
         if self.touchers:
-            G = self._G_x[i]
-            q_i = G * (self._T_x[i] - T_g) if G > 0.0 else 0.0
-            for lo, hi, g, tch in self.touchers:
-                if lo <= i < hi and g[i - lo] > 0.0:
-                    q_i += g[i - lo] * (tch.T_s - T_g)
-            return q_i, T_g, skin.T_w, self.T_p_true
-        G = self.G_c[i]
-        q_i = G * (self.T_f[i] - T_g) if G > 0.0 else 0.0
-        return q_i, T_g, skin.T_w, self.T_p_true
+            G = self._G_x[j]
+            q_i = G * (self._T_x[j] - T_g) if G > 0.0 else 0.0
+            for lo, hi, g, tch in self._wt:
+                if lo <= j < hi and g[j - lo] > 0.0:
+                    q_i += g[j - lo] * (tch.T_s - T_g)
+            return q_i, T_g, skin.T_w, T_p
+        G = self._G_c[j]
+        q_i = G * (self._T_f[j] - T_g) if G > 0.0 else 0.0
+        return q_i, T_g, skin.T_w, T_p
 
     def contact(self) -> tuple[int, int]:
         """``(contact_true, n_fingers)`` now: 1 while ``G_c > 0``, and the fingers touching."""
-        i = self.index()
-        return (1 if self.G_c[i] > 0.0 else 0), int(self.n_fingers[i])
+        j = self._window(self.index())
+        return (1 if self._G_c[j] > 0.0 else 0), self._n_f[j]
 
     def apply(self, drive: float, v: float) -> None:
         """Hold ``drive`` and ``v`` over one sample and advance."""
         k = self.k
         if self._k_read != k:
             self.measure()  # the sensors see every sample
-        i = k % self.n if self.repeat else k
+        j = self._window(k % self.n if self.repeat else k)
         skin = self.skin
-        T_a = self._T_a[i]
+        T_a = self._T_a[j]
         if self.prescribed:
-            T_p = self._T_p[i]
+            T_p = self._T_p[j]
         else:
             tank = self.tank
             T_p = tank.T_p
             if not self.spatial:
                 tank.step(drive, T_a, (T_p - skin.T_w) / self.R_w(v))
         if self.touchers:
-            self._step_touchers(i, T_p, v, T_a)
+            self._step_touchers(j, T_p, v, T_a)
         elif self.spatial:
-            skin.step(T_p, v, T_a, self.G_c[i], self.T_f[i],
-                      position=self.position[i])  # type: ignore[call-arg]
+            skin.step(T_p, v, T_a, self._G_c[j], self._T_f[j],
+                      position=self._pos[j])  # type: ignore[call-arg]
         else:
-            skin.step(T_p, v, T_a, self.G_c[i], self.T_f[i])
+            skin.step(T_p, v, T_a, self._G_c[j], self._T_f[j])
         if self.spatial and not self.prescribed:  # the heat the water brought to the skin over the sample
             self.tank.step(drive, T_a, skin.q_water)  # type: ignore[attr-defined]
         self.k = k + 1
         if self.repeat and self.touchers and self.k % self.n == 0:
             self._rest_touchers()
 
-    def _step_touchers(self, i: int, T_p: float, v: float, T_a: float) -> None:
-        """The skin's step with the touchers of sample ``i`` (module doc), then theirs."""
+    def _step_touchers(self, j: int, T_p: float, v: float, T_a: float) -> None:
+        """The skin's step with the touchers at window place ``j`` (module doc), then theirs."""
         skin = self.skin
-        G = self._G_x[i]
-        GT = G * self._T_x[i] if G > 0.0 else 0.0
-        for lo, hi, g, tch in self.touchers:
-            if lo <= i < hi:
-                tch.begin(g[i - lo])
+        G = self._G_x[j]
+        GT = G * self._T_x[j] if G > 0.0 else 0.0
+        for lo, hi, g, tch in self._wt:
+            if lo <= j < hi:
+                tch.begin(g[j - lo])
                 ge = tch.G_eff
                 if ge > 0.0:
                     G += ge
@@ -319,10 +350,10 @@ class SimulatedPlant:
         T_f = GT / G if G > 0.0 else T_F_IDLE
         T_g0 = skin.T_g
         if self.spatial:
-            skin.step(T_p, v, T_a, G, T_f, position=self.position[i])  # type: ignore[call-arg]
+            skin.step(T_p, v, T_a, G, T_f, position=self._pos[j])  # type: ignore[call-arg]
         else:
             skin.step(T_p, v, T_a, G, T_f)
         T_gm = 0.5 * (T_g0 + skin.T_g)
-        for lo, hi, _, tch in self.touchers:  # the same touchers, without a list per sample
-            if lo <= i < hi:
+        for lo, hi, _, tch in self._wt:  # the same touchers, without a list per sample
+            if lo <= j < hi:
                 tch.end(T_gm)

@@ -56,75 +56,74 @@ def simulate_blocks(scenario: Scenario | str, cfg: Config, duration: float | Non
                     progress: Callable[[float], None] | None = None,
                     block: int = BLOCK) -> Iterator[dict[str, np.ndarray]]:
     """:func:`simulate`, its log given ``block`` samples at a time (``thermoskin simulate`` writes
-    each as it comes): the same samples, and only a block's columns held at once (the plant's
-    scenario profiles, a few numbers a sample, are whole)."""
+    each as it comes): the same samples, and only a block's columns held at once (the plant
+    holds a window of its scenario's profiles), so memory does not grow with the duration."""
     sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
     if duration is not None:
         sc = sc.with_duration(duration)
     t_s = cfg.sampling.t_s
     plant = SimulatedPlant(cfg, sc, tank="prescribed")
     n = plant.n
-    t = np.arange(n) * t_s
-    cmd = sc.T_w_cmd_profile(t)
     pump = PumpLogic(cfg.pump, t_s)
     v_const = cfg.pump.v_on if sc.pump == "on" else 0.0
     logic = sc.pump == "logic"
     if logic:
-        plant.reset("command", T_w0=float(cmd[0]))
+        plant.reset("command", T_w0=float(sc.T_w_cmd_at(0.0)))
         pump.reset(on=True)
     else:
         plant.reset("equilibrium", v=v_const)
 
-    cmd_l = cmd.tolist()
     skin = plant.skin
     touchers = bool(plant.touchers)
     truth = plant.truth
     measure, apply, pump_step = plant.measure, plant.apply, pump.step
     every = max(1, n // 100)
     next_report = every if progress is not None else n + 1
-    G_c, T_f = plant.G_c, plant.T_f
-    truth_cols = plant.truth_columns() if touchers else {}
     block = max(1, block)
     for k0 in range(0, n, block):
         k1 = min(n, k0 + block)
         m = k1 - k0
+        prof = plant.profile(k0, k1)
+        t = prof["t"]
+        cmd = sc.T_w_cmd_profile(t)
+        cmd_l = cmd.tolist()
         cols = [[0.0] * m for _ in range(6)]
         T_w_true, T_g, T_w_m, T_p_m, T_a_m, v_col = cols
         fresh = [0] * m
         q_col = [0.0] * m if touchers else []
-        for k in range(k0, k1):
-            j = k - k0
+        for j in range(m):
             T_w_true[j] = skin.T_w
             T_g[j] = skin.T_g
             mw, T_p_m[j], T_a_m[j] = measure()
             T_w_m[j] = mw
             fresh[j] = plant.fresh
-            v = pump_step(mw, cmd_l[k], bool(fresh[j] & 1)) if logic else v_const
+            v = pump_step(mw, cmd_l[j], bool(fresh[j] & 1)) if logic else v_const
             v_col[j] = v
             if touchers:
                 q_col[j] = truth()[0]
             apply(0.0, v)
-            if k + 1 >= next_report:
-                progress((k + 1) / n)  # type: ignore[misc]
+            if k0 + j + 1 >= next_report:
+                progress((k0 + j + 1) / n)  # type: ignore[misc]
                 next_report += every
         if progress is not None and k1 == n and next_report - every < n:
             progress(1.0)
-        G_b, T_f_b = np.asarray(G_c[k0:k1]), np.asarray(T_f[k0:k1])
+        G_b, T_f_b = prof["G_c"], prof["T_f"]
         T_g_arr = np.asarray(T_g)
         out = {
-            "t": t[k0:k1],
+            "t": t,
             "T_w": np.asarray(T_w_m),
             "T_p": np.asarray(T_p_m),
             "v": np.asarray(v_col),
             "T_a": np.asarray(T_a_m),
-            "T_w_cmd": cmd[k0:k1],
+            "T_w_cmd": cmd,
             "T_w_true": np.asarray(T_w_true),
             "T_g": T_g_arr,
             "q_i": np.asarray(q_col) if touchers else G_b * (T_f_b - T_g_arr),
             "contact_true": (G_b > 0.0).astype(np.int8),
-            "n_fingers": plant.n_fingers[k0:k1].astype(np.int8),
+            "n_fingers": prof["n_fingers"].astype(np.int8),
             "fresh": np.asarray(fresh, dtype=np.int8),
-            "T_a_true": np.asarray(plant.T_a_true[k0:k1]),
+            "T_a_true": prof["T_a_true"],
         }
-        out.update({c: a[k0:k1] for c, a in truth_cols.items()})
+        if touchers:
+            out.update(plant.truth_columns(k0, k1))
         yield out
