@@ -14,7 +14,7 @@ import gc
 import math
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -943,10 +943,10 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     (Ctrl-C), SIGTERM and SIGHUP stop the run the same clean way (safe state, log, plot,
     a complete recording) and exit with 130, 143 and 129 (128 + the signal number).
     """
-    from thermoskin.logio import read_log
     from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.plotting import FORMATS, plot_log
     from thermoskin.runtime.closed_loop import COLUMNS, TRUTH, run_closed_loop
+    from thermoskin.runtime.digest import RunDigest
     from thermoskin.runtime.runlog import RunLog
     from thermoskin.runtime.stopping import StopRequest
 
@@ -1026,6 +1026,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         runlog: RunLog | None = None
         res = None
         evstream = None
+        digest = RunDigest(cfg)  # the plot, tracking and what touched, as the log is written
         try:
             if live_addr is not None:
                 from thermoskin.live import Fanout
@@ -1053,6 +1054,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                     runlog.write(block)  # type: ignore[union-attr]
                     if recorder is not None:
                         recorder.write_rows(block)
+                    digest.feed(block)
                 except (LogError, OSError) as e:  # a full disk, a drive gone: stop (safe state)
                     msg = (str(e) if isinstance(e, LogError) else
                            f"cannot write {e.filename or 'the recording'}: {e.strerror or e}")
@@ -1062,6 +1064,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             def on_event(e: ContactEvent) -> None:
                 if evstream is not None:
                     evstream.add(e)
+                digest.event(e)
 
             # the same kernel either way: the fixed-rate loop process compiles it as it starts
             # (before it opens the device)
@@ -1082,9 +1085,9 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
 
                     res = run_closed_loop(sc, cfg, on_start=started, on_event=ended,
                                           progress=lambda f: bar.update(task, completed=f),
-                                          on_block=on_block, stop=stop, probe=probe)
+                                          on_block=on_block, stop=stop, probe=probe, keep=False)
             if recorder is not None:
-                _record_end(recorder, res)
+                _record_end(recorder, res, digest.t_last if digest.rows else 0.0)
         finally:  # each output closed whatever the others do (a full disk under one of them)
             with contextlib.ExitStack() as closing:
                 if runlog is not None:
@@ -1097,15 +1100,9 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 record_path.unlink(missing_ok=True)  # type: ignore[union-attr]
         summary = res.summary
         n = runlog.rows if runlog is not None else 0
-        out: dict[str, Any] = {}
         if n:
-            out = read_log(log_path, required=("t",))
-            plot_log(out, plot_path, title=f"thermoskin run: {sc.name}, closed loop")
-        events = res.events
-        if events and all(k in out for k in ("dq_i_hat", "T_w", "T_a")):
-            from thermoskin.characterise import characterise_events
-
-            events = characterise_events(events, out, cfg)  # what touched
+            plot_log(digest.columns(), plot_path, title=f"thermoskin run: {sc.name}, closed loop")
+        events = digest.events(res.events)  # what touched
         _write_events(events_path, events)
         if events:
             show_events(events)
@@ -1117,10 +1114,10 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         stopped = bool(summary.get("interrupted"))
         if n > 1 and not res.fault:
             if serial:
-                _tracking(out)
+                _tracking(digest.tracking_errors())
             else:
-                t_stop = float(out["t"][-1]) + cfg.sampling.t_s if stopped else math.inf
-                _summary(sc, out, res.events, t_stop)
+                t_stop = digest.t_last + cfg.sampling.t_s if stopped else math.inf
+                _summary(sc, digest.tracking_errors(), res.events, t_stop)
         if serial or realtime:
             _loop_figures(res, n)
         wrote = f"wrote {log_path} and {plot_path}" if n else "no samples"
@@ -1392,8 +1389,8 @@ def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[
     return res
 
 
-def _record_end(recorder: Any, res: Any) -> None:
-    """Contacts, the fault and the loop's figures on /events."""
+def _record_end(recorder: Any, res: Any, t_end: float) -> None:
+    """Contacts, the fault and the loop's figures on /events (``t_end``: the last row's ``t``)."""
     import dataclasses
 
     for e in res.events:
@@ -1401,7 +1398,6 @@ def _record_end(recorder: Any, res: Any) -> None:
         detail["touch_kind"] = detail.pop("kind")  # ``kind`` names the record's kind
         recorder.event(e.onset, "contact", **detail)
     s = res.summary
-    t_end = float(res.columns["t"][-1]) if len(res.columns["t"]) else 0.0
     if res.fault:
         recorder.event(s.get("t_fault", t_end), "fault", name=res.fault, detail=s.get("detail", ""),
                        value=s.get("fault_value", math.nan), t_safe=s.get("t_safe", math.nan))
@@ -1410,11 +1406,10 @@ def _record_end(recorder: Any, res: Any) -> None:
                    priority=s.get("priority", ""), **timing)
 
 
-def _tracking(log: dict[str, Any], with_T_p_cmd: bool = False) -> None:
-    """Tracking over the last minute (or half) of each command."""
-    from thermoskin.evaluation import tracking_errors
-
-    for seg in tracking_errors(log):
+def _tracking(segments: Sequence[Any], with_T_p_cmd: bool = False) -> None:
+    """Tracking over the last minute (or half) of each command
+    (:class:`~thermoskin.evaluation.Tracking` each)."""
+    for seg in segments:
         bounds = (f"; T_p_cmd within [{seg.T_p_cmd_min:.2f}, {seg.T_p_cmd_max:.2f}] degC"
                   if with_T_p_cmd else "")
         console.print(f"[bold]tracking[/] T_w_cmd {seg.T_w_cmd:g} degC: mean |error| "
@@ -1422,12 +1417,12 @@ def _tracking(log: dict[str, Any], with_T_p_cmd: bool = False) -> None:
                       f"{seg.t0:.1f}-{seg.t1:.1f} s{bounds}")
 
 
-def _summary(sc: Any, log: dict[str, Any], events: list[ContactEvent], t_stop: float = math.inf) -> None:
+def _summary(sc: Any, segments: Sequence[Any], events: list[ContactEvent], t_stop: float = math.inf) -> None:
     """Tracking of each command (with T_p_cmd's range); touches vs detections (a run stopped
     at ``t_stop`` scores only the touches it could tell)."""
     from thermoskin.evaluation import match_events
 
-    _tracking(log, with_T_p_cmd=True)
+    _tracking(segments, with_T_p_cmd=True)
     m = match_events(sc.touches, events, t_end=t_stop)
     lat = m.latencies
     lat_txt = (f"onset latency median {np.median(lat) * 1e3:.0f} ms, max {np.max(lat) * 1e3:.0f} ms"
