@@ -16,30 +16,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+from _proc import run
 
 ROOT = Path(__file__).resolve().parent.parent
 SKIN = ROOT / "examples" / "forearm.toml"
-CMD = [sys.executable, "-c", "from thermoskin.__main__ import main; main()"]
-
-
-def run(args: list[str]) -> tuple[float, float]:
-    """Wall time (s) and peak resident memory (MiB) of the command ``args``."""
-    t0 = time.perf_counter()
-    p = subprocess.Popen([*CMD, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(p.pid, 0)
-    wall = time.perf_counter() - t0
-    p.returncode = os.waitstatus_to_exitcode(status)
-    err = p.stderr.read().decode() if p.stderr else ""
-    if p.returncode:
-        raise SystemExit(f"thermoskin {' '.join(args)} failed ({p.returncode}): {err.strip()[-300:]}")
-    return wall, usage.ru_maxrss / 1024.0
 
 
 def main() -> None:

@@ -513,21 +513,35 @@ def plot(log_path: Path, output: Path | None, title: str | None) -> None:
     A log whose writer was stopped (a killed run) is plotted up to where it ends, with a
     warning saying where that is.
     """
+    from thermoskin.logio import LogReader, partial_last_line
+    from thermoskin.plot_digest import PlotDigest
     from thermoskin.plotting import FORMATS, plot_log
 
     output = output if output is not None else log_path.with_suffix(".png")
     _outputs(("-o", output, FORMATS, "plot"))
-    log = _read_log(log_path, ("t",))
-    plot_log(log, output, title=title or f"thermoskin: {log_path.name}")
-    n_c = len(_contact_runs(log))
-    console.print(f"{len(log['t'])} samples, t = {float(log['t'][0]):.3f} to {float(log['t'][-1]):.3f} s, "
-                  f"{n_c} contacts; wrote {output}")
-
-
-def _contact_runs(log: dict[str, Any]) -> list[Any]:
-    from thermoskin.plotting import contact_spans
-
-    return contact_spans(log["t"], log["contact"]) if "contact" in log else []
+    digest: PlotDigest | None = None
+    t_first = t_last = math.nan
+    rows = contacts = 0
+    on = False  # in a contact at the end of the last chunk
+    with LogReader(log_path, required=("t",), live=True, one_patch=True) as reader:
+        for chunk in reader:  # in chunks: the plot's envelope, whatever the log's length
+            t = chunk["t"]
+            if digest is None:
+                digest = PlotDigest(float(np.median(np.diff(t))) if len(t) > 1 else 1e-3)
+                t_first = float(t[0])
+            digest.feed(chunk)
+            if "contact" in chunk:
+                c = np.nan_to_num(np.asarray(chunk["contact"], dtype=float)) > 0.5
+                contacts += int(np.count_nonzero(c[1:] & ~c[:-1])) + int(bool(c[0]) and not on)
+                on = bool(c[-1])
+            rows += len(t)
+            t_last = float(t[-1])
+    if partial_last_line(log_path):
+        click.echo(f"thermoskin: warning: {log_path}: the last line is cut (its writer was stopped "
+                   f"while writing it): left out; the log ends at t = {t_last:.3f} s", err=True)
+    assert digest is not None  # a log has two rows at least (LogReader checks)
+    plot_log(digest.columns(), output, title=title or f"thermoskin: {log_path.name}")
+    console.print(f"{rows} samples, t = {t_first:.3f} to {t_last:.3f} s, {contacts} contacts; wrote {output}")
 
 
 def _scenario(name: str, duration: float | None, t_s: float = 1e-3) -> Any:
@@ -1380,7 +1394,7 @@ def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[
         on_block(block)
 
     spec = LoopSpec(cfg, sc, device=device, duration=sc.duration)
-    res = run_realtime(spec, on_rows=on_rows, stop=stop, on_event=on_event)
+    res = run_realtime(spec, on_rows=on_rows, stop=stop, on_event=on_event, keep=False)
     err = res.summary.get("error")
     if err:
         if res.summary.get("device_error"):

@@ -78,10 +78,10 @@ def _ranges(t: Array, cols: dict[str, Array], w: int) -> tuple[Array, dict[str, 
 
 class PlotDigest:
     """The columns of a run's plot, fed block by block (module doc). ``t_s`` (s) sets the
-    trailing means' lengths; ``rows`` the most rows held."""
+    trailing means' lengths; ``rows`` the most rows held (default :data:`ROWS`)."""
 
-    def __init__(self, t_s: float, rows: int = ROWS) -> None:
-        self.limit = max(4, int(rows))
+    def __init__(self, t_s: float, rows: int | None = None) -> None:
+        self.limit = max(4, int(ROWS if rows is None else rows))
         self.span = 1
         """Samples a new range takes (1: every row is kept)."""
         self.names: list[str] | None = None

@@ -1,0 +1,73 @@
+"""`thermoskin simulate`, `run` and `plot` of growing length: their peak memory and time.
+
+For each ``--seconds``: ``thermoskin simulate`` of the scenario (Parquet, kept in ``--dir``),
+``thermoskin plot`` of that log, and ``thermoskin run`` of the scenario on the simulated skin
+(``--events`` too: what touched), each a process of its own, its peak resident memory read from
+the kernel (``wait4``). ``--realtime S,..``: also ``run --realtime`` (the fixed-rate loop
+process, at wall-clock speed) of each length. Prints one JSON line: per length and command,
+the wall time (median of ``--runs``) and the peak memory (MiB, the largest of the runs). All
+stream their logs (the plant's profiles a window at a time, the run's report gathered block by
+block), so the peaks should not follow the length. ``--src DIR``: run the code under ``DIR``
+(another checkout's ``src``) instead, the peer of a before/after comparison.
+
+    python benchmarks/run_memory.py [--seconds 300,1200,3600] [--runs 1] [--realtime 60,240] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+from pathlib import Path
+
+from _proc import run
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", default="300,1200,3600", help="lengths, s (comma-separated)")
+    ap.add_argument("--scenario", default="realistic", help="scenario (its touches, then quiet)")
+    ap.add_argument("--runs", type=int, default=1, help="runs per command and length")
+    ap.add_argument("--realtime", default="", help="lengths of `run --realtime`, s (none by default)")
+    ap.add_argument("--dir", default=None, help="folder for the logs (default: a temporary one)")
+    ap.add_argument("--src", default=None, help="run the package under this folder (PYTHONPATH)")
+    ap.add_argument("--json", action="store_true", help="only the JSON line")
+    a = ap.parse_args()
+    folder = Path(a.dir) if a.dir else Path(tempfile.mkdtemp(prefix="run_memory_"))
+    folder.mkdir(parents=True, exist_ok=True)
+    env = {"PYTHONPATH": a.src} if a.src else None
+
+    def measure(args: list[str]) -> dict[str, float]:
+        walls, peaks = [], []
+        for _ in range(a.runs):
+            w, m = run(args, env)
+            walls.append(w)
+            peaks.append(m)
+        return {"wall_s": round(statistics.median(walls), 2), "peak_mib": round(max(peaks), 1)}
+
+    out: dict[str, object] = {"scenario": a.scenario, "runs": a.runs, "src": a.src or "installed",
+                              "lengths": [], "realtime": []}
+    for s in (float(x) for x in a.seconds.split(",") if x):
+        if not a.json:
+            print(f"{s:g} s ...", file=sys.stderr)
+        log = folder / f"sim_{s:g}s.parquet"
+        row: dict[str, object] = {"seconds": s}
+        row["simulate"] = measure(["simulate", "--scenario", a.scenario, "--duration", f"{s:g}",
+                                   "-o", str(log)])
+        row["plot"] = measure(["plot", str(log), "-o", str(folder / "plot.png")])
+        row["run"] = measure(["run", "--scenario", a.scenario, "--duration", f"{s:g}",
+                              "--log", str(folder / "run.parquet"), "--events", str(folder / "run_ev.csv")])
+        out["lengths"].append(row)  # type: ignore[attr-defined]
+    for s in (float(x) for x in a.realtime.split(",") if x):
+        if not a.json:
+            print(f"run --realtime {s:g} s ...", file=sys.stderr)
+        out["realtime"].append({"seconds": s, **measure(  # type: ignore[attr-defined]
+            ["run", "--realtime", "--scenario", a.scenario, "--duration", f"{s:g}",
+             "--log", str(folder / "rt.parquet")])})
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
