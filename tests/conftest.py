@@ -1,6 +1,9 @@
-"""Fixtures shared by the tests that start `thermoskin` in processes of their own."""
+"""Fixtures shared by tests: the compiled estimator for `thermoskin` processes, Python's peak
+allocation of a call."""
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import pytest
 
@@ -22,3 +25,19 @@ def compiled_estimator() -> None:
     est.step(0.0, 24.0, 24.0, 0.0, 24.0)  # step
     x = np.full(3, 24.0)
     est.run(np.arange(3) * cfg.sampling.t_s, x, x, np.zeros(3), x)  # and finish
+
+
+@pytest.fixture
+def peak_memory() -> Callable[[Callable[[], object]], int]:
+    """``peak_memory(fn)``: Python's peak allocation (bytes, ``tracemalloc``) while ``fn()`` runs."""
+    import tracemalloc
+
+    def peak(fn: Callable[[], object]) -> int:
+        tracemalloc.start()
+        try:
+            fn()
+            return tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+
+    return peak

@@ -5,7 +5,6 @@ windowed profiles, the loop's blocks, and the run's report gathered block by blo
 from __future__ import annotations
 
 import itertools
-import tracemalloc
 
 import numpy as np
 import pytest
@@ -192,17 +191,9 @@ def test_a_contact_early_in_a_long_run_is_still_characterised() -> None:
 
 
 # ----------------------------------------------------------------------------- memory
-def _peak(fn) -> int:  # type: ignore[no-untyped-def]
-    tracemalloc.start()
-    try:
-        fn()
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-
-
 @pytest.mark.parametrize("what", ["simulate", "run"])
-def test_memory_does_not_grow_with_the_run(what: str, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_memory_does_not_grow_with_the_run(what: str, monkeypatch: pytest.MonkeyPatch,
+                                           peak_memory) -> None:  # type: ignore[no-untyped-def]
     """Python's peak allocation for a run twice as long is the same (within 10 %): the plant
     holds a window of its profiles (about 250 bytes a sample when it held them whole), the loop
     its current block, the digest its bounded rows."""
@@ -225,7 +216,7 @@ def test_memory_does_not_grow_with_the_run(what: str, monkeypatch: pytest.Monkey
             dg.columns()  # what run draws
 
     go(2.0)  # imports and compiled kernels first
-    p1, p2 = _peak(lambda: go(20.0)), _peak(lambda: go(40.0))
+    p1, p2 = peak_memory(lambda: go(20.0)), peak_memory(lambda: go(40.0))
     assert p2 < 1.1 * p1, (p1, p2)
 
 

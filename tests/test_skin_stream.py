@@ -4,7 +4,6 @@ by block, memory that does not grow with the log, and a fault in a late block st
 from __future__ import annotations
 
 import math
-import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -93,7 +92,7 @@ def test_without_an_output_the_observation_leaves_nothing(skin_log, tmp_path) ->
     assert rows(a) == rows(b) and any(math.isfinite(e.position.mean) for e in b.events)
 
 
-def test_streamed_memory_does_not_follow_the_log(skin_log, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_streamed_memory_does_not_follow_the_log(skin_log, tmp_path, peak_memory) -> None:  # type: ignore[no-untyped-def]
     """The arrays the streamed observation holds at once (``tracemalloc``: numpy's allocations;
     CSV out, whose writer hands its rows over every 65 536) are a few blocks' and a few seconds'
     for each contact's position, not the log's: no more for a log twice as long, where the whole
@@ -111,19 +110,11 @@ def test_streamed_memory_does_not_follow_the_log(skin_log, tmp_path) -> None:  #
                       for k, v in cols.items()})
     del log, cols
 
-    def peak(fn) -> int:  # type: ignore[no-untyped-def]
-        tracemalloc.start()
-        try:
-            fn()
-            return tracemalloc.get_traced_memory()[1]
-        finally:
-            tracemalloc.stop()
-
     observe_skin_file(pq, skin, tmp_path / "warm.csv", chunk_samples=1000)  # compiled, imported
-    p_whole = peak(lambda: observe_skin(read_skin_log(pq, skin), skin))
-    p_whole2 = peak(lambda: observe_skin(read_skin_log(twice, skin), skin))
-    p_one = peak(lambda: observe_skin_file(pq, skin, tmp_path / "a.csv", chunk_samples=1000))
-    p_two = peak(lambda: observe_skin_file(twice, skin, tmp_path / "b.csv", chunk_samples=1000))
+    p_whole = peak_memory(lambda: observe_skin(read_skin_log(pq, skin), skin))
+    p_whole2 = peak_memory(lambda: observe_skin(read_skin_log(twice, skin), skin))
+    p_one = peak_memory(lambda: observe_skin_file(pq, skin, tmp_path / "a.csv", chunk_samples=1000))
+    p_two = peak_memory(lambda: observe_skin_file(twice, skin, tmp_path / "b.csv", chunk_samples=1000))
     assert p_whole > 8 * n * 8  # the whole log's arrays: (n, P) columns of 8 bytes, many of them
     assert p_whole2 > 1.6 * p_whole, (p_whole, p_whole2)
     assert p_two < 1.1 * p_one, (p_one, p_two)
