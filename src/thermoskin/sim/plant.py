@@ -276,7 +276,10 @@ class SimulatedPlant:
         """
         k = self.k
         if self._k_read != k:
-            j = self._window(k % self.n if self.repeat else k)
+            i = k % self.n if self.repeat else k
+            j = i - self._w0
+            if j < 0 or i >= self._w1:
+                j = self._window(i)
             sens = self.sensors
             T_p = self._T_p[j] if self.prescribed else self.tank.T_p
             self._reading = r = sens.read(self.skin.T_w, T_p, self._T_a[j])
@@ -287,7 +290,10 @@ class SimulatedPlant:
 
     def truth(self) -> tuple[float, float, float, float]:
         """``(q_i, T_g, T_w, T_p)`` now (W, °C): ``q_i`` with the contact applied from now on."""
-        j = self._window(self.index())
+        i = self.k % self.n if self.repeat else self.k
+        j = i - self._w0
+        if j < 0 or i >= self._w1:
+            j = self._window(i)
         skin = self.skin
         T_g = skin.T_g
         T_p = self._T_p[j] if self.prescribed else self.tank.T_p
@@ -312,7 +318,10 @@ class SimulatedPlant:
         k = self.k
         if self._k_read != k:
             self.measure()  # the sensors see every sample
-        j = self._window(k % self.n if self.repeat else k)
+        i = k % self.n if self.repeat else k
+        j = i - self._w0
+        if j < 0 or i >= self._w1:
+            j = self._window(i)
         skin = self.skin
         T_a = self._T_a[j]
         if self.prescribed:
