@@ -164,10 +164,13 @@ def test_run_digest_is_the_whole_logs_report() -> None:
 
 
 def test_a_contact_early_in_a_long_run_is_still_characterised() -> None:
-    """The characteriser holds only its last minutes of binned signals: a contact of the first
-    minute of a run seven minutes long read at the end finds none of its samples (what `run` did
-    when it read its log back), while the digest characterises it as its samples come in, as the
-    first minute alone would."""
+    """The characteriser holds only its last minutes of binned signals: fed a run seven minutes
+    long whole, it had dropped the bins of the first minute's contacts (what `run` did when it
+    read its log back at the end). The digest characterises each contact as its samples come
+    in, and characterise_events feeds the log up to each contact's window: both tell the early
+    contacts as the first minute alone tells them."""
+    from thermoskin.characterise import Characteriser
+
     c = run_closed_loop(SCENARIOS["touchers"].with_duration(40.0), CFG).columns
     res_events: list = []
     run_closed_loop(SCENARIOS["touchers"].with_duration(40.0), CFG, on_event=res_events.append)
@@ -186,8 +189,11 @@ def test_a_contact_early_in_a_long_run_is_still_characterised() -> None:
     got = d.events(res_events)
     short = characterise_events(res_events, c, CFG)
     assert got == short and any(e.toucher for e in got)
-    late = characterise_events(res_events, long, CFG)
-    assert late != short  # the whole log read at the end has lost the early contacts' samples
+    assert characterise_events(res_events, long, CFG) == short
+    whole = Characteriser(CFG)  # the log fed whole, then each contact: nothing left of them
+    whole.feed(long["t"], long["dq_i_hat"], long["T_w"], long["T_a"])
+    whole.finish()
+    assert [whole.annotate(e) for e in res_events] != short
 
 
 # ----------------------------------------------------------------------------- memory

@@ -641,10 +641,7 @@ class Characteriser:
 
     def characterise(self, event: ContactEvent, at: float | None = None) -> Character:
         t0 = event.onset
-        end = event.release if math.isfinite(event.release) else math.inf
-        if at is not None:
-            end = min(end, t0 + at)
-        end = min(end, t0 + MAX_S)
+        end = window_end(event, at)
         tm_pre, _, Tw_pre, Ta_pre = self.bins.window(t0 - PRE_S, t0)
         tm, q, Tw, Ta = self.bins.window(t0, end)
         if len(tm_pre):
@@ -692,10 +689,32 @@ def _decide(event: ContactEvent, p_class: Mapping[str, float], post: Mapping[str
         p_class=dict(p_class), post=dict(post), data_sd=dict(dsd), t_used=t_used)
 
 
+def window_end(event: ContactEvent, at: float | None = None) -> float:
+    """The last time (s) :meth:`Characteriser.characterise` reads for ``event`` (inf: to the
+    log's end, a contact still open)."""
+    end = event.release if math.isfinite(event.release) else math.inf
+    if at is not None:
+        end = min(end, event.onset + at)
+    return min(end, event.onset + MAX_S)
+
+
 def characterise_events(events: Sequence[ContactEvent], columns: Mapping[str, Array], cfg: Config,
                         at: float | None = None) -> list[ContactEvent]:
-    """The events of a log held in memory (``t, dq_i_hat, T_w, T_a``), annotated."""
+    """The events of a log held in memory (``t, dq_i_hat, T_w, T_a``), annotated. The log is
+    fed up to just past each event's window (the characteriser holds only its last minutes of
+    bins, so a long log fed whole would have lost an early contact's), which gives the bins
+    any chunking gives."""
     ch = Characteriser(cfg)
-    ch.feed(columns["t"], columns["dq_i_hat"], columns["T_w"], columns["T_a"])
-    ch.finish()
-    return [ch.annotate(e, at) for e in events]
+    t = np.asarray(columns["t"], dtype=float)
+    cols = [columns[k] for k in ("dq_i_hat", "T_w", "T_a")]
+    out: list[ContactEvent | None] = [None] * len(events)
+    k0 = 0
+    for i in sorted(range(len(events)), key=lambda i: window_end(events[i], at)):
+        k1 = int(np.searchsorted(t, window_end(events[i], at) + BIN_S, side="right")) + 1
+        if k1 > k0 and k0 < len(t):  # every bin of its window closed (or the log's end)
+            ch.feed(t[k0:k1], *(x[k0:k1] for x in cols))
+            k0 = min(k1, len(t))
+            if k0 == len(t):
+                ch.finish()
+        out[i] = ch.annotate(events[i], at)
+    return out  # type: ignore[return-value]

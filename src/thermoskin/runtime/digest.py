@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from thermoskin.characterise import BIN_S, Characteriser, window_end
 from thermoskin.evaluation import Tracking, TrackingStream
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
@@ -37,13 +38,10 @@ class RunDigest:
     """A run's report, fed with each block of its log (module doc)."""
 
     def __init__(self, cfg: Config, *, characterise: bool = True) -> None:
-        from thermoskin.characterise import BIN_S, MAX_S, Characteriser
-
         self.cfg = cfg
         self.plot = PlotDigest(cfg.sampling.t_s)
         self.tracking = TrackingStream()
         self._ch = Characteriser(cfg) if characterise else None
-        self._bin, self._max_s = BIN_S, MAX_S
         self._pending: list[ContactEvent] = []
         self._done: dict[tuple[float, float], ContactEvent] = {}
         self._fed = False  # the characteriser had its columns
@@ -75,8 +73,7 @@ class RunDigest:
             return
         keep = []
         for e in self._pending:
-            end = min(e.release, e.onset + self._max_s) if math.isfinite(e.release) else math.inf
-            if self.t_last >= end + self._bin:  # every bin the contact's window reads is closed
+            if self.t_last >= window_end(e) + BIN_S:  # every bin the contact's window reads is closed
                 self._done[(e.onset, e.detected_at)] = self._ch.annotate(e)
             else:
                 keep.append(e)
