@@ -223,13 +223,13 @@ def test_replay_agrees_to_1e9_watt(tmp_path: Path, monkeypatch, shift: float,  #
     rec = R.LoopRecorder(tmp_path / "r.mcap", cfg)
     run_closed_loop(SCENARIOS["none"].with_duration(2.0), cfg, on_block=rec.write_rows, block=500)
     rec.close()
-    real = R.to_columns
+    real = R.iter_columns
 
     def shifted(*a, **k):  # type: ignore[no-untyped-def]
-        cols = real(*a, **k)
-        cols["q_i_hat"] = [x + shift for x in cols["q_i_hat"]]
-        return cols
+        for cols in real(*a, **k):
+            cols["q_i_hat"] = [x + shift for x in cols["q_i_hat"]]
+            yield cols
 
-    monkeypatch.setattr(R, "to_columns", shifted)
+    monkeypatch.setattr(R, "iter_columns", shifted)
     _, cmp = R.replay(tmp_path / "r.mcap")
     assert not cmp["exact"] and cmp["agrees"] is agrees

@@ -1566,9 +1566,8 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
     part; the estimates after a lost part cannot be reproduced exactly). With --live, plays
     the recording into the live server (Foxglove WebSocket and page) at real speed or --speed.
     """
-    from thermoskin.logio import write_log
-    from thermoskin.runtime.record import RecordingError
-    from thermoskin.runtime.record import replay as do_replay
+    from thermoskin.logio import write_blocks
+    from thermoskin.runtime.record import RecordingError, SchemaChangeError, replay_blocks
 
     if output is None and live_addr is None:
         raise UserError("replay: give -o OUT.csv, --live [HOST:]PORT, or both")
@@ -1587,15 +1586,22 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
         return
     cfg = _config(config_path) if config_path is not None else None
     info: dict[str, Any] = {}
+    cmp: dict[str, Any] = {}
+
+    def blocks(whole: bool) -> Any:
+        for b in replay_blocks(recording, cfg, info, cmp, whole=whole):
+            out = {k: np.asarray(v, dtype=float) for k, v in b.items()}
+            for k in ("contact", "gap", "contact_live"):
+                out[k] = out[k].astype(np.int8)
+            yield out
+
     try:
-        cols, cmp = do_replay(recording, cfg, info=info)
+        try:  # block by block: memory does not grow with the recording (whole if its columns change)
+            write_blocks(output, blocks(whole=False))
+        except SchemaChangeError:
+            write_blocks(output, blocks(whole=True))
     except RecordingError as e:
         raise UserError(str(e)) from None
-    out = {k: np.asarray(v, dtype=float) for k, v in cols.items()}
-    for k in ("contact", "gap", "contact_live"):
-        out[k] = out[k].astype(np.int8)
-    try:
-        write_log(output, out)
     except OSError as e:
         raise UserError(f"cannot write {output}: {e.strerror or e}") from None
     if cmp["events"]:

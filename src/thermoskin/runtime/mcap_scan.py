@@ -43,6 +43,8 @@ _LAYOUT = {0x01: "ss", 0x02: "QQI", 0x03: "Hsss", 0x04: "HHsss", 0x06: "QQQIsb",
            0x0D: "QQs", 0x0E: "BQQ", 0x0F: "I"}
 _SIZE = {"B": 1, "H": 2, "I": 4, "Q": 8}
 _MAX_INFLATE = 1 << 30  # an uncompressed chunk larger than this is taken as damage
+RELEASE_BYTES = 8 << 20
+"""A mapped file's pages are let go every this many bytes read (:meth:`Scanner._release`)."""
 
 
 class ScanError(ValueError):
@@ -191,7 +193,10 @@ class Scanner:
     """
 
     def __init__(self, path: str | Path, data: bytes, publish_time: bool = False) -> None:
+        """``data``: the file's bytes, or the file mapped (``mmap``)."""
         self.b = data
+        self._madvise = getattr(data, "madvise", None)  # a mapped file: pages read are let go
+        self._released = 0
         self.publish_time = publish_time  # messages carry their publish time last
         self.n = len(data)
         self.report = RecordingReport(Path(path), size=self.n)
@@ -443,7 +448,19 @@ class Scanner:
             if msgs:
                 yield self._emit(msgs)
             o = e
+            if self._madvise is not None and o - self._released >= RELEASE_BYTES:
+                self._release(o)
         self._close_spans()
+
+    def _release(self, o: int) -> None:
+        """Let the kernel drop the mapped file's pages before byte ``o`` (read already): the
+        scanner's memory does not grow with the file (they are read again if asked for)."""
+        import mmap
+
+        end = o - o % mmap.PAGESIZE
+        if end > self._released:
+            self._madvise(mmap.MADV_DONTNEED, self._released, end - self._released)  # type: ignore[misc]
+            self._released = end
 
     def _close_spans(self) -> None:
         """What sequence gaps could not show: from the summary's counts, else unknown."""

@@ -31,6 +31,7 @@ import dataclasses
 import datetime as _dt
 import json
 import math
+import mmap
 import os
 import signal
 import struct
@@ -444,7 +445,10 @@ def _load(path: str | os.PathLike[str]) -> tuple[Path, bytes]:
     if not p.exists():
         raise RecordingError(f"recording {p} does not exist")
     try:
-        return p, p.read_bytes()
+        with open(p, "rb") as fh:  # mapped, not read: the scanner lets go of what it has read
+            if os.fstat(fh.fileno()).st_size == 0:
+                return p, b""
+            return p, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)  # type: ignore[return-value]
     except OSError as e:
         raise RecordingError(f"cannot read recording {p}: {e.strerror or e}") from None
 
@@ -560,6 +564,16 @@ def _text(v: Any) -> str | None:
     return json.dumps(v, separators=(",", ":"))
 
 
+class SchemaChangeError(RecordingError):
+    """A streamed table met a column after its first block, or a text value in a column of
+    numbers: the caller starts again on the whole table (:func:`to_columns`)."""
+
+
+BLOCK_ROWS = 16_384
+"""Rows of a block of :func:`iter_columns`."""
+_HOLD_ROWS = 1_024  # the newest rows, held back for merged messages that come late
+
+
 def to_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample",
                merge: Sequence[str] = MERGE_TOPICS,
                info: dict[str, Any] | None = None) -> dict[str, Column]:
@@ -575,44 +589,95 @@ def to_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample",
     samples whose other messages were never written: those trailing rows are left out, so
     that the table ends at its last whole sample (where ``info`` says it is not complete),
     and the report's end (``info["report"].t_end``, in its cut-off warning) says so.
+    The whole table at once: :func:`iter_columns` in one block.
     """
+    return next(iter_columns(path, sample_topic, merge, info, block=None))
+
+
+def iter_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample",
+                 merge: Sequence[str] = MERGE_TOPICS, info: dict[str, Any] | None = None,
+                 block: int | None = BLOCK_ROWS) -> Iterator[dict[str, Column]]:
+    """:func:`to_columns`, ``block`` rows at a time (None: the whole table in one), in memory
+    that does not grow with the recording: the messages are read as they come and the rows
+    of a block given once the newest :data:`_HOLD_ROWS` rows have come after them (a
+    sample's merged messages follow it closely). Every block has the first block's columns,
+    each numbers throughout or text throughout; a recording where that does not hold (a field
+    first met later, a text value in a column of numbers) raises :class:`SchemaChangeError` at the
+    block that shows it."""
     info = {} if info is None else info
-    data = read_mcap(path, [sample_topic, *merge], info)
-    samples = data.get(sample_topic, [])
-    if not samples:
+    nan = math.nan
+    leaves = {m: m.rstrip("/").rsplit("/", 1)[-1] for m in merge}
+    base: dict[str, None] = {}  # the samples' fields, in order
+    merged: dict[str, None] = {}  # the merged fields' names
+    order: dict[str, list[str]] = {m: [] for m in merge}  # each merged topic's, as first met
+    rows: list[dict[str, Any]] = []  # the rows not given yet
+    index: dict[int, int] = {}  # a pending sample's time (µs) -> its place in rows
+    given: list[str] | None = None  # the columns of the first block given
+    text: set[str] = set()
+    seen: set[str] = set()  # merged fields with a value in a row already given
+
+    def give(m: int) -> dict[str, Column]:
+        nonlocal given, rows, index
+        names = [*base, *(k for m in merge for k in order[m])]
+        out = {k: [r.get(k, nan) for r in rows[:m]] for k in names}
+        for k in merged:
+            if k not in seen and any(not (isinstance(v, float) and v != v) for v in out[k]):
+                seen.add(k)
+        for name, col in out.items():
+            is_text = not {type(v) for v in col} <= {float, int, bool}
+            if given is not None and is_text != (name in text):
+                raise SchemaChangeError(f"{path}: column {name!r} changes type after its first block")
+            if is_text:
+                text.add(name)
+                out[name] = [_text(v) for v in col]
+            else:
+                out[name] = [float(v) for v in col]
+        if given is None:
+            given = names
+        elif names != given:
+            raise SchemaChangeError(f"{path}: columns {sorted(set(names) - set(given))} first met after "
+                                "the first block")
+        rows = rows[m:]
+        index = {k: i - m for k, i in index.items() if i >= m}
+        return out
+
+    for topic, _, msg in iter_messages(path, [sample_topic, *merge], info):
+        if topic == sample_topic:
+            for k in msg:
+                base.setdefault(k)
+            t = msg.get("t", nan)
+            if _is_number(t) and math.isfinite(t):
+                index[round(t * 1e6)] = len(rows)
+            rows.append(dict(msg))
+            if block is not None and len(rows) >= block + _HOLD_ROWS:
+                yield give(block)
+            continue
+        t = msg.get("t", nan)
+        i = index.get(round(t * 1e6)) if _is_number(t) and math.isfinite(t) else None
+        if i is None:
+            continue
+        row = rows[i]
+        for k, v in msg.items():
+            if k != "t":
+                name = f"{leaves[topic]}.{k}" if k in base else k
+                if name not in merged:
+                    merged[name] = None
+                    order[topic].append(name)
+                row[name] = v
+    if given is None and not rows:
         raise RecordingError(f"{path}: no messages on {sample_topic}")
-    index = {round(s["t"] * 1e6): i for i, s in enumerate(samples)}
-    n, nan = len(samples), math.nan
-    keys = dict.fromkeys(k for s in samples for k in s)
-    cols: dict[str, list[Any]] = {k: [s.get(k, nan) for s in samples] for k in keys}
-    base = set(cols)
-    for topic in merge:
-        leaf = topic.rstrip("/").rsplit("/", 1)[-1]
-        for m in data.get(topic, []):
-            t = m.get("t", nan)
-            i = index.get(round(t * 1e6)) if _is_number(t) and math.isfinite(t) else None
-            if i is None:
-                continue
-            for k, v in m.items():
-                if k != "t":
-                    name = f"{leaf}.{k}" if k in base else k
-                    col = cols.get(name)
-                    if col is None:
-                        col = cols[name] = [nan] * n
-                    col[i] = v
-    if not info.get("complete", True):
-        n_whole = _whole_rows(cols, set(cols) - base, n)
+    n = len(rows)
+    if not info.get("complete", True) and n:
+        tail = {k: [r.get(k, nan) for r in rows] for k in merged}
+        n_whole = _whole_rows(tail, set(merged), n, seen)
         if n_whole < n:
-            cols = {k: c[:n_whole] for k, c in cols.items()}
+            rows = rows[:n_whole]
+            n = n_whole
             rep = info.get("report")
-            if rep is not None and getattr(rep, "cut_off", False):
-                rep.t_end = float(cols["t"][-1])  # where the readable recording ends, as said
-    for name, col in cols.items():
-        if {type(v) for v in col} <= {float, int, bool}:
-            cols[name] = [float(v) for v in col]
-        else:
-            cols[name] = [_text(v) for v in col]
-    return cols
+            if rep is not None and getattr(rep, "cut_off", False) and n:
+                rep.t_end = float(rows[-1]["t"])  # where the readable recording ends, as said
+    if n or given is None:
+        yield give(n)
 
 
 def skin_columns(path: str | os.PathLike[str],
@@ -652,12 +717,15 @@ def skin_columns(path: str | os.PathLike[str],
     return out
 
 
-def _whole_rows(cols: dict[str, list[Any]], merged: set[str], n: int) -> int:
-    """Rows up to the last one that has every merged field that began before it."""
+def _whole_rows(cols: dict[str, list[Any]], merged: set[str], n: int,
+                seen: set[str] | frozenset[str] = frozenset()) -> int:
+    """Rows up to the last one that has every merged field that began before it (``seen``:
+    fields that began before these rows)."""
     def has(v: Any) -> bool:
         return not (isinstance(v, float) and v != v)
 
-    first = {name: next((i for i, v in enumerate(cols[name]) if has(v)), n) for name in merged}
+    first = {name: -1 if name in seen else next((i for i, v in enumerate(cols[name]) if has(v)), n)
+             for name in merged}
     for k in range(n - 1, -1, -1):
         if all(has(cols[name][k]) or first[name] >= k for name in merged):
             return k + 1
@@ -697,7 +765,10 @@ def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
     """Export a recording to ``.csv`` or ``.parquet`` (pyarrow); text fields as text columns.
 
     A CSV of numbers only is a log (:func:`thermoskin.logio.write_log`); with text columns
-    it is written as :func:`_write_csv` says. ``info`` as in :func:`iter_messages`.
+    it is written as :func:`_write_csv` says. ``info`` as in :func:`iter_messages`. A single
+    patch's recording is read and written block by block (:func:`iter_columns`), so memory
+    does not grow with it, unless its columns change along it or a CSV needs text; a skin's
+    recording is read whole (:func:`skin_columns`).
     """
     out = Path(out_path)
     suffix = out.suffix.lower()
@@ -707,7 +778,10 @@ def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
         raise RecordingError(f"cannot export to {out}: it is a directory")
     cols = skin_columns(path_mcap, info) if not kw else None
     if cols is None:
-        cols = to_columns(path_mcap, info=info, **kw)
+        try:  # block by block (memory does not grow with the recording) ...
+            return _export_blocks(path_mcap, out, info, **kw)
+        except SchemaChangeError:  # ... unless its columns change (a text CSV): whole
+            cols = to_columns(path_mcap, info=info, **kw)
     if suffix == ".csv":
         if any(_is_text(c) for c in cols.values()):
             return _write_csv(out, cols)
@@ -727,6 +801,45 @@ def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
     table = pa.table({k: pa.array(v, type=pa.string() if _is_text(v) else pa.float64())
                       for k, v in cols.items()})
     pq.write_table(table, out)
+    return out
+
+
+def _export_blocks(path_mcap: str | os.PathLike[str], out: Path, info: dict[str, Any] | None,
+                   **kw: Any) -> Path:
+    """:func:`export` of a table of numbers, block by block (:class:`SchemaChangeError`
+    otherwise, before anything is written: each output is written whole or not at all)."""
+    import numpy as np
+
+    def numbers() -> Iterator[dict[str, Any]]:
+        for b in iter_columns(path_mcap, info=info, **kw):
+            if any(_is_text(c) for c in b.values()):
+                raise SchemaChangeError(f"{path_mcap}: text columns")
+            yield {k: np.asarray(v, dtype=np.float64) for k, v in b.items()}
+
+    if out.suffix.lower() == ".csv":
+        from thermoskin.logio import write_blocks
+
+        try:
+            write_blocks(out, numbers())  # a flag column of integers is written as integers
+        except SchemaChangeError:
+            raise
+        except ValueError as e:  # a field name a log cannot carry
+            raise RecordingError(f"cannot export to {out}: {e}") from None
+        return out
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise RecordingError("export to .parquet needs pyarrow (pip install pyarrow); "
+                             "export to .csv works without it") from None
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(out) as tmp, contextlib.ExitStack() as stack:
+        writer = None
+        for b in numbers():
+            table = pa.table({k: pa.array(v, type=pa.float64()) for k, v in b.items()})
+            if writer is None:
+                writer = stack.enter_context(pq.ParquetWriter(tmp, table.schema))
+            writer.write_table(table)
     return out
 
 
@@ -901,8 +1014,26 @@ def replay(path: str | os.PathLike[str], config: Any = None,
     the replayed ``q_i_hat, dq_i_hat, contact, gap`` and the live ones as ``*_live``;
     ``comparison`` the largest differences and the count of contact mismatches. A
     damaged recording is replayed over its intact parts; ``info`` (as in
-    :func:`iter_messages`) says what was lost.
+    :func:`iter_messages`) says what was lost. The whole recording in memory:
+    :func:`replay_blocks` joined.
     """
+    import numpy as np
+
+    comparison: dict[str, Any] = {}
+    blocks = list(replay_blocks(path, config, info, comparison, whole=True))
+    return {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}, comparison
+
+
+def replay_blocks(path: str | os.PathLike[str], config: Any = None, info: dict[str, Any] | None = None,
+                  comparison: dict[str, Any] | None = None, *, whole: bool = False
+                  ) -> Iterator[dict[str, Any]]:
+    """:func:`replay`'s columns block by block (:func:`iter_columns`; ``whole``: in one block,
+    :func:`to_columns`), the estimator carried from block to block, so memory does not grow
+    with the recording; ``comparison`` (a dict) is filled once the blocks are exhausted. A
+    recording whose columns change along it raises :class:`SchemaChangeError` (replay it
+    ``whole``)."""
+    import numpy as np
+
     from thermoskin.estimator import TouchEstimator
     from thermoskin.plausible import admit_arrays, limits
 
@@ -911,36 +1042,13 @@ def replay(path: str | os.PathLike[str], config: Any = None,
         if not params:
             raise RecordingError(f"{path}: no /params message; pass the configuration")
         config = config_from_params(params[0].get("config", {}))
-    cols = to_columns(path, info=info)
-    n_all = len(cols["t"])
-    c_col = cols.get("contact", [math.nan] * n_all)
-    stepped = [i for i in range(n_all) if c_col[i] == c_col[i]]
-    if not stepped:
-        raise RecordingError(f"{path}: no /skin/estimate messages to compare with")
-    need = ("T_w", "T_p", "T_a", "v_cmd")
-    for k in need:
-        if k not in cols:
-            raise RecordingError(f"{path}: the recording has no {k!r} (recorded by an older version?)")
-    import numpy as np
-
-    idx = np.asarray(stepped)
-
-    def col(name: str, fill: float = math.nan) -> Any:
-        return np.asarray(cols.get(name, [fill] * n_all), dtype=float)[idx]
-
-    t = col("t")
-    inputs = {k: col(k) for k in ("T_w", "T_p", "T_a")}
-    v = col("v_cmd")
-    fresh = np.nan_to_num(col("fresh", 7.0), nan=7.0).astype(np.int64)
-    # the readings as the loop admitted them
-    admitted = dict(zip(("T_w", "T_p", "T_a"), admit_arrays(limits(config.plausible), inputs["T_w"],
-                                                            inputs["T_p"], inputs["T_a"]), strict=True))
+    source = iter_columns(path, info=info, block=None if whole else BLOCK_ROWS)
+    lim = limits(config.plausible)
     est = TouchEstimator(config)
-    # the commanded drive (control.drive), as the loop gave it to the estimator
-    res, _ = est.feed(t, admitted["T_w"], admitted["T_p"], v, admitted["T_a"], T_w_cmd=col("T_w_cmd"),
-                      fresh=fresh, drive=col("control.drive"))
-    est.finish(float(t[-1]))
-    q_live, dq_live, c_live = col("q_i_hat"), col("dq_i_hat"), col("contact")
+    need = ("T_w", "T_p", "T_a", "v_cmd")
+    samples = mism = 0
+    max_q = max_dq = 0.0
+    t_last = math.nan
 
     def worst(a: Any, b: Any) -> float:
         same = (a == b) | (np.isnan(a) & np.isnan(b))
@@ -949,14 +1057,45 @@ def replay(path: str | os.PathLike[str], config: Any = None,
         both = ~same & np.isfinite(a) & np.isfinite(b)
         return math.inf if (~same & ~both).any() else float(np.max(np.abs(a - b)[both]))
 
-    max_q, max_dq = worst(res["q_i_hat"], q_live), worst(res["dq_i_hat"], dq_live)
-    mism = int(np.sum(res["contact"] != c_live))
-    out = {"t": t, "T_w": inputs["T_w"], "T_p": inputs["T_p"], "v": v, "T_a": inputs["T_a"],
-           "q_i_hat": res["q_i_hat"], "dq_i_hat": res["dq_i_hat"], "contact": res["contact"],
-           "gap": res["gap"], "q_i_hat_live": q_live, "dq_i_hat_live": dq_live, "contact_live": c_live}
-    comparison = {"samples": len(stepped), "q_i_hat_max_abs_diff": max_q,
-                  "dq_i_hat_max_abs_diff": max_dq, "contact_mismatches": mism,
-                  "exact": max_q == 0.0 and max_dq == 0.0 and mism == 0,
-                  "agrees": max_q <= REPLAY_TOL_W and max_dq <= REPLAY_TOL_W and mism == 0,
-                  "events": list(est.events)}
-    return out, comparison
+    for cols in source:
+        for k in need:
+            if k not in cols:
+                raise RecordingError(f"{path}: the recording has no {k!r} (recorded by an older version?)")
+        n_all = len(cols["t"])
+        contact = np.asarray(cols.get("contact", [math.nan] * n_all), dtype=float)
+        idx = np.flatnonzero(contact == contact)  # the samples the blocks ran on
+        if not idx.size:
+            continue
+
+        def col(name: str, fill: float = math.nan, idx: Any = idx, n_all: int = n_all,
+                cols: dict[str, Any] = cols) -> Any:
+            return np.asarray(cols.get(name, [fill] * n_all), dtype=float)[idx]
+
+        t = col("t")
+        inputs = {k: col(k) for k in ("T_w", "T_p", "T_a")}
+        v = col("v_cmd")
+        fresh = np.nan_to_num(col("fresh", 7.0), nan=7.0).astype(np.int64)
+        # the readings as the loop admitted them
+        admitted = dict(zip(("T_w", "T_p", "T_a"), admit_arrays(lim, inputs["T_w"], inputs["T_p"],
+                                                                inputs["T_a"]), strict=True))
+        # the commanded drive (control.drive), as the loop gave it to the estimator
+        res, _ = est.feed(t, admitted["T_w"], admitted["T_p"], v, admitted["T_a"], T_w_cmd=col("T_w_cmd"),
+                          fresh=fresh, drive=col("control.drive"))
+        q_live, dq_live, c_live = col("q_i_hat"), col("dq_i_hat"), col("contact")
+        max_q = max(max_q, worst(res["q_i_hat"], q_live))
+        max_dq = max(max_dq, worst(res["dq_i_hat"], dq_live))
+        mism += int(np.sum(res["contact"] != c_live))
+        samples += len(t)
+        t_last = float(t[-1])
+        yield {"t": t, "T_w": inputs["T_w"], "T_p": inputs["T_p"], "v": v, "T_a": inputs["T_a"],
+               "q_i_hat": res["q_i_hat"], "dq_i_hat": res["dq_i_hat"], "contact": res["contact"],
+               "gap": res["gap"], "q_i_hat_live": q_live, "dq_i_hat_live": dq_live, "contact_live": c_live}
+    if not samples:
+        raise RecordingError(f"{path}: no /skin/estimate messages to compare with")
+    est.finish(t_last)
+    if comparison is not None:
+        comparison.update({"samples": samples, "q_i_hat_max_abs_diff": max_q,
+                           "dq_i_hat_max_abs_diff": max_dq, "contact_mismatches": mism,
+                           "exact": max_q == 0.0 and max_dq == 0.0 and mism == 0,
+                           "agrees": max_q <= REPLAY_TOL_W and max_dq <= REPLAY_TOL_W and mism == 0,
+                           "events": list(est.events)})

@@ -1,0 +1,115 @@
+"""Recordings read block by block: `export` and `replay` in memory that does not grow with the
+recording (`iter_columns`, `replay_blocks`, the scanner letting go of the mapped file)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import thermoskin.runtime.record as rec_mod
+from thermoskin.params import Config
+from thermoskin.runtime.closed_loop import run_closed_loop
+from thermoskin.runtime.record import LoopRecorder, Recorder, iter_columns, replay, replay_blocks, to_columns
+from thermoskin.sim.scenarios import SCENARIOS
+
+CFG = Config()
+
+
+def record_run(path: Path, seconds: float) -> None:
+    """A closed-loop run of touches recorded as `thermoskin run --record` does."""
+    rec = LoopRecorder(path, CFG)
+    try:
+        run_closed_loop(SCENARIOS["one-finger"].with_duration(seconds), CFG, on_block=rec.write_rows,
+                        keep=False)
+    finally:
+        rec.close()
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    p = tmp_path_factory.mktemp("rec") / "run.mcap"
+    record_run(p, 12.0)
+    return p
+
+
+def _joined(blocks: list[dict]) -> dict:  # type: ignore[type-arg]
+    return {k: [v for b in blocks for v in b[k]] for k in blocks[0]}
+
+
+def test_blocks_join_to_the_whole_table(recording: Path, tmp_path: Path) -> None:
+    """Blocks of 997 rows (a sample's merged messages on either side of a block's edge) join to
+    the whole table, columns in the same order; so does a recording cut off mid-chunk (its last
+    whole sample, and the report's end, as the whole table says)."""
+    whole = to_columns(recording)
+    blocks = list(iter_columns(recording, block=997))
+    assert len(blocks) >= 11 and all(len(b["t"]) == 997 for b in blocks[:-1])
+    got = _joined(blocks)
+    assert list(got) == list(whole) and "control.drive" in got and "q_i_hat" in got
+    for k in whole:
+        assert np.array_equal(np.asarray(got[k]), np.asarray(whole[k]), equal_nan=True), k
+    data = recording.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 2 // 3 + 11])
+    info_w: dict = {}  # type: ignore[type-arg]
+    info_b: dict = {}  # type: ignore[type-arg]
+    whole = to_columns(cut, info=info_w)
+    got = _joined(list(iter_columns(cut, info=info_b, block=997)))
+    assert not info_b["complete"] and info_b["report"].t_end == info_w["report"].t_end
+    assert 1000 < len(got["t"]) < 12_000 and len(got["t"]) == len(whole["t"])
+    for k in whole:
+        assert np.array_equal(np.asarray(got[k]), np.asarray(whole[k]), equal_nan=True), k
+
+
+def test_a_column_met_late_falls_back_to_the_whole_table(tmp_path: Path) -> None:
+    """A field first met after the first block (or text in a column of numbers) cannot be
+    streamed: iter_columns says so, and export writes the whole table instead, the same as
+    to_columns'."""
+    path = tmp_path / "late.mcap"
+    with Recorder(path, None) as rec:
+        for k in range(3000):
+            t = k * 1e-3
+            msg = {"T_w": 24.0 + k * 1e-4}
+            if k >= 2500:
+                msg["extra"] = 1.0
+            rec.write("/skin/sample", t, msg)
+            rec.write("/control", t, {"v_cmd": 0.1, "note": "x" if k == 2900 else 1.0})
+    with pytest.raises(rec_mod.SchemaChangeError, match=r"extra|note"):
+        list(iter_columns(path, block=1000))
+    out = rec_mod.export(path, tmp_path / "late.csv")
+    want = rec_mod._write_csv(tmp_path / "want.csv", to_columns(path))  # the whole table's text CSV
+    assert out.read_bytes() == want.read_bytes()
+    assert out.read_text().splitlines()[0] == "t,T_w,extra,v_cmd,note"
+
+
+def test_replay_in_blocks_is_the_whole_replay(recording: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """replay_blocks (blocks of 16 384 rows; here 997) gives the whole replay's columns and
+    comparison: the estimator is carried from block to block, bit for bit."""
+    cols, cmp = replay(recording)
+    monkeypatch.setattr(rec_mod, "BLOCK_ROWS", 997)
+    got: dict = {}  # type: ignore[type-arg]
+    blocks = list(replay_blocks(recording, comparison=got))
+    assert len(blocks) > 10 and cmp["exact"] and got["exact"]
+    assert {k: v for k, v in got.items() if k != "events"} == {k: v for k, v in cmp.items() if k != "events"}
+    assert got["events"] == cmp["events"] and len(cmp["events"]) >= 1
+    for k, x in cols.items():
+        assert np.array_equal(np.concatenate([b[k] for b in blocks]), x, equal_nan=True), k
+
+
+def test_reading_a_recording_does_not_grow_with_it(tmp_path: Path, peak_memory) -> None:  # type: ignore[no-untyped-def]
+    """Python's peak while a recording is read block by block (iter_columns, then a replay) is
+    the same (within 10 %) for one twice as long: the file is mapped, not read into memory,
+    and only a block of rows is held. The whole table's peak doubles."""
+    short, long = tmp_path / "short.mcap", tmp_path / "long.mcap"
+    record_run(short, 8.0)
+    record_run(long, 16.0)
+
+    def stream(p: Path) -> None:
+        for _ in iter_columns(p, block=2000):
+            pass
+
+    stream(short)  # imports first
+    s1, s2 = peak_memory(lambda: stream(short)), peak_memory(lambda: stream(long))
+    w1, w2 = peak_memory(lambda: to_columns(short)), peak_memory(lambda: to_columns(long))
+    assert s2 < 1.1 * s1 and w2 > 1.6 * w1, (s1, s2, w1, w2)
