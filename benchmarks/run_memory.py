@@ -5,12 +5,15 @@ For each ``--seconds``: ``thermoskin simulate`` of the scenario (Parquet, kept i
 (``--events`` too: what touched), each a process of its own, its peak resident memory read from
 the kernel (``wait4``). ``--realtime S,..``: also ``run --realtime`` (the fixed-rate loop
 process, at wall-clock speed) of each length. Prints one JSON line: per length and command,
-the wall time (median of ``--runs``) and the peak memory (MiB, the largest of the runs). All
-stream their logs (the plant's profiles a window at a time, the run's report gathered block by
-block), so the peaks should not follow the length. ``--src DIR``: run the code under ``DIR``
+the wall time (median of ``--runs``) and the peak memory (MiB, the largest of the runs).
+``--record S,..``: also ``run --record`` of each length, then ``replay`` of that recording
+(to CSV) and ``export`` of it (to Parquet). All stream their logs (the plant's profiles a
+window at a time, the run's report gathered block by block, a recording read a block at a
+time), so the peaks should not follow the length. ``--src DIR``: run the code under ``DIR``
 (another checkout's ``src``) instead, the peer of a before/after comparison.
 
-    python benchmarks/run_memory.py [--seconds 300,1200,3600] [--runs 1] [--realtime 60,240] [--json]
+    python benchmarks/run_memory.py [--seconds 300,1200,3600] [--runs 1] [--realtime 60,240]
+        [--record 300,1200] [--json]
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ def main() -> None:
     ap.add_argument("--scenario", default="realistic", help="scenario (its touches, then quiet)")
     ap.add_argument("--runs", type=int, default=1, help="runs per command and length")
     ap.add_argument("--realtime", default="", help="lengths of `run --realtime`, s (none by default)")
+    ap.add_argument("--record", default="", help="lengths of `run --record`, then replay and export, s")
     ap.add_argument("--dir", default=None, help="folder for the logs (default: a temporary one)")
     ap.add_argument("--src", default=None, help="run the package under this folder (PYTHONPATH)")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
@@ -48,7 +52,7 @@ def main() -> None:
         return {"wall_s": round(statistics.median(walls), 2), "peak_mib": round(max(peaks), 1)}
 
     out: dict[str, object] = {"scenario": a.scenario, "runs": a.runs, "src": a.src or "installed",
-                              "lengths": [], "realtime": []}
+                              "lengths": [], "realtime": [], "recordings": []}
     for s in (float(x) for x in a.seconds.split(",") if x):
         if not a.json:
             print(f"{s:g} s ...", file=sys.stderr)
@@ -66,6 +70,17 @@ def main() -> None:
         out["realtime"].append({"seconds": s, **measure(  # type: ignore[attr-defined]
             ["run", "--realtime", "--scenario", a.scenario, "--duration", f"{s:g}",
              "--log", str(folder / "rt.parquet")])})
+    for s in (float(x) for x in a.record.split(",") if x):
+        if not a.json:
+            print(f"run --record {s:g} s, replay, export ...", file=sys.stderr)
+        mcap = folder / f"rec_{s:g}s.mcap"
+        row = {"seconds": s, "run_record": measure(
+            ["run", "--scenario", a.scenario, "--duration", f"{s:g}", "--log", str(folder / "rec.parquet"),
+             "--record", str(mcap)])}
+        row["mcap_mib"] = round(mcap.stat().st_size / 2**20, 1)
+        row["replay"] = measure(["replay", str(mcap), "-o", str(folder / "replay.csv")])
+        row["export"] = measure(["export", str(mcap), "-o", str(folder / "export.parquet")])
+        out["recordings"].append(row)  # type: ignore[attr-defined]
     print(json.dumps(out))
 
 
