@@ -113,3 +113,41 @@ def test_reading_a_recording_does_not_grow_with_it(tmp_path: Path, peak_memory) 
     s1, s2 = peak_memory(lambda: stream(short)), peak_memory(lambda: stream(long))
     w1, w2 = peak_memory(lambda: to_columns(short)), peak_memory(lambda: to_columns(long))
     assert s2 < 1.1 * s1 and w2 > 1.6 * w1, (s1, s2, w1, w2)
+
+
+def test_a_skins_recording_in_blocks_is_its_whole_table(tmp_path: Path) -> None:
+    """A skin's recording (nine patches, their messages in reverse order, the last sample of one
+    patch never recorded) read about 2000 rows at a time joins to skin_columns' long table; the
+    export's CSV is the whole table's."""
+    from thermoskin.runtime.skin_topics import layout, skin_topics
+    from thermoskin.skin import load_skin
+
+    skin = load_skin(Path(__file__).resolve().parents[1] / "examples" / "forearm.toml")
+    names = [p.name for p in skin.patches]
+    path = tmp_path / "s.mcap"
+    rec = Recorder(path, CFG, schemas=skin_topics(skin), params={"skin": layout(skin)})
+    n = 3000
+    for r in range(n):
+        t = r * 1e-3
+        for i in reversed(range(len(names))):
+            if r == n - 1 and i == 2:
+                continue
+            rec.write(f"/patch/{names[i]}/sample", t, {"T_w": 20.0 + i + r / 1e3, "T_p": 30.0, "T_a": 19.0,
+                                                       "v": 0.1, "fresh": 1})
+            rec.write(f"/patch/{names[i]}/estimate", t, {"q_i_hat": float(i), "dq_i_hat": -r * 1e-3,
+                                                         "contact": 0, "gap": 0})
+    rec.close()
+    whole = rec_mod.skin_columns(path)
+    assert whole is not None and len(whole["t"]) == (n - 1) * len(names)
+    blocks = list(rec_mod.iter_skin_columns(path, block=2000))  # type: ignore[arg-type]
+    assert len(blocks) > 5
+    got = _joined(blocks)
+    assert list(got) == list(whole)
+    for k in whole:
+        assert np.array_equal(np.asarray(got[k]), np.asarray(whole[k]), equal_nan=True), k
+    out = rec_mod.export(path, tmp_path / "s.csv")
+    want = tmp_path / "want.csv"
+    from thermoskin.logio import write_log
+
+    write_log(want, {k: np.asarray(v) for k, v in whole.items()})
+    assert out.read_bytes() == want.read_bytes()

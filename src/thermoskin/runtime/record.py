@@ -686,7 +686,17 @@ def skin_columns(path: str | os.PathLike[str],
     ``truth``) as one long table, one row per sample and patch (sample-major, patches in the
     skin's order, ``patch`` their index, as the skin's log): each patch's topics joined as
     :func:`to_columns` joins a single patch's. None if the recording is not a skin's.
-    A cut-off recording ends at the last sample every patch has whole."""
+    A cut-off recording ends at the last sample every patch has whole. The whole table at
+    once: :func:`iter_skin_columns` in one block."""
+    blocks = iter_skin_columns(path, info, block=None)
+    return None if blocks is None else next(blocks)
+
+
+def iter_skin_columns(path: str | os.PathLike[str], info: dict[str, Any] | None = None,
+                      block: int | None = BLOCK_ROWS) -> Iterator[dict[str, Column]] | None:
+    """:func:`skin_columns`, about ``block`` rows (``block / P`` samples of each of its ``P``
+    patches) at a time: each patch's :func:`iter_columns`, in step (None if the recording is
+    not a skin's)."""
     samples = [t for t in recording_channels(path) if t.startswith("/patch/") and t.endswith("/sample")]
     if not samples:
         return None
@@ -697,24 +707,36 @@ def skin_columns(path: str | os.PathLike[str],
         order = [p.get("name") for p in layout["patches"] if isinstance(p, dict)]
         if sorted(order) == sorted(names):
             names = order
-    per: list[dict[str, Column]] = []
-    for i, name in enumerate(names):
-        sub: dict[str, Any] = {}
-        per.append(to_columns(path, f"/patch/{name}/sample", (f"/patch/{name}/estimate",
-                                                              f"/patch/{name}/truth"), info=sub))
-        if i == 0 and info is not None:
+    sub: dict[str, Any] = {}
+    block = None if block is None else max(1, block // len(names))  # long-format rows a block
+    gens = [iter_columns(path, f"/patch/{name}/sample", (f"/patch/{name}/estimate", f"/patch/{name}/truth"),
+                         info=sub if i == 0 else None, block=block) for i, name in enumerate(names)]
+    return _interleave(gens, sub, info)
+
+
+def _interleave(gens: list[Iterator[dict[str, Column]]], sub: dict[str, Any],
+                info: dict[str, Any] | None) -> Iterator[dict[str, Column]]:
+    """The patches' blocks, taken in step, as long-format blocks (:func:`skin_columns`)."""
+    nan = math.nan
+    P = len(gens)
+    for per in zip(*gens, strict=False):
+        n = min(len(c["t"]) for c in per)
+        keys = list(dict.fromkeys(k for c in per for k in c))
+        out: dict[str, Column] = {"t": [x for x in per[0]["t"][:n] for _ in range(P)],
+                                  "patch": [float(i) for _ in range(n) for i in range(P)]}
+        for k in keys:
+            if k == "t":
+                continue
+            cols = [c.get(k) or [nan] * n for c in per]
+            out[k] = [cols[i][r] for r in range(n) for i in range(P)]
+        if info is not None:
             info.update(sub)
-    n = min(len(c["t"]) for c in per)
-    keys = list(dict.fromkeys(k for c in per for k in c))
-    P = len(per)
-    out: dict[str, Column] = {"t": [x for x in per[0]["t"][:n] for _ in range(P)],
-                              "patch": [float(i) for _ in range(n) for i in range(P)]}
-    for k in keys:
-        if k == "t":
-            continue
-        cols = [c.get(k) or [math.nan] * n for c in per]
-        out[k] = [cols[i][r] for r in range(n) for i in range(P)]
-    return out
+        yield out
+    for g in gens:  # a patch recorded longer than another: read to its end (its report)
+        for _ in g:
+            pass
+    if info is not None:
+        info.update(sub)
 
 
 def _whole_rows(cols: dict[str, list[Any]], merged: set[str], n: int,
@@ -766,9 +788,9 @@ def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
 
     A CSV of numbers only is a log (:func:`thermoskin.logio.write_log`); with text columns
     it is written as :func:`_write_csv` says. ``info`` as in :func:`iter_messages`. A single
-    patch's recording is read and written block by block (:func:`iter_columns`), so memory
-    does not grow with it, unless its columns change along it or a CSV needs text; a skin's
-    recording is read whole (:func:`skin_columns`).
+    patch's recording, or a skin's, is read and written block by block (:func:`iter_columns`,
+    :func:`iter_skin_columns`), so memory does not grow with it, unless its columns change
+    along it or a CSV needs text (then it is read whole).
     """
     out = Path(out_path)
     suffix = out.suffix.lower()
@@ -776,12 +798,14 @@ def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
         raise RecordingError(f"cannot export to {out}: the extension must be .csv or .parquet")
     if out.is_dir():
         raise RecordingError(f"cannot export to {out}: it is a directory")
-    cols = skin_columns(path_mcap, info) if not kw else None
-    if cols is None:
-        try:  # block by block (memory does not grow with the recording) ...
-            return _export_blocks(path_mcap, out, info, **kw)
-        except SchemaChangeError:  # ... unless its columns change (a text CSV): whole
-            cols = to_columns(path_mcap, info=info, **kw)
+    skin = None if kw else iter_skin_columns(path_mcap, info)
+    try:  # block by block (memory does not grow with the recording) ...
+        blocks = iter_columns(path_mcap, info=info, **kw) if skin is None else skin
+        return _export_blocks(blocks, out, path_mcap)
+    except SchemaChangeError:  # ... unless its columns change (a text CSV): whole
+        whole = to_columns(path_mcap, info=info, **kw) if skin is None else skin_columns(path_mcap, info)
+        assert whole is not None
+        cols = whole
     if suffix == ".csv":
         if any(_is_text(c) for c in cols.values()):
             return _write_csv(out, cols)
@@ -804,14 +828,13 @@ def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
     return out
 
 
-def _export_blocks(path_mcap: str | os.PathLike[str], out: Path, info: dict[str, Any] | None,
-                   **kw: Any) -> Path:
+def _export_blocks(blocks: Iterator[dict[str, Column]], out: Path, path_mcap: str | os.PathLike[str]) -> Path:
     """:func:`export` of a table of numbers, block by block (:class:`SchemaChangeError`
-    otherwise, before anything is written: each output is written whole or not at all)."""
+    otherwise: each output is written whole or not at all)."""
     import numpy as np
 
     def numbers() -> Iterator[dict[str, Any]]:
-        for b in iter_columns(path_mcap, info=info, **kw):
+        for b in blocks:
             if any(_is_text(c) for c in b.values()):
                 raise SchemaChangeError(f"{path_mcap}: text columns")
             yield {k: np.asarray(v, dtype=np.float64) for k, v in b.items()}
