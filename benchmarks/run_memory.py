@@ -7,13 +7,14 @@ the kernel (``wait4``). ``--realtime S,..``: also ``run --realtime`` (the fixed-
 process, at wall-clock speed) of each length. Prints one JSON line: per length and command,
 the wall time (median of ``--runs``) and the peak memory (MiB, the largest of the runs).
 ``--record S,..``: also ``run --record`` of each length, then ``replay`` of that recording
-(to CSV) and ``export`` of it (to Parquet). All stream their logs (the plant's profiles a
-window at a time, the run's report gathered block by block, a recording read a block at a
-time), so the peaks should not follow the length. ``--src DIR``: run the code under ``DIR``
+(to CSV) and ``export`` of it (to Parquet). ``--skin-record S,..``: ``run --skin --record``
+of the forearm (``examples/forearm.toml``), then ``export`` of it (to Parquet). All stream
+their logs (the plant's profiles a window at a time, the run's report gathered block by
+block, a recording read a block at a time), so the peaks should not follow the length. ``--src DIR``: run the code under ``DIR``
 (another checkout's ``src``) instead, the peer of a before/after comparison.
 
     python benchmarks/run_memory.py [--seconds 300,1200,3600] [--runs 1] [--realtime 60,240]
-        [--record 300,1200] [--json]
+        [--record 300,1200] [--skin-record 30,120] [--json]
 """
 
 from __future__ import annotations
@@ -35,6 +36,8 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=1, help="runs per command and length")
     ap.add_argument("--realtime", default="", help="lengths of `run --realtime`, s (none by default)")
     ap.add_argument("--record", default="", help="lengths of `run --record`, then replay and export, s")
+    ap.add_argument("--skin-record", default="", help="lengths of `run --skin --record` (the forearm), "
+                    "then export, s")
     ap.add_argument("--dir", default=None, help="folder for the logs (default: a temporary one)")
     ap.add_argument("--src", default=None, help="run the package under this folder (PYTHONPATH)")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
@@ -52,7 +55,8 @@ def main() -> None:
         return {"wall_s": round(statistics.median(walls), 2), "peak_mib": round(max(peaks), 1)}
 
     out: dict[str, object] = {"scenario": a.scenario, "runs": a.runs, "src": a.src or "installed",
-                              "lengths": [], "realtime": [], "recordings": []}
+                              "lengths": [], "realtime": [], "recordings": [],
+                              "skin_recordings": []}
     for s in (float(x) for x in a.seconds.split(",") if x):
         if not a.json:
             print(f"{s:g} s ...", file=sys.stderr)
@@ -81,6 +85,17 @@ def main() -> None:
         row["replay"] = measure(["replay", str(mcap), "-o", str(folder / "replay.csv")])
         row["export"] = measure(["export", str(mcap), "-o", str(folder / "export.parquet")])
         out["recordings"].append(row)  # type: ignore[attr-defined]
+    skin = Path(__file__).resolve().parent.parent / "examples" / "forearm.toml"
+    for s in (float(x) for x in a.skin_record.split(",") if x):
+        if not a.json:
+            print(f"run --skin --record {s:g} s, export ...", file=sys.stderr)
+        mcap = folder / f"skin_{s:g}s.mcap"
+        if not mcap.exists():
+            run(["run", "--skin", str(skin), "--duration", f"{s:g}", "--log", str(folder / "skin.parquet"),
+                 "--record", str(mcap)], env)
+        row = {"seconds": s, "mcap_mib": round(mcap.stat().st_size / 2**20, 1),
+               "export": measure(["export", str(mcap), "-o", str(folder / "skin_export.parquet")])}
+        out["skin_recordings"].append(row)  # type: ignore[attr-defined]
     print(json.dumps(out))
 
 
