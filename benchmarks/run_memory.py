@@ -10,8 +10,9 @@ the wall time (median of ``--runs``) and the peak memory (MiB, the largest of th
 (to CSV) and ``export`` of it (to Parquet). ``--skin-record S,..``: ``run --skin --record``
 of the forearm (``examples/forearm.toml``), then ``export`` of it (to Parquet). All stream
 their logs (the plant's profiles a window at a time, the run's report gathered block by
-block, a recording read a block at a time), so the peaks should not follow the length. ``--src DIR``: run the code under ``DIR``
-(another checkout's ``src``) instead, the peer of a before/after comparison.
+block, a recording read a block at a time), so the peaks should not follow the length.
+``--src DIR``: run the code under ``DIR`` (another checkout's ``src``) instead, the peer of a
+before/after comparison.
 
     python benchmarks/run_memory.py [--seconds 300,1200,3600] [--runs 1] [--realtime 60,240]
         [--record 300,1200] [--skin-record 30,120] [--json]
