@@ -151,3 +151,88 @@ def test_a_skins_recording_in_blocks_is_its_whole_table(tmp_path: Path) -> None:
 
     write_log(want, {k: np.asarray(v) for k, v in whole.items()})
     assert out.read_bytes() == want.read_bytes()
+
+
+def _late_control(path: Path, start: int, n: int = 20_000, estimates: bool = True) -> None:
+    """A recording whose /control (v_cmd) begins at row ``start``."""
+    with Recorder(path, CFG) as rec:
+        for k in range(n):
+            t = k * 1e-3
+            rec.write("/skin/sample", t, {"T_w": 24.0 + 1e-5 * k, "T_p": 26.0, "T_a": 20.0, "fresh": 7})
+            if k >= start:
+                rec.write("/control", t, {"T_w_cmd": 24.0, "T_p_cmd": 26.0, "drive": 0.1, "v_cmd": 0.141})
+            if estimates:
+                rec.write("/skin/estimate", t, {"q_i_hat": 0.0, "dq_i_hat": 0.0, "contact": 0, "gap": 0})
+
+
+def test_what_streaming_cannot_see_is_read_whole(tmp_path: Path) -> None:
+    """What a block cannot know is read whole, as before: a column the replay needs first met
+    after the first block (the replay runs, as the whole one); a merged message that comes more
+    than the rows held after its sample; a cut-off recording whose last whole sample is before
+    the rows held (the table ends there). And the errors are the whole recording's: a recording
+    with no estimate and no v_cmd says it has no estimates; a recording with no sample says so,
+    also when exported to CSV."""
+    late = tmp_path / "late.mcap"
+    _late_control(late, 18_000)
+    cols, cmp = replay(late)
+    assert len(cols["t"]) == 20_000 and cmp["samples"] == 20_000
+    with pytest.raises(rec_mod.SchemaChangeError):
+        list(replay_blocks(late))
+    # a merged message 1500 rows after its sample
+    lag = tmp_path / "lag.mcap"
+    with Recorder(lag, None) as rec:
+        for k in range(20_000):
+            rec.write("/skin/sample", k * 1e-3, {"T_w": 24.0})
+            if k >= 1500:
+                rec.write("/control", (k - 1500) * 1e-3, {"v_cmd": float(k - 1500)})
+    with pytest.raises(rec_mod.SchemaChangeError):
+        list(iter_columns(lag))
+    out = rec_mod.export(lag, tmp_path / "lag.csv")
+    from thermoskin.logio import read_log, write_log
+
+    got = read_log(out, required=("t",))
+    assert np.array_equal(got["v_cmd"][:18_500], np.arange(18_500.0))
+    # a cut-off recording whose estimates stopped 10 000 rows before its end
+    stop = tmp_path / "stop.mcap"
+    with Recorder(stop, None) as rec:
+        for k in range(40_000):
+            rec.write("/skin/sample", k * 1e-3, {"T_w": 24.0})
+            if k < 10_000:
+                rec.write("/skin/estimate", k * 1e-3, {"q_i_hat": 1.0})
+    data = stop.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) - 200])  # no footer: cut off
+    whole = to_columns(cut)
+    assert len(whole["t"]) == 10_000
+    out = rec_mod.export(cut, tmp_path / "cut.csv")
+    want = write_log(tmp_path / "want.csv", {k: np.asarray(v) for k, v in whole.items()})
+    assert out.read_bytes() == want.read_bytes()
+    # errors
+    none = tmp_path / "none.mcap"
+    _late_control(none, 10**9, n=100, estimates=False)
+    with pytest.raises(rec_mod.RecordingError, match="no /skin/estimate messages"):
+        replay(none)
+    empty = tmp_path / "empty.mcap"
+    with Recorder(empty, None) as rec:
+        rec.write("/control", 0.0, {"v_cmd": 0.1})
+    with pytest.raises(rec_mod.RecordingError, match=r"^\S*empty.mcap: no messages on /skin/sample$"):
+        rec_mod.export(empty, tmp_path / "e.csv")
+
+
+def test_export_of_a_fault_run_is_the_whole_tables_csv(tmp_path: Path) -> None:
+    """A run that ended in a fault has a row with no estimate (NaN in the flag columns): the
+    streamed export writes the same CSV as the whole table written at once."""
+    from thermoskin.logio import write_log
+
+    path = tmp_path / "f.mcap"  # the tank over 22 °C trips the supervisor at 1.16 s
+    rec = LoopRecorder(path, CFG)
+    try:
+        run_closed_loop(SCENARIOS["one-finger"].with_duration(6.0),
+                        CFG.replace(safety={"T_p_max": 22.0}), on_block=rec.write_rows, keep=False)
+    finally:
+        rec.close()
+    whole = to_columns(path)
+    assert np.isnan(np.asarray(whole["contact"], dtype=float)).any()
+    out = rec_mod.export(path, tmp_path / "f.csv")
+    want = write_log(tmp_path / "want.csv", {k: np.asarray(v) for k, v in whole.items()})
+    assert out.read_bytes() == want.read_bytes()

@@ -54,7 +54,8 @@ class TrailingMean:
         lo = np.maximum(idx - self.n, 0)
         cnt = k[idx] - k[lo]
         keep = self.n - 1
-        self._y, self._ok = (Y[len(Y) - keep:], K[len(K) - keep:]) if keep else (Y[:0], K[:0])
+        start = max(0, len(Y) - keep)  # the last keep samples (all of them while fewer)
+        self._y, self._ok = (Y[start:], K[start:]) if keep else (Y[:0], K[:0])
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(cnt > 0, (c[idx] - c[lo]) / np.maximum(cnt, 1), np.nan)
 

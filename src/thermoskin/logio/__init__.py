@@ -21,10 +21,12 @@ elsewhere, and in ``t`` always, every value must be a finite number.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import warnings
 from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -175,17 +177,21 @@ def write_log(
     return Path(path)
 
 
-def write_blocks(path: str | os.PathLike[str], blocks: Iterable[Mapping[str, ArrayLike]]) -> int:
+def write_blocks(path: str | os.PathLike[str], blocks: Iterable[Mapping[str, ArrayLike]], *,
+                 by_rows: bool = False) -> int:
     """Write the column chunks ``blocks`` one after the other as one log (CSV or Parquet by the
     extension), atomically: whole, or nothing if the blocks raise; the columns are the first
     block's. Memory holds one block (the blocks may be made as they are asked for). Returns the
-    rows written (0: no block, nothing written)."""
+    rows written (0: no block, nothing written). ``by_rows``: hand rows over every
+    262 144 rows only, as :func:`write_log` does (not also every second), so that the same
+    blocks give the same bytes (a flag column's integers or floats are chosen per hand-over)."""
     rows = 0
+    kw: dict[str, Any] = {"flush_rows": _WRITE_SLICE, "flush_s": math.inf} if by_rows else {}
     with contextlib.ExitStack() as stack:
         writer: LogWriter | None = None
         for block in blocks:
             if writer is None:
-                writer = stack.enter_context(LogWriter(path, list(block), atomic=True))
+                writer = stack.enter_context(LogWriter(path, list(block), atomic=True, **kw))
             writer.write(block)
             rows += len(next(iter(block.values())))
     return rows

@@ -615,9 +615,10 @@ def iter_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample
     given: list[str] | None = None  # the columns of the first block given
     text: set[str] = set()
     seen: set[str] = set()  # merged fields with a value in a row already given
+    last_given = -(1 << 62)  # the time (µs) of the last row given out
 
     def give(m: int) -> dict[str, Column]:
-        nonlocal given, rows, index
+        nonlocal given, rows, index, last_given
         names = [*base, *(k for m in merge for k in order[m])]
         out = {k: [r.get(k, nan) for r in rows[:m]] for k in names}
         for k in merged:
@@ -637,6 +638,10 @@ def iter_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample
         elif names != given:
             raise SchemaChangeError(f"{path}: columns {sorted(set(names) - set(given))} first met after "
                                 "the first block")
+        if m and given is not None:
+            t_m = rows[m - 1].get("t", nan)
+            if _is_number(t_m) and math.isfinite(t_m):
+                last_given = max(last_given, round(t_m * 1e6))
         rows = rows[m:]
         index = {k: i - m for k, i in index.items() if i >= m}
         return out
@@ -653,8 +658,11 @@ def iter_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample
                 yield give(block)
             continue
         t = msg.get("t", nan)
-        i = index.get(round(t * 1e6)) if _is_number(t) and math.isfinite(t) else None
+        key = round(t * 1e6) if _is_number(t) and math.isfinite(t) else None
+        i = index.get(key) if key is not None else None
         if i is None:
+            if key is not None and key <= last_given:  # for a row given out already: read whole
+                raise SchemaChangeError(f"{path}: a {topic} message {len(rows)} rows after its sample")
             continue
         row = rows[i]
         for k, v in msg.items():
@@ -670,6 +678,10 @@ def iter_columns(path: str | os.PathLike[str], sample_topic: str = "/skin/sample
     if not info.get("complete", True) and n:
         tail = {k: [r.get(k, nan) for r in rows] for k in merged}
         n_whole = _whole_rows(tail, set(merged), n, seen)
+        if given is not None and n_whole == n and not all(
+                not (isinstance(v, float) and v != v) for k, v in ((k, tail[k][-1]) for k in seen)):
+            # no whole row among those held: the last whole one was given out already
+            raise SchemaChangeError(f"{path}: its last whole sample is before the rows held")
         if n_whole < n:
             rows = rows[:n_whole]
             n = n_whole
@@ -842,9 +854,9 @@ def _export_blocks(blocks: Iterator[dict[str, Column]], out: Path, path_mcap: st
     if out.suffix.lower() == ".csv":
         from thermoskin.logio import write_blocks
 
-        try:
-            write_blocks(out, numbers())  # a flag column of integers is written as integers
-        except SchemaChangeError:
+        try:  # a flag column of integers is written as integers (per 262 144 rows, as write_log)
+            write_blocks(out, numbers(), by_rows=True)
+        except RecordingError:
             raise
         except ValueError as e:  # a field name a log cannot carry
             raise RecordingError(f"cannot export to {out}: {e}") from None
@@ -1081,14 +1093,16 @@ def replay_blocks(path: str | os.PathLike[str], config: Any = None, info: dict[s
         return math.inf if (~same & ~both).any() else float(np.max(np.abs(a - b)[both]))
 
     for cols in source:
-        for k in need:
-            if k not in cols:
-                raise RecordingError(f"{path}: the recording has no {k!r} (recorded by an older version?)")
         n_all = len(cols["t"])
         contact = np.asarray(cols.get("contact", [math.nan] * n_all), dtype=float)
         idx = np.flatnonzero(contact == contact)  # the samples the blocks ran on
         if not idx.size:
             continue
+        for k in need:
+            if k not in cols:
+                if not whole:  # it may come later in the recording: read it whole
+                    raise SchemaChangeError(f"{path}: no {k!r} in a block")
+                raise RecordingError(f"{path}: the recording has no {k!r} (recorded by an older version?)")
 
         def col(name: str, fill: float = math.nan, idx: Any = idx, n_all: int = n_all,
                 cols: dict[str, Any] = cols) -> Any:
