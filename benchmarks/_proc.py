@@ -23,3 +23,40 @@ def run(args: list[str], env: dict[str, str] | None = None) -> tuple[float, floa
     if p.returncode:
         raise SystemExit(f"thermoskin {' '.join(args)} failed ({p.returncode}): {err.strip()[-300:]}")
     return wall, usage.ru_maxrss / 1024.0
+
+
+def rss_trace(args: list[str], every: float = 15.0, env: dict[str, str] | None = None
+              ) -> list[dict[str, float]]:
+    """``thermoskin ARGS`` run to its end, the resident memory (MiB, ``/proc``) of it and of each
+    of its child processes read every ``every`` s: ``[{"t_s", "main_mib", "children_mib"}]``
+    (``children_mib``: the largest child, e.g. the fixed-rate loop process)."""
+
+    def rss(pid: int) -> float:
+        try:
+            with open(f"/proc/{pid}/status") as fh:
+                for line in fh:
+                    if line.startswith("VmRSS:"):
+                        return int(line.split()[1]) / 1024.0
+        except OSError:
+            pass
+        return 0.0
+
+    def children(pid: int) -> list[int]:
+        try:
+            with open(f"/proc/{pid}/task/{pid}/children") as fh:
+                return [int(x) for x in fh.read().split()]
+        except OSError:
+            return []
+
+    p = subprocess.Popen([*CMD, *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                         env=None if env is None else {**os.environ, **env})
+    t0 = time.perf_counter()
+    out = []
+    while p.poll() is None:
+        time.sleep(every)
+        if p.poll() is not None:
+            break
+        kids = [rss(c) for c in children(p.pid)]
+        out.append({"t_s": round(time.perf_counter() - t0, 1), "main_mib": round(rss(p.pid), 1),
+                    "children_mib": round(max(kids), 1) if kids else 0.0})
+    return out

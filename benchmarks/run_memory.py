@@ -11,11 +11,12 @@ the wall time (median of ``--runs``) and the peak memory (MiB, the largest of th
 of the forearm (``examples/forearm.toml``), then ``export`` of it (to Parquet). All stream
 their logs (the plant's profiles a window at a time, the run's report gathered block by
 block, a recording read a block at a time), so the peaks should not follow the length.
-``--src DIR``: run the code under ``DIR`` (another checkout's ``src``) instead, the peer of a
-before/after comparison.
+``--trace S``: one ``run --realtime`` of ``S`` s, the resident memory of the command and of
+its loop process read every 15 s. ``--src DIR``: run the code under ``DIR`` (another
+checkout's ``src``) instead, the peer of a before/after comparison.
 
     python benchmarks/run_memory.py [--seconds 300,1200,3600] [--runs 1] [--realtime 60,240]
-        [--record 300,1200] [--skin-record 30,120] [--json]
+        [--record 300,1200] [--skin-record 30,120] [--trace 600] [--json]
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from _proc import run
+from _proc import rss_trace, run
 
 
 def main() -> None:
@@ -39,6 +40,8 @@ def main() -> None:
     ap.add_argument("--record", default="", help="lengths of `run --record`, then replay and export, s")
     ap.add_argument("--skin-record", default="", help="lengths of `run --skin --record` (the forearm), "
                     "then export, s")
+    ap.add_argument("--trace", type=float, default=0.0,
+                    help="also one `run --realtime` of this many seconds, its memory read every 15 s")
     ap.add_argument("--dir", default=None, help="folder for the logs (default: a temporary one)")
     ap.add_argument("--src", default=None, help="run the package under this folder (PYTHONPATH)")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
@@ -57,7 +60,7 @@ def main() -> None:
 
     out: dict[str, object] = {"scenario": a.scenario, "runs": a.runs, "src": a.src or "installed",
                               "lengths": [], "realtime": [], "recordings": [],
-                              "skin_recordings": []}
+                              "skin_recordings": [], "trace": []}
     for s in (float(x) for x in a.seconds.split(",") if x):
         if not a.json:
             print(f"{s:g} s ...", file=sys.stderr)
@@ -97,6 +100,11 @@ def main() -> None:
         row = {"seconds": s, "mcap_mib": round(mcap.stat().st_size / 2**20, 1),
                "export": measure(["export", str(mcap), "-o", str(folder / "skin_export.parquet")])}
         out["skin_recordings"].append(row)  # type: ignore[attr-defined]
+    if a.trace:
+        if not a.json:
+            print(f"run --realtime {a.trace:g} s, traced ...", file=sys.stderr)
+        out["trace"] = rss_trace(["run", "--realtime", "--scenario", a.scenario, "--duration", f"{a.trace:g}",
+                                  "--log", str(folder / "trace.parquet")], env=env)
     print(json.dumps(out))
 
 
