@@ -38,7 +38,6 @@ class RunDigest:
     """A run's report, fed with each block of its log (module doc)."""
 
     def __init__(self, cfg: Config, *, characterise: bool = True) -> None:
-        self.cfg = cfg
         self.plot = PlotDigest(cfg.sampling.t_s)
         self.tracking = TrackingStream()
         self._ch = Characteriser(cfg) if characterise else None
