@@ -12,7 +12,14 @@ virtual machine does when its host takes it off the CPU; 0: each core alone); an
 tick)`` with ``rate`` that of the stalls of all cores merged where they overlap. If that share
 is above 1 %, such stalls reach a tick's p99, whatever the tick computes.
 
-    python benchmarks/host_jitter.py [--seconds 3] [--tick-us 65] [--json]
+It also asks whether the cores are cores: a compiled loop of independent multiply-adds (it
+keeps a core's arithmetic units busy, as the estimation kernel does) is timed on each core
+alone and then on every core at once (threads pinned, started together). ``shared_slowdown``
+is the ratio of the two times (medians of ``--reps``): about 1 where each virtual CPU has a
+physical core of its own, 1.5-2 where they are hyperthreads of one core (SMT), which then
+share its units and a tick of many patches gains far less than the core count from both.
+
+    python benchmarks/host_jitter.py [--seconds 3] [--tick-us 65] [--reps 5] [--json]
 """
 
 from __future__ import annotations
@@ -21,10 +28,12 @@ import argparse
 import json
 import math
 import os
+import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from numba import njit
 
 LIMITS_US = (10, 20, 40, 80)
 
@@ -44,6 +53,57 @@ def spin(args: tuple[int, float]) -> list[tuple[int, int]]:
             gaps.append((last, now))
         last = now
     return gaps
+
+
+@njit(nogil=True, fastmath=True)
+def _multiply_adds(n: int, a: np.ndarray) -> float:
+    """``n`` passes of eight independent multiply-add chains over ``a``: bound by the core's
+    arithmetic throughput, not by memory (``a`` stays in L1) nor by one chain's latency."""
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for _ in range(n):
+        for i in range(0, a.shape[0], 8):
+            s0 += a[i] * 1.0001
+            s1 += a[i + 1] * 1.0001
+            s2 += a[i + 2] * 1.0001
+            s3 += a[i + 3] * 1.0001
+            s4 += a[i + 4] * 1.0001
+            s5 += a[i + 5] * 1.0001
+            s6 += a[i + 6] * 1.0001
+            s7 += a[i + 7] * 1.0001
+    return s0 + s1 + s2 + s3 + s4 + s5 + s6 + s7
+
+
+def shared_core(cpus: list[int], reps: int, passes: int = 50_000) -> dict[str, float]:
+    """Seconds of :func:`_multiply_adds` on one core alone and on every core at once (median
+    over ``reps``; at once: the slowest thread), and their ratio."""
+    a = np.random.default_rng(0).random(2048)
+    _multiply_adds(1, a)  # compile
+
+    def timed(core: int, go: threading.Barrier | None, out: list[float]) -> None:
+        os.sched_setaffinity(0, {core})  # this thread alone (Linux)
+        if go is not None:
+            go.wait()
+        t0 = time.perf_counter()
+        _multiply_adds(passes, a)
+        out.append(time.perf_counter() - t0)
+
+    alone: list[float] = []
+    together: list[float] = []
+    for _ in range(reps):
+        for c in cpus:
+            th = threading.Thread(target=timed, args=(c, None, alone))
+            th.start()
+            th.join()
+        got: list[float] = []
+        go = threading.Barrier(len(cpus))
+        ths = [threading.Thread(target=timed, args=(c, go, got)) for c in cpus]
+        for th in ths:
+            th.start()
+        for th in ths:
+            th.join()
+        together.append(max(got))
+    t1, t2 = float(np.median(alone)), float(np.median(together))
+    return {"alone_s": round(t1, 4), "together_s": round(t2, 4), "shared_slowdown": round(t2 / t1, 2)}
 
 
 def merged(spans: list[np.ndarray]) -> int:
@@ -78,6 +138,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=3.0, help="spin this long on each core")
     ap.add_argument("--tick-us", type=float, default=65.0, help="a tick, µs (1000 patches: about 65)")
+    ap.add_argument("--reps", type=int, default=5, help="repetitions of the shared-core test")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
     cpus = sorted(os.sched_getaffinity(0))
@@ -103,6 +164,8 @@ def main() -> None:
         rate = merged(spans) / a.seconds  # any core's stall holds the tick; simultaneous ones once
         out[f"stalls_over_{lim}us_per_s_merged"] = round(rate, 1)
         out[f"ticks_hit_over_{lim}us"] = round(1.0 - math.exp(-rate * tick), 4)
+    if len(cpus) > 1:
+        out["multiply_adds"] = shared_core(cpus, a.reps)
     if not a.json:
         print(json.dumps(out, indent=1))
     print(json.dumps(out))

@@ -13,10 +13,14 @@ their logs (the plant's profiles a window at a time, the run's report gathered b
 block, a recording read a block at a time), so the peaks should not follow the length.
 ``--trace S``: one ``run --realtime`` of ``S`` s, the resident memory of the command and of
 its loop process read every 15 s. ``--src DIR``: run the code under ``DIR`` (another
-checkout's ``src``) instead, the peer of a before/after comparison.
+checkout's ``src``) instead, the peer of a before/after comparison. ``--peer DIR``: the same,
+in the same run: every command is run once untimed with each code, then ``--runs`` times with
+this code and with the code under ``DIR``, alternating (which goes first alternates too), and
+each gets ``"peer"`` (its wall time and peak memory) and ``"ratio"`` (the median of the pairs'
+time ratios, this / peer).
 
     python benchmarks/run_memory.py [--seconds 300,1200,3600] [--runs 1] [--realtime 60,240]
-        [--record 300,1200] [--skin-record 30,120] [--trace 600] [--json]
+        [--record 300,1200] [--skin-record 30,120] [--trace 600] [--src DIR] [--peer DIR] [--json]
 """
 
 from __future__ import annotations
@@ -44,21 +48,44 @@ def main() -> None:
                     help="also one `run --realtime` of this many seconds, its memory read every 15 s")
     ap.add_argument("--dir", default=None, help="folder for the logs (default: a temporary one)")
     ap.add_argument("--src", default=None, help="run the package under this folder (PYTHONPATH)")
+    ap.add_argument("--peer", default=None,
+                    help="also the package under this folder, each command alternating with it")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
     folder = Path(a.dir) if a.dir else Path(tempfile.mkdtemp(prefix="run_memory_"))
     folder.mkdir(parents=True, exist_ok=True)
     env = {"PYTHONPATH": a.src} if a.src else None
+    peer_env = {"PYTHONPATH": a.peer} if a.peer else None
 
-    def measure(args: list[str]) -> dict[str, float]:
-        walls, peaks = [], []
-        for _ in range(a.runs):
-            w, m = run(args, env)
-            walls.append(w)
-            peaks.append(m)
-        return {"wall_s": round(statistics.median(walls), 2), "peak_mib": round(max(peaks), 1)}
+    def measure(args: list[str]) -> dict[str, object]:
+        walls: list[float] = []
+        peaks: list[float] = []
+        peer_walls: list[float] = []
+        peer_peaks: list[float] = []
+        if a.peer:  # each side once first, untimed: compiled caches and page cache warm alike
+            run(args, env)
+            run(args, peer_env)
+        for i in range(a.runs):
+            order = [(env, walls, peaks)]
+            if a.peer:
+                order.append((peer_env, peer_walls, peer_peaks))
+                if i % 2:
+                    order.reverse()
+            for e, ws, ms in order:
+                w, m = run(args, e)
+                ws.append(w)
+                ms.append(m)
+        res: dict[str, object] = {"wall_s": round(statistics.median(walls), 2),
+                                  "peak_mib": round(max(peaks), 1)}
+        if a.peer:
+            res["peer"] = {"wall_s": round(statistics.median(peer_walls), 2),
+                           "peak_mib": round(max(peer_peaks), 1)}
+            pairs = zip(walls, peer_walls, strict=True)
+            res["ratio"] = round(statistics.median([x / y for x, y in pairs]), 3)
+        return res
 
     out: dict[str, object] = {"scenario": a.scenario, "runs": a.runs, "src": a.src or "installed",
+                              "peer": a.peer,
                               "lengths": [], "realtime": [], "recordings": [],
                               "skin_recordings": [], "trace": []}
     for s in (float(x) for x in a.seconds.split(",") if x):
