@@ -62,6 +62,23 @@ def test_blocks_join_to_the_whole_table(recording: Path, tmp_path: Path) -> None
         assert np.array_equal(np.asarray(got[k]), np.asarray(whole[k]), equal_nan=True), k
 
 
+def test_a_recording_replaced_while_read_is_read_to_its_end(recording: Path, tmp_path: Path) -> None:
+    """Another `run --record` to the path of a recording that `export` or `replay` is reading
+    (mapped) makes a new file: the reader still gets the old recording whole (cut to nothing in
+    place, the mapping would fault: SIGBUS), and the new one is whole too."""
+    path = tmp_path / "again.mcap"
+    path.write_bytes(recording.read_bytes())
+    blocks = iter_columns(path, block=997)
+    first = [next(blocks)]
+    record_run(path, 2.0)
+    got = _joined(first + list(blocks))
+    whole = to_columns(recording)
+    assert len(got["t"]) == len(whole["t"]) > 11_000
+    for k in whole:
+        assert np.array_equal(np.asarray(got[k]), np.asarray(whole[k]), equal_nan=True), k
+    assert 1900 < len(to_columns(path)["t"]) < 2100
+
+
 def test_a_column_met_late_falls_back_to_the_whole_table(tmp_path: Path) -> None:
     """A field first met after the first block (or text in a column of numbers) cannot be
     streamed: iter_columns says so, and export writes the whole table instead, the same as

@@ -313,6 +313,10 @@ class Recorder:
         self.messages = 0
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
+            if self.path.is_file() and not self.path.is_symlink():
+                # a new file, not the old one cut to nothing: a reader of the old recording
+                # (`replay`, `export`: mapped) reads it to its end instead of faulting
+                os.unlink(self.path)
             self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         except OSError as e:
             self.closed = True
