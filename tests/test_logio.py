@@ -776,3 +776,30 @@ def test_write_blocks_is_one_log_or_none(tmp_path: Path, ext: str) -> None:
         write_blocks(tmp_path / f"x{ext}", blocks(3, fail=True))
     assert sorted(q.name for q in tmp_path.iterdir()) == sorted([f"b{ext}", f"w{ext}"])
     assert write_blocks(tmp_path / f"none{ext}", iter(())) == 0 and not (tmp_path / f"none{ext}").exists()
+
+
+def test_write_blocks_by_rows_is_write_logs_bytes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``by_rows``: blocks of any lengths (empty ones too) written in write_log's slices, so the
+    CSV is write_log's byte for byte, a flag column with a NaN in one slice included (integers
+    in the others); the slices here 64 rows (262 144 in use)."""
+    import itertools
+
+    import thermoskin.logio as logio
+    from thermoskin.logio import write_blocks
+
+    monkeypatch.setattr(logio, "_WRITE_SLICE", 64)
+    rng = np.random.default_rng(3)
+    n = 300
+    contact = (rng.random(n) > 0.7).astype(float)
+    contact[150] = np.nan
+    whole = {"t": np.arange(n) * 1e-3, "contact": contact, "k": np.arange(n)}
+    cuts = np.sort(rng.choice(np.arange(1, n), 17, replace=False))
+    edges = [0, *cuts.tolist(), cuts[5], n]  # one empty block
+    edges.sort()
+    blocks = [{c: v[a:b] for c, v in whole.items()} for a, b in itertools.pairwise(edges)]
+    assert write_blocks(tmp_path / "b.csv", iter(blocks), by_rows=True) == n
+    write_log(tmp_path / "w.csv", whole)
+    got, want = (tmp_path / "b.csv").read_bytes(), (tmp_path / "w.csv").read_bytes()
+    lines = want.decode().splitlines()[1:]
+    assert lines[10].split(",")[1] in ("0", "1") and lines[140].split(",")[1] in ("0.0", "1.0")
+    assert got == want

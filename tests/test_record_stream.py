@@ -236,10 +236,18 @@ def test_what_streaming_cannot_see_is_read_whole(tmp_path: Path) -> None:
         rec_mod.export(empty, tmp_path / "e.csv")
 
 
-def test_export_of_a_fault_run_is_the_whole_tables_csv(tmp_path: Path) -> None:
+def test_export_of_a_fault_run_is_the_whole_tables_csv(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     """A run that ended in a fault has a row with no estimate (NaN in the flag columns): the
-    streamed export writes the same CSV as the whole table written at once."""
+    streamed export writes the same CSV as the whole table written at once. The CSV writer
+    chooses a flag column's integers or floats per slice it is handed, so the blocks are handed
+    over in write_log's slices whatever their lengths: here slices of 600 rows (262 144 in use)
+    and blocks of 250 (16 384), so that a block ends neither at the slice's end nor at the NaN."""
+    import thermoskin.logio as logio
     from thermoskin.logio import write_log
+
+    monkeypatch.setattr(logio, "_WRITE_SLICE", 600)
+    monkeypatch.setattr(rec_mod, "BLOCK_ROWS", 250)
 
     path = tmp_path / "f.mcap"  # the tank over 22 °C trips the supervisor at 1.16 s
     rec = LoopRecorder(path, CFG)
@@ -249,7 +257,9 @@ def test_export_of_a_fault_run_is_the_whole_tables_csv(tmp_path: Path) -> None:
     finally:
         rec.close()
     whole = to_columns(path)
-    assert np.isnan(np.asarray(whole["contact"], dtype=float)).any()
+    contact = np.asarray(whole["contact"], dtype=float)
+    assert 1000 < len(contact) < 1200 and np.isnan(contact[600:]).any()
+    assert not np.isnan(contact[:750]).any()  # the first slice is integers, the second floats
     out = rec_mod.export(path, tmp_path / "f.csv")
     want = write_log(tmp_path / "want.csv", {k: np.asarray(v) for k, v in whole.items()})
     assert out.read_bytes() == want.read_bytes()

@@ -24,7 +24,7 @@ import contextlib
 import math
 import os
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -182,11 +182,14 @@ def write_blocks(path: str | os.PathLike[str], blocks: Iterable[Mapping[str, Arr
     """Write the column chunks ``blocks`` one after the other as one log (CSV or Parquet by the
     extension), atomically: whole, or nothing if the blocks raise; the columns are the first
     block's. Memory holds one block (the blocks may be made as they are asked for). Returns the
-    rows written (0: no block, nothing written). ``by_rows``: hand rows over every
-    262 144 rows only, as :func:`write_log` does (not also every second), so that the same
-    blocks give the same bytes (a flag column's integers or floats are chosen per hand-over)."""
+    rows written (0: no block, nothing written). ``by_rows``: hand the rows over in the slices
+    of 262 144 rows :func:`write_log` writes (not also every second), whatever the blocks'
+    lengths, so that the bytes are those of the whole table written at once (a flag column's
+    integers or floats are chosen per hand-over)."""
     rows = 0
     kw: dict[str, Any] = {"flush_rows": _WRITE_SLICE, "flush_s": math.inf} if by_rows else {}
+    if by_rows:
+        blocks = _sliced(blocks, _WRITE_SLICE)
     with contextlib.ExitStack() as stack:
         writer: LogWriter | None = None
         for block in blocks:
@@ -195,3 +198,27 @@ def write_blocks(path: str | os.PathLike[str], blocks: Iterable[Mapping[str, Arr
             writer.write(block)
             rows += len(next(iter(block.values())))
     return rows
+
+
+def _sliced(blocks: Iterable[Mapping[str, ArrayLike]], size: int) -> Iterator[dict[str, np.ndarray]]:
+    """The rows of ``blocks`` again, in blocks of exactly ``size`` rows (the last shorter)."""
+    held: list[dict[str, np.ndarray]] = []
+    n_held = 0
+    for block in blocks:
+        b = {k: np.asarray(v) for k, v in block.items()}
+        n = len(next(iter(b.values()), ()))
+        i = 0
+        while n - i >= size - n_held:
+            take = size - n_held
+            held.append({k: v[i : i + take] for k, v in b.items()})
+            yield _joined_rows(held)
+            held, n_held, i = [], 0, i + take
+        if i < n:
+            held.append({k: v[i:] for k, v in b.items()})
+            n_held += n - i
+    if held:
+        yield _joined_rows(held)
+
+
+def _joined_rows(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    return parts[0] if len(parts) == 1 else {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
