@@ -52,6 +52,9 @@ def main() -> None:
                     help="also the package under this folder, each command alternating with it")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
+    for opt, d in (("--src", a.src), ("--peer", a.peer)):
+        if d and not (Path(d) / "thermoskin" / "__init__.py").is_file():
+            raise SystemExit(f"{opt} {d}: no thermoskin package there (the folder holding it: a `src`)")
     folder = Path(a.dir) if a.dir else Path(tempfile.mkdtemp(prefix="run_memory_"))
     folder.mkdir(parents=True, exist_ok=True)
     env = {"PYTHONPATH": a.src} if a.src else None
