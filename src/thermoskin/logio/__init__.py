@@ -201,11 +201,15 @@ def write_blocks(path: str | os.PathLike[str], blocks: Iterable[Mapping[str, Arr
 
 
 def _sliced(blocks: Iterable[Mapping[str, ArrayLike]], size: int) -> Iterator[dict[str, np.ndarray]]:
-    """The rows of ``blocks`` again, in blocks of exactly ``size`` rows (the last shorter)."""
+    """The rows of ``blocks`` again, in blocks of exactly ``size`` rows (the last shorter; blocks
+    of no rows: the first of them, for the log's columns)."""
     held: list[dict[str, np.ndarray]] = []
     n_held = 0
+    first: dict[str, np.ndarray] | None = None
     for block in blocks:
         b = {k: np.asarray(v) for k, v in block.items()}
+        if first is None:
+            first = b
         n = len(next(iter(b.values()), ()))
         i = 0
         while n - i >= size - n_held:
@@ -218,6 +222,8 @@ def _sliced(blocks: Iterable[Mapping[str, ArrayLike]], size: int) -> Iterator[di
             n_held += n - i
     if held:
         yield _joined_rows(held)
+    elif first is not None and not len(next(iter(first.values()), ())):
+        yield first  # no rows at all: the header alone, as the blocks as they came
 
 
 def _joined_rows(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
