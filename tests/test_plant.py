@@ -195,3 +195,13 @@ def test_profile_is_the_touches_and_ambient_at_each_sample() -> None:
     whole = plant.profile()
     for k, x in p.items():
         np.testing.assert_array_equal(whole[k][900:3100], x, err_msg=k)
+    # the contact truth alone (the closed loop's per block): the same by hand, and sample by
+    # sample what the plant says while it runs
+    cc = plant.contact_columns(900, 3100)
+    assert cc["contact_true"].dtype == np.int8 and np.array_equal(cc["contact_true"], G > 0)
+    assert np.array_equal(cc["n_fingers"], np.where(G > 0, 2, 0))
+    live = []
+    for _ in range(3100):
+        live.append(plant.contact())
+        plant.apply(0.0, 0.0)
+    assert np.array_equal(np.array(live[900:]), np.column_stack([cc["contact_true"], cc["n_fingers"]]))

@@ -24,7 +24,6 @@ from numpy.typing import NDArray
 from thermoskin.control.probe import SetpointProbe
 from thermoskin.events import ContactEvent
 from thermoskin.params import Config
-from thermoskin.physics.finger import contact_profile
 from thermoskin.plausible import admit, limits
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.controller import SkinController
@@ -106,9 +105,7 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
         if k1 <= k_sent:
             return
         part = {k: rec[k][:k1 - k_sent] for k in recorded}
-        G_c, _, n_f = contact_profile(scenario.touches, np.arange(k_sent, k1) * t_s)  # plant.profile's
-        part["contact_true"] = (G_c > 0).astype(np.int8)
-        part["n_fingers"] = n_f
+        part.update(plant.contact_columns(k_sent, k1))
         if keep:
             kept.append(part)
         if on_block is not None:

@@ -144,6 +144,16 @@ class SimulatedPlant:
         return {"t": t, "G_c": G_c, "T_f": T_f, "n_fingers": n_f, "position": pos,
                 "T_a_true": np.asarray(sc.T_a_at(t), dtype=float), "T_p": T_p, "current": cur}
 
+    def contact_columns(self, k0: int = 0, k1: int | None = None) -> dict[str, NDArray[np.generic]]:
+        """The contact truth a log holds over samples ``[k0, k1)`` of the profile (default: all):
+        ``contact_true`` (int8, 1 while ``G_c > 0``) and ``n_fingers``, as :meth:`profile` and
+        :meth:`contact` give them, without the profile's other columns (the closed loop asks
+        for them every block)."""
+        k1 = self.n if k1 is None else min(int(k1), self.n)
+        k0 = min(max(0, int(k0)), k1)
+        G_c, _, n_f = contact_profile(self.scenario.touches, np.arange(k0, k1) * self.t_s)
+        return {"contact_true": (G_c > 0.0).astype(np.int8), "n_fingers": n_f}
+
     def _window(self, i: int) -> int:
         """Sample ``i``'s place in the profiles' window, which is moved to hold it if it does
         not: :data:`WINDOW` samples from a multiple of it, as plain lists for the per-sample
