@@ -315,8 +315,10 @@ class Recorder:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             if self.path.is_file() and not self.path.is_symlink():
                 # a new file, not the old one cut to nothing: a reader of the old recording
-                # (`replay`, `export`: mapped) reads it to its end instead of faulting
-                os.unlink(self.path)
+                # (`replay`, `export`: mapped) reads it to its end instead of faulting (a
+                # folder that lets us write the file but not remove it: cut in place, below)
+                with contextlib.suppress(OSError):
+                    os.unlink(self.path)
             self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         except OSError as e:
             self.closed = True
