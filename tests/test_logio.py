@@ -387,6 +387,9 @@ def test_unknown_extension(tmp_path: Path, name: str) -> None:
     assert name in str(info.value)
     with pytest.raises(LogError, match="unknown log format"):
         LogWriter(tmp_path / "w.json", ["t"])
+    # a recording given where a log is expected: the message says what to do with it
+    with pytest.raises(LogError, match=r"\.parquet \(an MCAP recording: `thermoskin export` makes a log"):
+        read_log(tmp_path / "run.mcap")
 
 
 def test_extension_case_insensitive(tmp_path: Path) -> None:

@@ -41,7 +41,10 @@ def log_format(path: str | os.PathLike[str]) -> str:
     fmt = FORMATS.get(p.suffix.lower())
     if fmt is None:
         what = f"extension {p.suffix!r}" if p.suffix else "no extension"
-        raise LogError(f"{p}: unknown log format ({what}); the file name must end in .csv or .parquet")
+        hint = (" (an MCAP recording: `thermoskin export` makes a log of it, `thermoskin replay` "
+                "estimates from it)") if p.suffix.lower() == ".mcap" else ""
+        raise LogError(f"{p}: unknown log format ({what}); the file name must end in .csv or .parquet"
+                       + hint)
     return fmt
 
 
