@@ -806,3 +806,38 @@ def test_write_blocks_by_rows_is_write_logs_bytes(tmp_path: Path, monkeypatch: p
     lines = want.decode().splitlines()[1:]
     assert lines[10].split(",")[1] in ("0", "1") and lines[140].split(",")[1] in ("0.0", "1.0")
     assert got == want
+
+
+@pytest.mark.parametrize("ext", [".csv", ".parquet"])
+def test_read_log_keep_holds_only_those_columns(tmp_path: Path, ext: str, peak_memory) -> None:  # type: ignore[no-untyped-def]
+    """``keep``: the columns asked for, in the file's order, equal to the whole read's; every
+    column is still checked (a NaN where none is allowed, in a column not kept, is the same
+    error); and Python holds those columns alone, not the log (two of eight columns of a log
+    of four chunks: under half the whole read's peak)."""
+    n = 150_000
+    rng = np.random.default_rng(5)
+    cols = {"t": np.arange(n) * 1e-3, **{f"c{j}": rng.normal(size=n) for j in range(28)},
+            "T_p": rng.normal(size=n)}
+    p = tmp_path / f"wide{ext}"
+    write_log(p, cols)
+    got = read_log(p, required=("t", "T_p"), keep=("T_p", "c3", "t", "nope"))
+    assert list(got) == ["t", "c3", "T_p"]
+    for k in got:
+        assert np.array_equal(got[k], cols[k])
+    if ext == ".parquet":  # a log of four chunks (262 144 rows each), eight columns
+        m = 1_000_000
+        big = tmp_path / "long.parquet"
+        write_log(big, {"t": np.arange(m) * 1e-3, **{f"c{j}": np.zeros(m) for j in range(6)},
+                        "T_p": np.ones(m)})
+        whole = peak_memory(lambda: read_log(big, required=("t",)))
+        kept = peak_memory(lambda: read_log(big, required=("t",), keep=("t", "T_p")))
+        assert whole > 8 * 8 * m and kept < whole / 2, (kept, whole)
+    bad = dict(cols)
+    bad["c7"] = cols["c7"].copy()
+    bad["c7"][100_000] = np.nan
+    write_log(p, bad)
+    with pytest.raises(LogError) as whole_err:
+        read_log(p, required=("t",))
+    with pytest.raises(LogError) as kept_err:
+        read_log(p, required=("t",), keep=("t",))
+    assert str(kept_err.value) == str(whole_err.value) and "c7" in str(kept_err.value)

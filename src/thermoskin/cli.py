@@ -488,11 +488,12 @@ def _skin_report(skin: Any, events: list[Any], picture: Path, events_path: Path 
 
 
 def _read_log(path: Path, required: Any) -> dict[str, Any]:
-    """A whole log, also one whose writer was stopped mid-line (a killed run): its cut last
-    line is left out with one warning line saying where the log ends."""
+    """The columns ``required`` of a whole log (the others read and checked, not held), also
+    of one whose writer was stopped mid-line (a killed run): its cut last line is left out
+    with one warning line saying where the log ends."""
     from thermoskin.logio import partial_last_line, read_log
 
-    log = read_log(path, required=required, live=True, one_patch=True)
+    log = read_log(path, required=required, live=True, one_patch=True, keep=required)
     if partial_last_line(path):
         click.echo(f"thermoskin: warning: {path}: the last line is cut (its writer was stopped "
                    f"while writing it): left out; the log ends at t = {float(log['t'][-1]):.3f} s",
@@ -661,7 +662,8 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
     truth = _config(truth_path) if truth_path is not None else None
     names = cal_mod.DEFAULT_PARAMS if params is None else tuple(
         p.strip() for p in params.split(",") if p.strip())
-    log = read_log(log_path, required=cal_mod.COLUMNS, one_patch=True)
+    log = read_log(log_path, required=cal_mod.COLUMNS, one_patch=True,
+                   keep=(*cal_mod.COLUMNS, "contact", contact_column))
     if contact_column != "contact" and contact_column not in log:
         raise UserError(f"--contact-column {contact_column}: {log_path} has no such column")
     status = err_console.status("calibrating", spinner="dots") if err_console.is_terminal else None

@@ -406,8 +406,8 @@ def identify(log: Mapping[str, ArrayLike] | str | os.PathLike[str], *, t_model: 
     """
     if isinstance(log, str | os.PathLike):
         try:
-            log = read_log(log, required=("t", "T_p", "drive") + (("T_a",) if with_T_a else ()),
-                           one_patch=True)
+            need = ("t", "T_p", "drive") + (("T_a",) if with_T_a else ())
+            log = read_log(log, required=need, one_patch=True, keep=need)
         except LogError as e:
             raise IdentifyError(str(e)) from None
     if criterion not in ("aic", "bic"):

@@ -83,6 +83,7 @@ def read_log(
     uniform: bool = True,
     live: bool = False,
     one_patch: bool = False,
+    keep: Iterable[str] | None = None,
 ) -> dict[str, Array]:
     """Read a whole log into ``{column: float64 array}`` (in the file's column order).
 
@@ -91,13 +92,22 @@ def read_log(
     ``uniform=False`` accepts jitter in ``t`` (still strictly increasing); ``live=True``
     leaves out a CSV's last line if it has no line end yet (a log still being written, or
     whose writer was killed). ``one_patch=True`` refuses a skin's long-format log (a
-    ``patch`` column: one row per sample and patch) with one line saying so. Raises
+    ``patch`` column: one row per sample and patch) with one line saying so. ``keep``: hold
+    only these columns (every column is still read and checked, a chunk at a time; a command
+    that needs three columns of a wide log then holds three, not all of them). Raises
     :class:`LogError` on any user error. See :class:`LogReader` for long logs.
     """
     with LogReader(path, required, nan_columns, uniform=uniform, live=live,
                    one_patch=one_patch) as reader:
-        chunks = list(reader)
-        names = reader.names
+        if keep is None:
+            chunks = list(reader)
+            names = reader.names
+        else:
+            wanted = set(keep)
+            names = [n for n in reader.names if n in wanted]
+            # a column that is a view (of the chunk's parsed block) is copied: held, it would
+            # hold the whole block
+            chunks = [{n: c[n] if c[n].base is None else c[n].copy() for n in names} for c in reader]
     if len(chunks) == 1:
         return chunks[0]
     return {n: np.concatenate([c[n] for c in chunks]) for n in names}
