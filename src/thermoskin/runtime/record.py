@@ -313,10 +313,12 @@ class Recorder:
         self.messages = 0
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            if self.path.is_file() and not self.path.is_symlink():
+            if (self.path.is_file() and not self.path.is_symlink()
+                    and os.access(self.path, os.W_OK)):
                 # a new file, not the old one cut to nothing: a reader of the old recording
                 # (`replay`, `export`: mapped) reads it to its end instead of faulting (a
-                # folder that lets us write the file but not remove it: cut in place, below)
+                # folder that lets us write the file but not remove it: cut in place, below;
+                # a file we may not write is refused below, as before, not replaced)
                 with contextlib.suppress(OSError):
                     os.unlink(self.path)
             self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
