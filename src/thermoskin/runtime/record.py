@@ -818,9 +818,9 @@ def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
         raise RecordingError(f"cannot export to {out}: the extension must be .csv or .parquet")
     if out.is_dir():
         raise RecordingError(f"cannot export to {out}: it is a directory")
-    skin = None if kw else iter_skin_columns(path_mcap, info)
+    skin = None if kw else iter_skin_columns(path_mcap, info, block=BLOCK_ROWS)
     try:  # block by block (memory does not grow with the recording) ...
-        blocks = iter_columns(path_mcap, info=info, **kw) if skin is None else skin
+        blocks = iter_columns(path_mcap, info=info, block=BLOCK_ROWS, **kw) if skin is None else skin
         return _export_blocks(blocks, out, path_mcap)
     except SchemaChangeError:  # ... unless its columns change (a text CSV): whole
         whole = to_columns(path_mcap, info=info, **kw) if skin is None else skin_columns(path_mcap, info)
