@@ -129,8 +129,7 @@ class SimulatedPlant:
         the prescribed tank, NaN for a Peltier tank) and ``current`` (the index in
         ``scenario.touches`` of the contact, -1 none). Each is a function of ``t_k = k t_s``
         alone, so any cut of the samples gives the same values."""
-        k1 = self.n if k1 is None else min(int(k1), self.n)
-        k0 = min(max(0, int(k0)), k1)
+        k0, k1 = self._span(k0, k1)
         sc = self.scenario
         t = np.arange(k0, k1) * self.t_s
         G_c, T_f, n_f = contact_profile(sc.touches, t)
@@ -149,10 +148,14 @@ class SimulatedPlant:
         ``contact_true`` (int8, 1 while ``G_c > 0``) and ``n_fingers``, as :meth:`profile` and
         :meth:`contact` give them, without the profile's other columns (the closed loop asks
         for them every block)."""
-        k1 = self.n if k1 is None else min(int(k1), self.n)
-        k0 = min(max(0, int(k0)), k1)
+        k0, k1 = self._span(k0, k1)
         G_c, _, n_f = contact_profile(self.scenario.touches, np.arange(k0, k1) * self.t_s)
         return {"contact_true": (G_c > 0.0).astype(np.int8), "n_fingers": n_f}
+
+    def _span(self, k0: int, k1: int | None) -> tuple[int, int]:
+        """Samples ``[k0, k1)`` of the profile, within ``[0, n]`` (``k1`` None: to ``n``)."""
+        k1 = self.n if k1 is None else min(int(k1), self.n)
+        return min(max(0, int(k0)), k1), k1
 
     def _window(self, i: int) -> int:
         """Sample ``i``'s place in the profiles' window, which is moved to hold it if it does
