@@ -12,7 +12,11 @@ collections and the time they took (``gc.callbacks``). Prints one JSON line: per
 median and p99 wall time (s), the ratio of medians to the peer's, and for the program's the
 median of its run-by-run ratio to the unpaused one; the collections.
 
-    python benchmarks/startup.py [--runs 15] [--json]
+``--peer DIR``: also ``--help`` and ``observe`` with the package under ``DIR`` (another
+checkout's ``src``, e.g. the code before a change), in the same turns; each of the two gets
+``ratio_to_peer``, the median of its run-by-run ratio to the peer's.
+
+    python benchmarks/startup.py [--runs 15] [--peer DIR] [--json]
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from __future__ import annotations
 import argparse
 import compileall
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -54,20 +59,28 @@ finally:
 """
 
 
-def wall(cmd: list[str]) -> float:
+def wall(cmd: list[str], env: dict[str, str] | None = None) -> float:
     t0 = time.perf_counter()
-    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   env=None if env is None else {**os.environ, **env})
     return time.perf_counter() - t0
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=15, help="runs of each command")
+    ap.add_argument("--peer", default=None,
+                    help="also the package under this folder (PYTHONPATH), in the same turns")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
+    if a.peer and not (Path(a.peer) / "thermoskin" / "__init__.py").is_file():
+        raise SystemExit(f"--peer {a.peer}: no thermoskin package there (the folder holding it: a `src`)")
     import thermoskin
 
     compileall.compile_dir(Path(thermoskin.__file__).parent, quiet=1)
+    if a.peer:
+        compileall.compile_dir(Path(a.peer) / "thermoskin", quiet=1)
+    peer_env = {"PYTHONPATH": str(Path(a.peer).resolve())} if a.peer else None
     with tempfile.TemporaryDirectory() as d:
         log, out = Path(d) / "two.csv", Path(d) / "out.csv"
         subprocess.run([*CLI, "simulate", "--duration", "2", "-o", str(log)], check=True,
@@ -77,12 +90,17 @@ def main() -> None:
                 "observe_2s": [*CLI, "observe", str(log), "-o", str(out)],
                 "help_unpaused": [*UNPAUSED, "--help"],
                 "observe_2s_unpaused": [*UNPAUSED, "observe", str(log), "-o", str(out)]}
-        for c in cmds.values():  # caches (numba's, the file system's) warm, as a user's second call
-            wall(c)
+        envs: dict[str, dict[str, str] | None] = dict.fromkeys(cmds)
+        if peer_env:
+            for k in ("help", "observe_2s"):
+                cmds[f"{k}_peer"] = cmds[k]
+                envs[f"{k}_peer"] = peer_env
+        for k, c in cmds.items():  # caches (numba's, the file system's) warm, as a user's second call
+            wall(c, envs[k])
         times: dict[str, list[float]] = {k: [] for k in cmds}
         for _ in range(a.runs):
             for k, c in cmds.items():
-                times[k].append(wall(c))
+                times[k].append(wall(c, envs[k]))
         counted = {}
         for entry in ("program", "module"):
             r = subprocess.run([sys.executable, "-c", COUNTED, entry, "observe", str(log), "-o", str(out)],
@@ -93,8 +111,11 @@ def main() -> None:
                "ratio_to_numpy": round(float(np.median(v)) / peer, 2)} for k, v in times.items()}
     for k in ("help", "observe_2s"):  # paired with the same command unpaused, run by run
         res[k]["ratio_to_unpaused"] = round(float(np.median(np.array(times[k]) / times[f"{k}_unpaused"])), 2)
+        if peer_env:
+            res[k]["ratio_to_peer"] = round(float(np.median(np.array(times[k]) / times[f"{k}_peer"])), 3)
     res["collections_observe_2s"] = {"paused": counted["program"], "unpaused": counted["module"]}
     res["runs"] = a.runs
+    res["peer"] = a.peer
     if not a.json:
         for k, v in res.items():
             print(k, v)
