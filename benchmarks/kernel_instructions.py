@@ -1,0 +1,117 @@
+"""The many-patch kernel's instructions per patch and sample, counted by valgrind, and its time.
+
+Is the 1000-patch tick bound by waiting (memory, long chains of dependent arithmetic) or by
+the number of instructions it executes? This counts them. N idle patches (each its own
+thermocouple noise on a steady skin, after the detector's warm-up) are stepped by
+:func:`~thermoskin.estimation.kernel.step_many_parallel` on one thread; ``valgrind
+--tool=callgrind`` counts the instructions of the whole process for two tick counts, and
+the difference over the extra patch-samples is the kernel's count per patch and sample
+(the process's start-up cancels out). The same process, run natively, times those ticks.
+
+Valgrind does not execute AVX-512, so the kernel is compiled for ``--cpu`` (default
+``x86-64-v3``: AVX2 and FMA, no AVX-512) in a cache of its own, for the count and for the
+native time alike. Needs ``valgrind`` on the PATH; about five minutes (numba's compile for
+that CPU first, then two runs under valgrind, side by side).
+
+Prints one JSON line ``{"n", "ticks", "cpu", "instructions_per_patch_sample",
+"ns_per_patch_sample", "instructions_per_ns"}``.
+
+    python benchmarks/kernel_instructions.py [--n 500] [--ticks 200,1200] [--cpu x86-64-v3] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+
+#: the child: ``n`` idle patches, ``warm`` ticks then ``ticks`` timed ones; prints ns a patch-sample
+CHILD = """
+import sys, time
+import numpy as np
+from thermoskin.estimation import kernel as K
+from thermoskin.params import load_config
+from thermoskin.patches import PatchEstimators
+
+n, warm, ticks = (int(x) for x in sys.argv[1:4])
+pe = PatchEstimators(load_config(), n=n, parallel=True)
+rng = np.random.default_rng(0)
+m = warm + ticks
+T_w = 30.0 + rng.normal(0.0, 0.01, (m, n))
+T_p = 30.5 + rng.normal(0.0, 0.01, (m, n))
+T_a = 22.0 + rng.normal(0.0, 0.01, (m, n))
+iv = pe.index(np.full(n, pe.v_values[1]))
+cmd, drive = np.full(n, np.nan), np.full(n, np.nan)
+fresh = np.full(n, 7, dtype=np.int64)
+t0 = 0
+for k in range(m):
+    if k == warm:
+        t0 = time.perf_counter_ns()
+    K.step_many_parallel(pe.ST, pe.PR, pe.mid, *pe._tabs, k * 1e-3, T_w[k], T_p[k], T_a[k], cmd,
+                         iv, drive, fresh, pe.codes, pe.EV)
+dt = time.perf_counter_ns() - t0
+idle = int((pe.ST[:, K.MODE] == K.IDLE).sum())
+print(f"{dt / max(ticks * n, 1):.3f} {idle}")
+"""
+
+
+def native(args: list[str], env: dict[str, str]) -> str:
+    """The child's output, run natively; a failure ends the script with its last words."""
+    r = subprocess.run([sys.executable, "-c", CHILD, *args], capture_output=True, text=True, env=env)
+    if r.returncode:
+        raise SystemExit(f"the child failed ({r.returncode}): {r.stderr.strip()[-400:]}")
+    return r.stdout
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=500, help="patches")
+    ap.add_argument("--ticks", default="200,1200", help="the two tick counts counted (after the warm-up)")
+    ap.add_argument("--warm", type=int, default=1100, help="ticks before them (the detector's warm-up: 1000)")
+    ap.add_argument("--cpu", default="x86-64-v3", help="the CPU numba compiles for (valgrind: no AVX-512)")
+    ap.add_argument("--json", action="store_true", help="only the JSON line")
+    a = ap.parse_args()
+    if shutil.which("valgrind") is None:
+        raise SystemExit("kernel_instructions.py: needs valgrind on the PATH")
+    lo, hi = (int(x) for x in a.ticks.split(","))
+    if not 0 < lo < hi:
+        raise SystemExit(f"--ticks {a.ticks}: two counts, the first smaller")
+    with tempfile.TemporaryDirectory(prefix="kernel_instructions_") as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache, "NUMBA_CPU_NAME": a.cpu, "NUMBA_CPU_FEATURES": "",
+               "NUMBA_NUM_THREADS": "1"}
+        if not a.json:
+            print(f"compiling for {a.cpu} ...", file=sys.stderr)
+        native([str(a.n), str(a.warm), "10"], env)  # fills the cache
+        ns = [float(native([str(a.n), str(a.warm), str(hi)], env).split()[0]) for _ in range(5)]
+        if not a.json:
+            print("counting under valgrind ...", file=sys.stderr)
+        procs = [subprocess.Popen(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
+                                   sys.executable, "-c", CHILD, str(a.n), str(a.warm), str(t)],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                 for t in (lo, hi)]
+        counts, idle = [], []
+        for p in procs:
+            out, err = p.communicate()
+            m = re.search(r"Collected\s*:\s*(\d+)", err)
+            if p.returncode or m is None:
+                raise SystemExit(f"valgrind failed ({p.returncode}): {err.strip()[-400:]}")
+            counts.append(int(m.group(1)))
+            idle.append(int(out.split()[1]))
+    per = (counts[1] - counts[0]) / ((hi - lo) * a.n)
+    ns_med = sorted(ns)[len(ns) // 2]
+    res = {"n": a.n, "ticks": [lo, hi], "cpu": a.cpu, "idle_patches": min(idle),
+           "instructions_per_patch_sample": round(per, 1),
+           "ns_per_patch_sample": round(ns_med, 1), "ns_runs": [round(x, 1) for x in ns],
+           "instructions_per_ns": round(per / ns_med, 2)}
+    if not a.json:
+        print(res)
+    print(json.dumps(res))
+
+
+if __name__ == "__main__":
+    main()
