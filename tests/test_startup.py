@@ -159,3 +159,26 @@ def test_a_failing_command_still_exits_cleanly(tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, "-m", "thermoskin", "observe", str(tmp_path / "none.csv"),
                         "-o", str(tmp_path / "o.csv")], capture_output=True, text=True, timeout=300)
     assert r.returncode == 2 and r.stderr.startswith("thermoskin: error:") and "Traceback" not in r.stderr
+
+
+WARM_UP = """
+import sys
+from thermoskin.estimation import redate
+from thermoskin.estimator import warm_up
+from thermoskin.params import load_config
+warm_up(load_config(), fits=sys.argv[1] == "fits")
+print(len(redate.trace.overloads), len(redate.pulse_sums.overloads))
+"""
+
+
+@pytest.mark.parametrize("fits", [True, False])
+def test_warm_up_loads_the_fit_only_when_asked(fits: bool, compiled_estimator: None) -> None:
+    """A live loop's warm-up loads the compiled fit that dates a contact again at its end (its
+    sample must not wait for it); ``observe``'s (``fits=False``) leaves it to the first contact's
+    end, which numba's dispatch then loads from the cache. In a process of its own: the test
+    process has loaded it already."""
+    r = subprocess.run([sys.executable, "-c", WARM_UP, "fits" if fits else "none"], capture_output=True,
+                       text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    loaded = [int(x) for x in r.stdout.split()]
+    assert loaded == ([1, 1] if fits else [0, 0]), loaded

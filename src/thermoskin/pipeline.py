@@ -224,7 +224,7 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
               prefetch(_prepared(reader, cfg, fresh_inf), depth=PREFETCH_CHUNKS) as chunks):
             if compiling is None:
                 # while the first chunks are read; the fit at a contact's end when one ends
-                # (a short log may have none: about 4 % of a 2-second log's observe)
+                # (a short log may have none: about 2 % of a 2-second log's observe)
                 warm_up(cfg, fits=False)
             for chunk, fresh, clean, n_sw in chunks:
                 if est is None:
