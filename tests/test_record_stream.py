@@ -79,6 +79,38 @@ def test_a_recording_replaced_while_read_is_read_to_its_end(recording: Path, tmp
     assert 1900 < len(to_columns(path)["t"]) < 2100
 
 
+CUT_IN_PLACE = """
+import os, sys
+from thermoskin.runtime.record import RecordingError, iter_columns
+path = sys.argv[1]
+blocks = iter_columns(path, block=997)
+next(blocks)
+os.truncate(path, os.path.getsize(path) // 3)  # in place, as `cp other.mcap` onto it would
+try:
+    for _ in blocks:
+        pass
+except RecordingError as e:
+    print(e)
+    sys.exit(2)
+"""
+
+
+def test_a_recording_cut_short_in_place_while_read_is_an_error(recording: Path, tmp_path: Path) -> None:
+    """Another program cutting a recording short in place while `export` or `replay` reads it
+    (mapped): the reader stops with an error naming the file and what happened, before it
+    reads a page past the new end (which would end the process: SIGBUS). In a process of its
+    own: without the check, it is the process that dies."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "cut_in_place.mcap"
+    path.write_bytes(recording.read_bytes())
+    r = subprocess.run([sys.executable, "-c", CUT_IN_PLACE, str(path)], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2, (r.returncode, r.stderr[-500:])
+    assert str(path) in r.stdout and "cut short" in r.stdout and "another program" in r.stdout, r.stdout
+
+
 def test_a_column_met_late_falls_back_to_the_whole_table(tmp_path: Path) -> None:
     """A field first met after the first block (or text in a column of numbers) cannot be
     streamed: iter_columns says so, and export writes the whole table instead, the same as

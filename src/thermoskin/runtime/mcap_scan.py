@@ -45,10 +45,17 @@ _SIZE = {"B": 1, "H": 2, "I": 4, "Q": 8}
 _MAX_INFLATE = 1 << 30  # an uncompressed chunk larger than this is taken as damage
 RELEASE_BYTES = 8 << 20
 """A mapped file's pages are let go every this many bytes read (:meth:`Scanner._release`)."""
+CHECK_BYTES = 4096
+"""A mapped file's length is checked before a record this far (or farther) past the last check
+(:meth:`Scanner._check_length`): before every chunk of a ``thermoskin`` recording."""
 
 
-class ScanError(ValueError):
-    """The file cannot be read as MCAP at all (the message says why)."""
+class RecordingError(ValueError):
+    """A recording could not be read or exported (the message names the file and why)."""
+
+
+class ScanError(RecordingError):
+    """The file cannot be read as MCAP at all, or no longer (the message says why)."""
 
 
 @dataclasses.dataclass
@@ -197,6 +204,8 @@ class Scanner:
         self.b = data
         self._madvise = getattr(data, "madvise", None)  # a mapped file: pages read are let go
         self._released = 0
+        self._length = getattr(data, "size", None)  # a mapped file: its length now (fstat)
+        self._checked = -CHECK_BYTES
         self.publish_time = publish_time  # messages carry their publish time last
         self.n = len(data)
         self.report = RecordingReport(Path(path), size=self.n)
@@ -294,8 +303,21 @@ class Scanner:
             self._register(raw, op, r)
         return msgs
 
+    def _check_length(self, o: int) -> None:
+        """Stop with an error if the mapped file was cut short in place since it was opened
+        (another program writing over it: ``cp`` onto it, a writer that truncates): the next
+        read of a page past its new end would end the process (SIGBUS). Checked before each
+        record :data:`CHECK_BYTES` past the last check (an ``fstat``); the check and the read
+        after it are microseconds apart, the reader's work on a batch is not."""
+        self._checked = o
+        if self._length is not None and (now := self._length()) < self.n:
+            raise ScanError(f"{self.report.path}: cut short to {now} bytes while it was read (at byte "
+                            f"{o} of {self.n}): another program wrote over it; read it again once "
+                            "that program is done")
+
     def _resync(self, o: int) -> tuple[int, list[tuple[int, int, int, bytes, int]]] | None:
         """The next offset after ``o`` holding an intact chunk, and its messages."""
+        self._check_length(o)
         find, p = self.b.find, o
         while True:
             p = find(b"\x06", p + 1)
@@ -411,6 +433,8 @@ class Scanner:
         """The messages of :meth:`messages`, one list per chunk (or top-level message)."""
         rep, o, n = self.report, 8, self.n
         while o < n:
+            if self._length is not None and o - self._checked >= CHECK_BYTES:
+                self._check_length(o)
             rec = self._record(o)
             msgs: list[tuple[int, int, int, bytes, int]] | None = None
             if rec is not None:

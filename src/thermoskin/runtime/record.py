@@ -45,7 +45,7 @@ from mcap.writer import CompressionType, Writer
 
 from thermoskin.atomic import atomic_path
 from thermoskin.devices.base import Sample
-from thermoskin.runtime.mcap_scan import RecordingReport, ScanError, Scanner
+from thermoskin.runtime.mcap_scan import RecordingError, RecordingReport, ScanError, Scanner
 
 _NUM = {"type": "number"}
 _NUM_NULL = {"type": ["number", "null"]}
@@ -115,10 +115,6 @@ REPLAY_TOL_W = 1e-9
 flag is the same. On the recording's own host and versions they are identical; elsewhere the
 compiled kernel's fused multiply-adds (a CPU, numba or LLVM that fuses otherwise) can move
 them by about 1e-12 W."""
-
-
-class RecordingError(ValueError):
-    """A recording could not be read or exported (the message names the file and why)."""
 
 
 def _clean(value: Any) -> Any:
