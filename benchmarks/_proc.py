@@ -6,8 +6,16 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 CMD = [sys.executable, "-c", "from thermoskin.__main__ import main; main()"]
+
+
+def check_package_dir(option: str, folder: str | None) -> None:
+    """End the script if ``folder`` (given as ``option``: another checkout's ``src``) holds no
+    thermoskin package: the comparison would otherwise run this code against itself."""
+    if folder and not (Path(folder) / "thermoskin" / "__init__.py").is_file():
+        raise SystemExit(f"{option} {folder}: no thermoskin package there (the folder holding it: a `src`)")
 
 
 def run(args: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:

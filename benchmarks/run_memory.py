@@ -32,7 +32,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from _proc import rss_trace, run
+from _proc import check_package_dir, rss_trace, run
 
 
 def main() -> None:
@@ -52,9 +52,8 @@ def main() -> None:
                     help="also the package under this folder, each command alternating with it")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
-    for opt, d in (("--src", a.src), ("--peer", a.peer)):
-        if d and not (Path(d) / "thermoskin" / "__init__.py").is_file():
-            raise SystemExit(f"{opt} {d}: no thermoskin package there (the folder holding it: a `src`)")
+    check_package_dir("--src", a.src)
+    check_package_dir("--peer", a.peer)
     folder = Path(a.dir) if a.dir else Path(tempfile.mkdtemp(prefix="run_memory_"))
     folder.mkdir(parents=True, exist_ok=True)
     env = {"PYTHONPATH": a.src} if a.src else None

@@ -32,6 +32,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _proc import check_package_dir
 
 CLI = [sys.executable, "-c", "from thermoskin.__main__ import main; main()"]  # the `thermoskin` program
 #: the same command line entered as a module: the collector never paused (thermoskin.startup)
@@ -73,8 +74,7 @@ def main() -> None:
                     help="also the package under this folder (PYTHONPATH), in the same turns")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
-    if a.peer and not (Path(a.peer) / "thermoskin" / "__init__.py").is_file():
-        raise SystemExit(f"--peer {a.peer}: no thermoskin package there (the folder holding it: a `src`)")
+    check_package_dir("--peer", a.peer)
     import thermoskin
 
     compileall.compile_dir(Path(thermoskin.__file__).parent, quiet=1)

@@ -3,6 +3,8 @@ recording (`iter_columns`, `replay_blocks`, the scanner letting go of the mapped
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -100,9 +102,6 @@ def test_a_recording_cut_short_in_place_while_read_is_an_error(recording: Path, 
     (mapped): the reader stops with an error naming the file and what happened, before it
     reads a page past the new end (which would end the process: SIGBUS). In a process of its
     own: without the check, it is the process that dies."""
-    import subprocess
-    import sys
-
     path = tmp_path / "cut_in_place.mcap"
     path.write_bytes(recording.read_bytes())
     r = subprocess.run([sys.executable, "-c", CUT_IN_PLACE, str(path)], capture_output=True, text=True,
