@@ -52,8 +52,7 @@ t0 = 0
 for k in range(m):
     if k == warm:
         t0 = time.perf_counter_ns()
-    K.step_many_parallel(pe.ST, pe.PR, pe.mid, *pe._tabs, k * 1e-3, T_w[k], T_p[k], T_a[k], cmd,
-                         iv, drive, fresh, pe.codes, pe.EV)
+    pe.tick(k * 1e-3, T_w[k], T_p[k], T_a[k], cmd, iv, drive, fresh)
 dt = time.perf_counter_ns() - t0
 idle = int((pe.ST[:, K.MODE] == K.IDLE).sum())
 print(f"{dt / max(ticks * n, 1):.3f} {idle}")

@@ -45,4 +45,24 @@ def prefetch_w(typingctx, arr, idx):  # type: ignore[no-untyped-def]
     return sig, codegen
 
 
-__all__ = ["njit", "prange", "prefetch_w"]
+@intrinsic
+def fetch_add(typingctx, arr, idx, val):  # type: ignore[no-untyped-def]
+    """In compiled code, ``fetch_add(a, i, v)``: add ``v`` to ``a[i]`` (a 1-D int64 array) in one
+    atomic step, whatever other threads do to it meanwhile, and return the value it had (LLVM's
+    ``atomicrmw add``, monotonic: the word alone is ordered, no other memory)."""
+    if not (isinstance(arr, types.Array) and arr.ndim == 1 and arr.dtype == types.int64
+            and isinstance(idx, types.Integer) and isinstance(val, types.Integer)):
+        return None
+    sig = types.int64(arr, idx, val)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]])
+        v = context.cast(builder, args[2], signature.args[2], types.int64)
+        return builder.atomic_rmw("add", ptr, v, "monotonic")
+
+    return sig, codegen
+
+
+__all__ = ["fetch_add", "njit", "prange", "prefetch_w"]

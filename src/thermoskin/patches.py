@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -47,7 +48,8 @@ class PatchEstimators:
         models: dict[Config, int] = {}
         self.mid = np.array([models.setdefault(c, len(models)) for c in cfgs], dtype=np.int64)
         par = self.n >= PARALLEL_FROM if parallel is None else parallel
-        self._step_many = K.step_many_parallel if par else K.step_many
+        # the parallel step's claim words, one a thread (numba's threads now)
+        self._claims = K.claim_words(numba.get_num_threads()) if par else None
         self._models = [TouchEstimator(c, t_s=self.t_s) for c in models]
         self._ev = np.zeros(K.NEV)  # the kernels' scratch event row (as TouchEstimator's)
         self._stack()
@@ -106,12 +108,24 @@ class PatchEstimators:
         cmd = np.full(n, math.nan) if T_w_cmd is None else np.asarray(T_w_cmd, dtype=float)
         drv = np.full(n, math.nan) if drive is None else np.asarray(drive, dtype=float)
         fr = np.full(n, 7, dtype=np.int64) if fresh is None else np.asarray(fresh, dtype=np.int64)
-        self._step_many(self.ST, self.PR, self.mid, *self._tabs, float(t),
-                    np.asarray(T_w, dtype=float), np.asarray(T_p, dtype=float),
-                    np.asarray(T_a, dtype=float), cmd, self.index(v), drv, fr, self.codes, self.EV)
+        self.tick(float(t), np.asarray(T_w, dtype=float), np.asarray(T_p, dtype=float),
+                  np.asarray(T_a, dtype=float), cmd, self.index(v), drv, fr)
         for i in np.flatnonzero(self.codes & K.C_ENDED):
             self.events.append((int(i), ContactEvent.from_kernel(self.EV[i])))
         return self.codes & K.C_CONTACT
+
+    def tick(self, t: float, T_w: Array, T_p: Array, T_a: Array, T_w_cmd: Array,
+             iv: NDArray[np.int64], drive: Array, fresh: NDArray[np.int64]) -> None:
+        """The kernel's sample of every patch, on arrays of the kernel's types as they are
+        (``iv`` from :meth:`index`; nothing converted or checked): :meth:`step` without its
+        conversions, for a caller that keeps its arrays ready. Bits in ``codes``, ended
+        contacts in ``EV``."""
+        if self._claims is None:
+            K.step_many(self.ST, self.PR, self.mid, *self._tabs, t, T_w, T_p, T_a, T_w_cmd, iv,
+                        drive, fresh, self.codes, self.EV)
+        else:
+            K.step_many_parallel(self.ST, self.PR, self.mid, *self._tabs, t, T_w, T_p, T_a,
+                                 T_w_cmd, iv, drive, fresh, self.codes, self.EV, self._claims)
 
     def column(self, offset: int) -> Array:
         """One state field of every patch (e.g. ``kernel.DQ``)."""
