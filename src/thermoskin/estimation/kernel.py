@@ -1237,30 +1237,50 @@ def step_many_parallel(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_
     (fewer ranges than threads leave threads idle; more are stepped in turn; the name ``sched``
     is numba's own in a parallel loop)."""
     n = ST.shape[0]
+    nw = _claims_open(claims, n)
+    for w in prange(nw):
+        s = 0
+        while True:
+            c, s = _claim(claims, w, s)
+            if c < 0:
+                break
+            hi = (c + 1) * CHUNK
+            for i in range(c * CHUNK, hi if hi < n else n):
+                m = mid[i]
+                codes[i] = _step_one(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m],
+                                     Rw[m], t, T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i],
+                                     fresh[i], EV[i])
+
+
+@_inline
+def _claims_open(claims, n):
+    """Share ``n`` patches' chunks out into ranges, one a claim word; returns the range count."""
     nw = claims.shape[0] // CLAIM_STRIDE
     nch = (n + CHUNK - 1) // CHUNK
     for r in range(nw):
         claims[r * CLAIM_STRIDE] = (r * nch // nw) | (((r + 1) * nch // nw) << 32)
-    for w in prange(nw):
-        for s in range(nw):
-            o = ((w + s) % nw) * CLAIM_STRIDE
-            while True:
-                if s == 0:  # its own range, from the front
-                    old = fetch_add(claims, o, 1)
-                    c = old & _LOW
-                    if c >= (old >> 32):
-                        break
-                else:  # another's, from the back
-                    old = fetch_add(claims, o, -(1 << 32))
-                    c = (old >> 32) - 1
-                    if c < (old & _LOW):
-                        break
-                hi = (c + 1) * CHUNK
-                for i in range(c * CHUNK, hi if hi < n else n):
-                    m = mid[i]
-                    codes[i] = _step_one(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m],
-                                         Q_a[m], Rw[m], t, T_w[i], T_p[i], T_a[i], T_w_cmd[i],
-                                         iv[i], drive[i], fresh[i], EV[i])
+    return nw
+
+
+@_inline
+def _claim(claims, w, s):
+    """Thread ``w``'s next chunk and the range it came from, ``s`` ranges on from its own (its own
+    range from the front, then the others' from their backs); ``(-1, nw)`` when none is left."""
+    nw = claims.shape[0] // CLAIM_STRIDE
+    while s < nw:
+        o = ((w + s) % nw) * CLAIM_STRIDE
+        if s == 0:  # its own range, from the front
+            old = fetch_add(claims, o, 1)
+            c = old & _LOW
+            if c < (old >> 32):
+                return c, s
+        else:  # another's, from the back
+            old = fetch_add(claims, o, -(1 << 32))
+            c = (old >> 32) - 1
+            if c >= (old & _LOW):
+                return c, s
+        s += 1
+    return -1, s
 
 
 @njit(nogil=True, **_FAST)
