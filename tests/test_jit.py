@@ -33,6 +33,11 @@ def _claim_all(counter: np.ndarray, old: np.ndarray) -> None:
         old[i] = fetch_add(counter, 0, 1)
 
 
+@njit(cache=False)
+def _fetch_sub(c: np.ndarray) -> int:
+    return fetch_add(c, 0, -(1 << 32))
+
+
 def test_fetch_add_is_atomic_across_threads() -> None:
     """Every thread's add counts and each sees a value of its own: the values returned are
     0 .. n-1, each once (a plain read-then-write on two cores would lose adds and return
@@ -45,8 +50,3 @@ def test_fetch_add_is_atomic_across_threads() -> None:
     np.testing.assert_array_equal(np.sort(old), np.arange(n))
     c = np.array([5], dtype=np.int64)
     assert _fetch_sub(c) == 5 and c[0] == 5 - (1 << 32)
-
-
-@njit(cache=False)
-def _fetch_sub(c: np.ndarray) -> int:
-    return fetch_add(c, 0, -(1 << 32))

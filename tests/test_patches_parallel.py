@@ -18,11 +18,10 @@ def _visit(claims: np.ndarray, visits: np.ndarray, thread: np.ndarray) -> None:
     for w in prange(nw):
         s = 0
         while True:
-            c, s = K._claim(claims, w, s)
-            if c < 0:
+            lo, hi, s = K._claim(claims, w, s, n)
+            if lo < 0:
                 break
-            hi = min((c + 1) * K.CHUNK, n)
-            for i in range(c * K.CHUNK, hi):
+            for i in range(lo, hi):
                 visits[i] += 1
                 thread[i] = w
 

@@ -1228,9 +1228,10 @@ def step_many_parallel(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_
 
     Each thread owns a range of the patches, claimed :data:`CHUNK` at a time from its front;
     a thread done with its own takes what is left of the others' from their backs. So a core
-    the host stalls for a while (a shared machine's other work) costs the tick half the stall,
-    the other core taking over its patches, not the whole stall; and without stalls each core
-    steps the same patches every tick, their states still in its caches. Range ``r``'s claim
+    the host stalls alone in mid-tick (a shared machine's other work) costs the tick about half
+    the stall, the other core taking over its patches, not the whole stall (a stall of every
+    core at once, it cannot shorten); and without stalls each core steps the same patches every
+    tick, their states still in its caches. Range ``r``'s claim
     word, ``claims[r * CLAIM_STRIDE]``, holds its front chunk (low 32 bits) and one past its back
     chunk (high 32 bits), claimed by one atomic add each (:func:`~thermoskin._jit.fetch_add`);
     ``claims`` has one word (and line) per range: as many as threads, :func:`claim_words`
@@ -1241,11 +1242,10 @@ def step_many_parallel(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_
     for w in prange(nw):
         s = 0
         while True:
-            c, s = _claim(claims, w, s)
-            if c < 0:
+            lo, hi, s = _claim(claims, w, s, n)
+            if lo < 0:
                 break
-            hi = (c + 1) * CHUNK
-            for i in range(c * CHUNK, hi if hi < n else n):
+            for i in range(lo, hi):
                 m = mid[i]
                 codes[i] = _step_one(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m],
                                      Rw[m], t, T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i],
@@ -1263,9 +1263,10 @@ def _claims_open(claims, n):
 
 
 @_inline
-def _claim(claims, w, s):
-    """Thread ``w``'s next chunk and the range it came from, ``s`` ranges on from its own (its own
-    range from the front, then the others' from their backs); ``(-1, nw)`` when none is left."""
+def _claim(claims, w, s, n):
+    """Thread ``w``'s next chunk of the ``n`` patches, ``(lo, hi, s)``: its patches ``lo`` to
+    ``hi - 1`` and the range it came from, ``s`` ranges on from its own (its own range from the
+    front, then the others' from their backs); ``lo = -1`` when none is left."""
     nw = claims.shape[0] // CLAIM_STRIDE
     while s < nw:
         o = ((w + s) % nw) * CLAIM_STRIDE
@@ -1273,14 +1274,14 @@ def _claim(claims, w, s):
             old = fetch_add(claims, o, 1)
             c = old & _LOW
             if c < (old >> 32):
-                return c, s
+                return c * CHUNK, min((c + 1) * CHUNK, n), s
         else:  # another's, from the back
             old = fetch_add(claims, o, -(1 << 32))
             c = (old >> 32) - 1
             if c >= (old & _LOW):
-                return c, s
+                return c * CHUNK, min((c + 1) * CHUNK, n), s
         s += 1
-    return -1, s
+    return -1, -1, s
 
 
 @njit(nogil=True, **_FAST)
