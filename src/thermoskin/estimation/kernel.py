@@ -124,7 +124,9 @@ CU = 104       # the onset CUSUMs, NCU of them, 4 fields each: statistic, last t
 NCU = 6        # zero, and since then the sums of g e / S and g^2 / S (their ratio estimates
 #                the change); designs +D, -D, +D_hi, -D_hi
 MU = CU + 4 * NCU   # per onset CUSUM: mu, what remains in the filter's error of a unit step of
-NMU = 5             # q_i at the CUSUM's last zero (the step's signature, Willsky and Jones)
+NMU = 5             # q_i at the CUSUM's last zero (the step's signature, Willsky and Jones);
+#                     component a of CUSUM j's at MU + NCU a + j (the six side by side: one
+#                     SIMD lane each in _mu_carry); see signature()
 PHASE = MU + NMU * NCU  # samples since the last pump switch
 PHDIR = PHASE + 1  # that switch: 0 to a lower water resistance (more flow), 1 to a higher
 GHEAD = PHASE + 2       # the onset dating's ring buffer (idle, armed): the next entry written
@@ -134,7 +136,7 @@ GOPEN = GHEAD + 3       # the newest entry, still pooling (3 fields as in GBUF):
 #                         the fields every sample reads, and written to GBUF once it is full
 KUP = GOPEN + 3   # this sample's pipe and tank updates for the step signatures, 6 fields each:
 #                   made (1/0), the gain K (5); applied to them with the prediction (_mu_carry)
-MRST = KUP + 12   # bit j: CUSUM j's signature restarted in this sample (the updates skip it)
+MRST = KUP + 12   # bit j: CUSUM j's signature restarted in this sample (_mu_updated skips it)
 NPH = 64          # most phase bins of the pump-cycle correction, per direction
 TPL = MRST + 1    # the correction: mean no-touch innovation of T_w per (direction, phase), K
 GBUF = TPL + 2 * NPH    # NGB entries of 3: time of the last reading pooled, sums of g e/S, g^2/S
@@ -579,10 +581,9 @@ def _mu_reset(st, j):
     """CUSUM ``j``'s step signature for a step of ``q_i`` now: all of it still to be learnt. A
     unit step of ``q_i`` is unchanged by this sample's updates (``mu[T_w] = mu[T_p] = 0``), so
     it skips them, whenever in the sample it was restarted."""
-    m = MU + NMU * j
     for a_ in range(NMU):
-        st[m + a_] = 0.0
-    st[m + 2] = 1.0
+        st[MU + NCU * a_ + j] = 0.0
+    st[MU + NCU * 2 + j] = 1.0
     st[MRST] = int(st[MRST]) | (1 << j)
 
 
@@ -603,8 +604,8 @@ def _mu_reading(u0, u1, u2, u3, u4, k0, k1, k2, k3, k4, rho):
 def _mu_updated(st, j):
     """CUSUM ``j``'s signature after this sample's updates (:data:`KUP`): for an onset, which
     comes before :func:`_mu_carry` applies them."""
-    m = MU + NMU * j
-    u0, u1, u2, u3, u4 = st[m], st[m + 1], st[m + 2], st[m + 3], st[m + 4]
+    u0, u1, u2, u3, u4 = (st[MU + j], st[MU + NCU + j], st[MU + 2 * NCU + j], st[MU + 3 * NCU + j],
+                          st[MU + 4 * NCU + j])
     if not (int(st[MRST]) >> j) & 1:
         if st[KUP] != 0.0:
             u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, st[KUP + 1], st[KUP + 2],
@@ -615,40 +616,50 @@ def _mu_updated(st, j):
     return (u0, u1, u2, u3, u4)
 
 
+def signature(st: np.ndarray, j: int) -> np.ndarray:
+    """CUSUM ``j``'s step signature in a patch's state ``st``: its ``NMU`` components
+    (``T_w, T_g, q_i, T_p, dT_p``), a copy."""
+    return st[MU + j:MU + NMU * NCU:NCU].copy()
+
+
 @_inline
 def _mu_carry(st, F):
     """The step signatures through this sample: its updates, ``mu <- (I - K H) mu`` for each
-    (pipe, then tank: :data:`KUP`; not for a signature restarted in it, :data:`MRST`), then the
-    model, ``mu <- Phi mu`` (rows 2 and 4 of ``Phi`` are unit rows). One pass, each signature
-    read and written once (the updates' own passes had read and written each twice more); a restarted one,
-    a unit step still, is Phi's column 2 (exactly: the products with its zeros add nothing)."""
+    (pipe, then tank: :data:`KUP`), then the model, ``mu <- Phi mu`` (rows 2 and 4 of ``Phi``
+    are unit rows). One pass, each signature read and written once, the same arithmetic for all
+    six (their components side by side: the compiler makes one vector of them, one lane each).
+    A signature restarted in this sample, a unit step still, comes through the updates
+    unchanged (their products with its zeros add nothing, exactly), as :func:`_mu_reset` has it:
+    so the carry need not skip it (:data:`MRST`)."""
     # Phi's rows and the gains read once (the stores below could be to the same memory, for
     # all the compiler knows: it would read them again for every signature)
     a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
     b0, b1, b2, b3, b4 = F[1, 0], F[1, 1], F[1, 2], F[1, 3], F[1, 4]
     c0, c1, c2, c3, c4 = F[3, 0], F[3, 1], F[3, 2], F[3, 3], F[3, 4]
+    # a reading not made in this sample: a zero gain, which leaves every signature as it was
+    # (u - 0 rho = u exactly)
     uw = st[KUP] != 0.0
-    w0, w1, w2, w3, w4 = st[KUP + 1], st[KUP + 2], st[KUP + 3], st[KUP + 4], st[KUP + 5]
+    w0 = st[KUP + 1] if uw else 0.0
+    w1 = st[KUP + 2] if uw else 0.0
+    w2 = st[KUP + 3] if uw else 0.0
+    w3 = st[KUP + 4] if uw else 0.0
+    w4 = st[KUP + 5] if uw else 0.0
     up = st[KUP + 6] != 0.0
-    p0, p1, p2, p3, p4 = st[KUP + 7], st[KUP + 8], st[KUP + 9], st[KUP + 10], st[KUP + 11]
-    rst = int(st[MRST])
+    p0 = st[KUP + 7] if up else 0.0
+    p1 = st[KUP + 8] if up else 0.0
+    p2 = st[KUP + 9] if up else 0.0
+    p3 = st[KUP + 10] if up else 0.0
+    p4 = st[KUP + 11] if up else 0.0
     for j in range(NCU):
-        m = MU + NMU * j
-        if (rst >> j) & 1:  # a unit step of q_i: Phi's column 2 (rows 2, 4 unit rows)
-            st[m] = a2
-            st[m + 1] = b2
-            st[m + 3] = c2
-            continue
-        u0, u1, u2, u3, u4 = st[m], st[m + 1], st[m + 2], st[m + 3], st[m + 4]
-        if uw:
-            u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, w0, w1, w2, w3, w4, u0)
-        if up:
-            u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, p0, p1, p2, p3, p4, u3)
-        st[m] = a0 * u0 + a1 * u1 + a2 * u2 + a3 * u3 + a4 * u4
-        st[m + 1] = b0 * u0 + b1 * u1 + b2 * u2 + b3 * u3 + b4 * u4
-        st[m + 3] = c0 * u0 + c1 * u1 + c2 * u2 + c3 * u3 + c4 * u4
-        st[m + 2] = u2
-        st[m + 4] = u4
+        u0, u1, u2, u3, u4 = (st[MU + j], st[MU + NCU + j], st[MU + 2 * NCU + j],
+                              st[MU + 3 * NCU + j], st[MU + 4 * NCU + j])
+        u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, w0, w1, w2, w3, w4, u0)
+        u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, p0, p1, p2, p3, p4, u3)
+        st[MU + j] = a0 * u0 + a1 * u1 + a2 * u2 + a3 * u3 + a4 * u4
+        st[MU + NCU + j] = b0 * u0 + b1 * u1 + b2 * u2 + b3 * u3 + b4 * u4
+        st[MU + 2 * NCU + j] = u2
+        st[MU + 3 * NCU + j] = c0 * u0 + c1 * u1 + c2 * u2 + c3 * u3 + c4 * u4
+        st[MU + 4 * NCU + j] = u4
 
 
 @_inline
