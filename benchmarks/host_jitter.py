@@ -12,6 +12,10 @@ virtual machine does when its host takes it off the CPU; 0: each core alone); an
 tick)`` with ``rate`` that of the stalls of all cores merged where they overlap. If that share
 is above 1 %, such stalls reach a tick's p99, whatever the tick computes.
 
+Beside the stalls it gives each core's interrupts a second over the same window, from
+``/proc/interrupts`` (``LOC``: the guest kernel's own timer tick, ``CONFIG_HZ`` a second on a
+busy core), to set the stalls' rate against.
+
 It also asks whether the cores are cores: a compiled loop of independent multiply-adds (it
 keeps a core's arithmetic units busy, as the estimation kernel does) is timed on each core
 alone and then on every core at once (threads pinned, started together). ``shared_slowdown``
@@ -106,6 +110,41 @@ def shared_core(cpus: list[int], reps: int, passes: int = 50_000) -> dict[str, f
     return {"alone_s": round(t1, 4), "together_s": round(t2, 4), "shared_slowdown": round(t2 / t1, 2)}
 
 
+def interrupts() -> dict[str, list[int]] | None:
+    """``/proc/interrupts``: each interrupt's count per CPU (None where the file is not there)."""
+    try:
+        with open("/proc/interrupts") as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return None
+    ncpu = len(lines[0].split())
+    out: dict[str, list[int]] = {}
+    for line in lines[1:]:
+        name, _, rest = line.partition(":")
+        cols = rest.split()[:ncpu]
+        if len(cols) == ncpu and all(c.isdigit() for c in cols):
+            out[name.strip()] = [int(c) for c in cols]
+    return out
+
+
+def interrupt_rates(before: dict[str, list[int]] | None, after: dict[str, list[int]] | None,
+                    cpus: list[int], seconds: float) -> list[dict[str, float]] | None:
+    """Per core of ``cpus``: each interrupt's rate per second between two :func:`interrupts`
+    readings (those that came at all), the local timer's (``LOC``) first."""
+    if before is None or after is None:
+        return None
+    rows = []
+    for c in cpus:
+        row = {}
+        for name, counts in after.items():
+            if name in before and c < len(counts):
+                d = counts[c] - before[name][c]
+                if d > 0:
+                    row[name] = round(d / seconds, 1)
+        rows.append(dict(sorted(row.items(), key=lambda kv: (kv[0] != "LOC", -kv[1]))))
+    return rows
+
+
 def merged(spans: list[np.ndarray]) -> int:
     """Number of stalls once the cores' overlapping ones are merged into one."""
     s = np.concatenate(spans) if spans else np.empty((0, 2))
@@ -143,8 +182,11 @@ def main() -> None:
     a = ap.parse_args()
     cpus = sorted(os.sched_getaffinity(0))
     with ProcessPoolExecutor(len(cpus)) as ex:
+        ex.submit(int, 0).result()  # the workers up before the interrupts are counted
+        irq0 = interrupts()
         per_core = [np.array(g, dtype=np.int64).reshape(-1, 2)
                     for g in ex.map(spin, [(c, a.seconds) for c in cpus])]
+        irq1 = interrupts()
     out: dict[str, object] = {"cores": len(cpus), "seconds": a.seconds, "tick_us": a.tick_us}
     cores_out = []
     for gaps in per_core:
@@ -156,6 +198,10 @@ def main() -> None:
         row["max_us"] = round(float(g.max()), 1) if g.size else None
         cores_out.append(row)
     out["per_core"] = cores_out
+    # what the guest's kernel took the cores for meanwhile: its timer tick (LOC, CONFIG_HZ a
+    # second on a busy core) and the cross-CPU calls (CAL, RES, TLB) each leave the virtual
+    # machine, which on a shared host can cost tens of µs
+    out["interrupts_per_s"] = interrupt_rates(irq0, irq1, cpus, a.seconds)
     long20 = [x[(x[:, 1] - x[:, 0]) > 20_000] for x in per_core]
     out["overlap_share_over_20us"] = overlap_share(long20)
     tick = a.tick_us * 1e-6
