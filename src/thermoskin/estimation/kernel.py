@@ -579,8 +579,10 @@ def _keeps_mu(st, pr):
 @_inline
 def _mu_reset(st, j):
     """CUSUM ``j``'s step signature for a step of ``q_i`` now: all of it still to be learnt. A
-    unit step of ``q_i`` is unchanged by this sample's updates (``mu[T_w] = mu[T_p] = 0``), so
-    it skips them, whenever in the sample it was restarted."""
+    unit step of ``q_i`` is unchanged by this sample's updates (``mu[T_w] = mu[T_p] = 0``:
+    their products with it add nothing, exactly), whenever in the sample it was restarted:
+    :func:`_mu_carry` applies them to it all the same, :func:`_mu_updated` skips them
+    (:data:`MRST`)."""
     for a_ in range(NMU):
         st[MU + NCU * a_ + j] = 0.0
     st[MU + NCU * 2 + j] = 1.0
@@ -629,8 +631,7 @@ def _mu_carry(st, F):
     are unit rows). One pass, each signature read and written once, the same arithmetic for all
     six (their components side by side: the compiler makes one vector of them, one lane each).
     A signature restarted in this sample, a unit step still, comes through the updates
-    unchanged (their products with its zeros add nothing, exactly), as :func:`_mu_reset` has it:
-    so the carry need not skip it (:data:`MRST`)."""
+    unchanged (:func:`_mu_reset`), so the carry does not skip it."""
     # Phi's rows and the gains read once (the stores below could be to the same memory, for
     # all the compiler knows: it would read them again for every signature)
     a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
