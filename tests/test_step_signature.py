@@ -77,3 +77,32 @@ def test_signature_is_the_difference_of_two_runs(impl: str) -> None:
     assert np.abs(expected).max() > 1e-5  # the step did show
     # the filter has learnt part of the step over 1.5 s of 10 Hz readings, not none nor all
     assert 0.05 < 1.0 - mu[-1][I_Q] < 0.95
+
+
+def test_carry_against_matrix_products() -> None:
+    """One sample's carry of the six signatures (:func:`kernel._mu_carry`, one vector of them)
+    against numpy's ``Phi (I - K_p H_p)(I - K_w H_w) mu``: a reading not made leaves its stale
+    gain unused, and a signature restarted in the sample (a unit step of ``q_i``) becomes
+    ``Phi``'s column exactly, though the carry applies the updates to it."""
+    rng = np.random.default_rng(3)
+    F = rng.normal(size=(5, 5))
+    F[I_Q] = np.eye(5)[I_Q]  # q_i and dT_p are random walks: unit rows (as build_tables makes them)
+    F[4] = np.eye(5)[4]
+    kw, kp = rng.normal(size=5), rng.normal(size=5)
+    H_w, H_p = np.eye(5)[I_TW], np.eye(5)[I_TP]
+    for pipe_made in (True, False):
+        st = K.new_state()
+        mus = rng.normal(size=(K.NCU, 5))
+        for j in range(K.NCU):
+            st[K.MU + K.NCU * np.arange(5) + j] = mus[j]
+        st[K.KUP], st[K.KUP + 1:K.KUP + 6] = (1.0 if pipe_made else 0.0), kw
+        st[K.KUP + 6], st[K.KUP + 7:K.KUP + 12] = 1.0, kp
+        K._mu_reset(st, 2)
+        K._mu_carry(st, F)
+        Aw = np.eye(5) - np.outer(kw, H_w) if pipe_made else np.eye(5)
+        A = F @ (np.eye(5) - np.outer(kp, H_p)) @ Aw
+        for j in range(K.NCU):
+            if j == 2:
+                assert np.array_equal(K.signature(st, j), F[:, I_Q])
+            else:
+                np.testing.assert_allclose(K.signature(st, j), A @ mus[j], rtol=1e-12, atol=1e-12)
