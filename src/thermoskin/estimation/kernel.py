@@ -136,9 +136,8 @@ GOPEN = GHEAD + 3       # the newest entry, still pooling (3 fields as in GBUF):
 #                         the fields every sample reads, and written to GBUF once it is full
 KUP = GOPEN + 3   # this sample's pipe and tank updates for the step signatures, 6 fields each:
 #                   made (1/0), the gain K (5); applied to them with the prediction (_mu_carry)
-MRST = KUP + 12   # bit j: CUSUM j's signature restarted in this sample (_mu_updated skips it)
 NPH = 64          # most phase bins of the pump-cycle correction, per direction
-TPL = MRST + 1    # the correction: mean no-touch innovation of T_w per (direction, phase), K
+TPL = KUP + 12    # the correction: mean no-touch innovation of T_w per (direction, phase), K
 GBUF = TPL + 2 * NPH    # NGB entries of 3: time of the last reading pooled, sums of g e/S, g^2/S
 NGB = 256
 WBUF = GBUF + 3 * NGB  # warm-up buffer: NWB q values
@@ -580,13 +579,11 @@ def _keeps_mu(st, pr):
 def _mu_reset(st, j):
     """CUSUM ``j``'s step signature for a step of ``q_i`` now: all of it still to be learnt. A
     unit step of ``q_i`` is unchanged by this sample's updates (``mu[T_w] = mu[T_p] = 0``:
-    their products with it add nothing, exactly), whenever in the sample it was restarted:
-    :func:`_mu_carry` applies them to it all the same, :func:`_mu_updated` skips them
-    (:data:`MRST`)."""
+    their products with it add nothing, exactly), so whenever in the sample it was restarted,
+    they are applied to it as to the others (:func:`_mu_updated`, :func:`_mu_carry`)."""
     for a_ in range(NMU):
         st[MU + NCU * a_ + j] = 0.0
     st[MU + NCU * 2 + j] = 1.0
-    st[MRST] = int(st[MRST]) | (1 << j)
 
 
 @_inline
@@ -603,19 +600,34 @@ def _mu_reading(u0, u1, u2, u3, u4, k0, k1, k2, k3, k4, rho):
 
 
 @_inline
+def _kup_gains(st):
+    """This sample's pipe and tank gains for the signatures (:data:`KUP`), 5 each; a reading
+    not made in the sample is a zero gain, which leaves every signature as it was (``u - 0 rho =
+    u`` exactly)."""
+    uw = st[KUP] != 0.0
+    up = st[KUP + 6] != 0.0
+    return ((st[KUP + 1] if uw else 0.0, st[KUP + 2] if uw else 0.0, st[KUP + 3] if uw else 0.0,
+             st[KUP + 4] if uw else 0.0, st[KUP + 5] if uw else 0.0),
+            (st[KUP + 7] if up else 0.0, st[KUP + 8] if up else 0.0, st[KUP + 9] if up else 0.0,
+             st[KUP + 10] if up else 0.0, st[KUP + 11] if up else 0.0))
+
+
+@_inline
+def _mu_readings(st, j, w, p):
+    """CUSUM ``j``'s signature through this sample's pipe and tank updates (gains ``w``, ``p``
+    from :func:`_kup_gains`): ``mu - K_w mu[T_w]``, then ``- K_p mu[T_p]``."""
+    u0, u1, u2, u3, u4 = (st[MU + j], st[MU + NCU + j], st[MU + 2 * NCU + j], st[MU + 3 * NCU + j],
+                          st[MU + 4 * NCU + j])
+    u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, w[0], w[1], w[2], w[3], w[4], u0)
+    return _mu_reading(u0, u1, u2, u3, u4, p[0], p[1], p[2], p[3], p[4], u3)
+
+
+@_inline
 def _mu_updated(st, j):
     """CUSUM ``j``'s signature after this sample's updates (:data:`KUP`): for an onset, which
     comes before :func:`_mu_carry` applies them."""
-    u0, u1, u2, u3, u4 = (st[MU + j], st[MU + NCU + j], st[MU + 2 * NCU + j], st[MU + 3 * NCU + j],
-                          st[MU + 4 * NCU + j])
-    if not (int(st[MRST]) >> j) & 1:
-        if st[KUP] != 0.0:
-            u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, st[KUP + 1], st[KUP + 2],
-                                             st[KUP + 3], st[KUP + 4], st[KUP + 5], u0)
-        if st[KUP + 6] != 0.0:
-            u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, st[KUP + 7], st[KUP + 8],
-                                             st[KUP + 9], st[KUP + 10], st[KUP + 11], u3)
-    return (u0, u1, u2, u3, u4)
+    w, p = _kup_gains(st)
+    return _mu_readings(st, j, w, p)
 
 
 def signature(st: np.ndarray, j: int) -> np.ndarray:
@@ -631,31 +643,15 @@ def _mu_carry(st, F):
     are unit rows). One pass, each signature read and written once, the same arithmetic for all
     six (their components side by side: the compiler makes one vector of them, one lane each).
     A signature restarted in this sample, a unit step still, comes through the updates
-    unchanged (:func:`_mu_reset`), so the carry does not skip it."""
+    unchanged (:func:`_mu_reset`)."""
     # Phi's rows and the gains read once (the stores below could be to the same memory, for
     # all the compiler knows: it would read them again for every signature)
     a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
     b0, b1, b2, b3, b4 = F[1, 0], F[1, 1], F[1, 2], F[1, 3], F[1, 4]
     c0, c1, c2, c3, c4 = F[3, 0], F[3, 1], F[3, 2], F[3, 3], F[3, 4]
-    # a reading not made in this sample: a zero gain, which leaves every signature as it was
-    # (u - 0 rho = u exactly)
-    uw = st[KUP] != 0.0
-    w0 = st[KUP + 1] if uw else 0.0
-    w1 = st[KUP + 2] if uw else 0.0
-    w2 = st[KUP + 3] if uw else 0.0
-    w3 = st[KUP + 4] if uw else 0.0
-    w4 = st[KUP + 5] if uw else 0.0
-    up = st[KUP + 6] != 0.0
-    p0 = st[KUP + 7] if up else 0.0
-    p1 = st[KUP + 8] if up else 0.0
-    p2 = st[KUP + 9] if up else 0.0
-    p3 = st[KUP + 10] if up else 0.0
-    p4 = st[KUP + 11] if up else 0.0
+    w, p = _kup_gains(st)
     for j in range(NCU):
-        u0, u1, u2, u3, u4 = (st[MU + j], st[MU + NCU + j], st[MU + 2 * NCU + j],
-                              st[MU + 3 * NCU + j], st[MU + 4 * NCU + j])
-        u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, w0, w1, w2, w3, w4, u0)
-        u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, p0, p1, p2, p3, p4, u3)
+        u0, u1, u2, u3, u4 = _mu_readings(st, j, w, p)
         st[MU + j] = a0 * u0 + a1 * u1 + a2 * u2 + a3 * u3 + a4 * u4
         st[MU + NCU + j] = b0 * u0 + b1 * u1 + b2 * u2 + b3 * u3 + b4 * u4
         st[MU + 2 * NCU + j] = u2
@@ -1038,7 +1034,7 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     process-noise tables while idle and in contact; ``Rw`` the water's resistance per row.
     """
     R = pr[PR_RT]
-    st[KUP] = st[KUP + 6] = st[MRST] = 0.0  # no update nor restart of the signatures yet
+    st[KUP] = st[KUP + 6] = 0.0  # no update for the step signatures yet
     if pr[PR_TRACE] != 0.0:  # the trace's records of this sample
         st[UREC] = st[UREC + NUR] = st[SWB] = st[SWA] = 0.0
     _eq8(st, pr, Rw, T_w, T_p, T_a, iv)
