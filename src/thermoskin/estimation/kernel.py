@@ -229,7 +229,7 @@ _CONTRACT = {"contract"}
 _FAST: dict[str, object] = {"cache": True, "fastmath": _CONTRACT}
 if hasattr(numba.core.options.DefaultOptions, "_nrt"):
     _FAST["_nrt"] = False
-_inline = njit(cache=True, inline="always", fastmath=_CONTRACT)
+_inline = njit(forceinline=True, **_FAST)
 """The decorator of the sample step's parts: inlined into the entry points that call them."""
 
 

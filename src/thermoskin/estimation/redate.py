@@ -91,7 +91,7 @@ def trace(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, i
         rec[k, RSWA] = st[K.SWA]
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, forceinline=True)
 def _left_mul(A, B, col, tmp):
     """``B[:, col] = A @ B[:, col]`` (5 x 5), in place."""
     for m in range(5):
@@ -103,7 +103,7 @@ def _left_mul(A, B, col, tmp):
         B[m, col] = s
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, forceinline=True)
 def _switch(M, c):
     """A coarse log's pump-switch correction on the map: ``x_Tw += c (x_Tp - x_Tw)``."""
     if c != 0.0:
@@ -111,13 +111,13 @@ def _switch(M, c):
             M[0, q] += c * (M[3, q] - M[0, q])
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, forceinline=True)
 def _idle(col, no, nc, p_on, p_off):
     """A candidate's column whose step has not started yet (all zero: skipped)."""
     return (col < no and col >= p_on) or (no <= col < nc and col - no >= p_off)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, forceinline=True)
 def _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off):
     """Add a stretch's sums to the fit's (``a += v' mu``, ``G += mu' W mu`` for the blocks
     kept) and carry the active columns over it (``mu <- M mu``)."""

@@ -45,9 +45,9 @@ from thermoskin.sim.skin import zoh_scalars
 from thermoskin.sweep.qp import box_qp
 
 # the plant's own arithmetic, compiled here (one source for the plant and the batch)
-_tank_linear = njit(inline="always")(tank_linear)
-_rk4_pair = njit(inline="always")(rk4_pair)
-_zoh_scalars = njit(inline="always")(zoh_scalars)
+_tank_linear = njit(forceinline=True)(tank_linear)
+_rk4_pair = njit(forceinline=True)(rk4_pair)
+_zoh_scalars = njit(forceinline=True)(zoh_scalars)
 
 # per-row scalar parameters (PS[i, :])
 (S_TS, S_CW, S_CG, S_RG, S_RAW, S_RAG, S_RWON, S_RWOFF, S_VON, S_HALF, S_NDWELL,
@@ -66,7 +66,7 @@ NR = 12
 CLS_OTHER, CLS_QUIET, CLS_ONE = 0, 1, 2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _zoh(ps, Rw, G, c):
     """``sim.skin.zoh_coefficients`` of the network (``physics.network.state_space``) into ``c``."""
     Cw, Cg, Rg, Raw, Rag = ps[S_CW], ps[S_CG], ps[S_RG], ps[S_RAW], ps[S_RAG]
@@ -90,7 +90,7 @@ def _zoh(ps, Rw, G, c):
     c[11] = m21 * 0.0 + m22 * B23
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _read(x, y, k, ch, lag, noise_T, q, NOISE, CONV, last):
     """One board (``sim.sensors.Board.read``): returns ``(reading, fresh, new lag state)``."""
     if lag > 0.0:
@@ -108,10 +108,10 @@ def _read(x, y, k, ch, lag, noise_T, q, NOISE, CONV, last):
     return r, 1, y
 
 
-_interval_ok = njit(cache=True, inline="always")(interval_ok)
+_interval_ok = njit(cache=True, forceinline=True)(interval_ok)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _in_interval(ps, T_w, T_a, cmd, prev):
     """``Mpc._in_interval`` (:func:`thermoskin.control.mpc.interval_ok`, compiled)."""
     return _interval_ok(T_w, T_a, cmd, prev, ps[S_IV0], ps[S_IV1], ps[S_IV2], ps[S_IV3], ps[S_IV4],
@@ -325,7 +325,7 @@ def _row(ps, G_c, T_f, T_a_true, cmd, T_p_presc, cls, NOISE, CONV, pr, Phi, Gam,
     res[R_NEV] = ne
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _box_ok(Kmat, T_w, T_a, cmd, prev, lo, hi):
     """``Mpc._box_test``: the unconstrained optimum within eq. 11 over the whole horizon."""
     for i in range(Kmat.shape[0]):

@@ -34,7 +34,7 @@ MAXIT = 60
 TOL = 1e-12
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _chol_solve(M, r, m):
     """Solve ``M[:m, :m] x = r[:m]`` in place (``M`` symmetric positive definite; overwritten)."""
     for j in range(m):
