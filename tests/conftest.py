@@ -12,7 +12,7 @@ import pytest
 def compiled_estimator() -> None:
     """The estimator's compiled code (its kernel and the fit that dates a contact again) in
     numba's cache before a test starts `thermoskin run` processes and waits on them as on a
-    run. On a cold cache (a fresh clone) each such process would first compile for 20-60 s,
+    run. On a cold cache (a fresh clone) each such process would first compile (about 10 s),
     and a test that a worker happens to run first would wait past its limits."""
     import numpy as np
 

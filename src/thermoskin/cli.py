@@ -174,7 +174,7 @@ def _check_duration(duration: float, t_s: float, option: str = "--duration") -> 
 
 
 def _note_compile(where: str | tuple[str, ...], what: str = "the estimator",
-                  how_long: str = "20-60 s") -> None:
+                  how_long: str = "about 10 s") -> None:
     """Say so, once, when compiled code (``package/module.function``, or several: any of them)
     is not in numba's cache yet (the first run after an install or an update): compiling takes
     a while, with nothing else to show meanwhile."""
@@ -184,7 +184,7 @@ def _note_compile(where: str | tuple[str, ...], what: str = "the estimator",
 
 
 def _compile_note(where: str | tuple[str, ...], what: str = "the estimator",
-                  how_long: str = "20-60 s") -> Callable[[], None] | None:
+                  how_long: str = "about 10 s") -> Callable[[], None] | None:
     """What :func:`_note_compile` would print, to print later (once the input has passed its
     checks); None when the code is in the cache."""
     from thermoskin._numba_cache import has_compiled
@@ -437,7 +437,7 @@ def _observe_skin(input_path: Path, output: Path, events_path: Path | None, grou
         task = bar.add_task(f"observing {input_path.name} on {skin.name}", total=1.0)
         obs = observe_skin_file(input_path, skin, output,  # checked whole before the compile note
                                 compiling=_compile_note(skin_kernels(skin, plant=False),
-                                                        "the patches' estimators", "about 30 s"),
+                                                        "the patches' estimators"),
                                 progress=lambda f: bar.update(task, completed=f))
     for w in obs.warnings:
         click.echo(f"thermoskin: warning: {input_path}: {w}", err=True)
@@ -874,7 +874,7 @@ SKIN_PLANT_KERNELS = ("sim/skin_plant._advance", "sim/skin_plant._gather", "sim/
                       "sim/board_bank._read")
 
 #: The patches' estimators' (``run_rows`` compiles ``step`` with it): what `observe --skin`
-#: compiles (about 25 s on a cold cache).
+#: compiles (about 10 s on a cold cache).
 SKIN_ESTIMATOR_KERNELS = ("estimation/kernel.new_state", "estimation/kernel.run_rows",
                           "estimation/kernel.finish")
 
@@ -985,7 +985,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         raise UserError("--device serial://PATH: the path is missing")
     port = device[len("serial://"):] if serial else ""
     if port and "://" not in port and not os.path.exists(port):
-        # at once, not after the loop process has compiled the estimator (20-60 s on a cold cache)
+        # at once, not after the loop process has compiled the estimator (about 10 s on a cold cache)
         raise UserError(f"cannot open {port}: no such device or file")
     if plot_path is None:
         plot_path = log_path.with_suffix(".png")
@@ -1209,7 +1209,7 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     period = skin.cfg.sensor.period_T_w  # the simulated boards'
     for w in board_warnings(skin, 1.0 / max(period, cfg.sampling.t_s)):
         click.echo(f"thermoskin: warning: {w}", err=True)
-    _note_compile(skin_kernels(skin), "the skin's plant and the estimator", "about a minute")
+    _note_compile(skin_kernels(skin), "the skin's plant and the estimator")
     est = SkinEstimator(skin, cfg.sampling.t_s)
     from thermoskin.logio import has_rows
     from thermoskin.paths import Replaced
@@ -1693,7 +1693,7 @@ def sweep(sweep_toml: Path, output: Path, dask_address: str | None) -> None:
     if dask_address is not None and not dask_address.strip():
         raise UserError("--dask: give a scheduler address (tcp://host:8786) or 'local'")
     sw = load_sweep(sweep_toml)
-    _note_compile("sweep/kernel.run_rows", "the sweep's batched simulation", "about a minute")
+    _note_compile("sweep/kernel.run_rows", "the sweep's batched simulation", "about 20 s")
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     with Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("points, left"),
