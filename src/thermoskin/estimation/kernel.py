@@ -230,7 +230,11 @@ _FAST: dict[str, object] = {"cache": True, "fastmath": _CONTRACT}
 if hasattr(numba.core.options.DefaultOptions, "_nrt"):
     _FAST["_nrt"] = False
 _inline = njit(forceinline=True, **_FAST)
-"""The decorator of the sample step's parts: inlined into the entry points that call them."""
+"""The decorator of the sample step's parts: each compiled once, and inlined by LLVM into the
+entry points that call them (the function marked ``alwaysinline``). Numba's own inlining
+(``inline="always"``) gave the same machine code but copied the step's whole IR into each entry
+point: 37 s to compile the estimator on an empty cache instead of 12 s, 84 s for the parallel
+entry point instead of 3 s, and its parfor pass then failed on that IR."""
 
 
 @njit(cache=True)
