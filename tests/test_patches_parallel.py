@@ -49,14 +49,15 @@ def test_every_patch_is_claimed_exactly_once(ranges: int) -> None:
         assert stolen > 0
 
 
-
 def test_parallel_kernel_steps_each_patch_as_the_serial_one() -> None:
     """``step_many_parallel`` (every core, chunks claimed) against ``step_many`` (one loop, in
     patch order) on the same ticks: 150 patches (ten chunks, so a core may take some of the
     other's range), each with its own noise, two in three touched and one in three not,
     through warm-up, onset and release. The states, contact bits and ended contacts are equal
-    bit for bit every tick. Compiling the parallel kernel here is part of the test: it once
-    failed in numba's parfor pass, and no test saw it."""
+    bit for bit every tick, and one patch's state to the one-patch estimator's. Compiling the
+    parallel kernel here is part of the test: it once failed in numba's parfor pass, and no
+    test saw it."""
+    from thermoskin.estimator import TouchEstimator
     from thermoskin.params import load_config
     from thermoskin.patches import PatchEstimators
     from thermoskin.sim.run import simulate
@@ -73,16 +74,20 @@ def test_parallel_kernel_steps_each_patch_as_the_serial_one() -> None:
     cols["T_w"] += rng.normal(0.0, 0.005, (n_s, n))  # each patch its own noise
     par, ser = PatchEstimators(cfg, n=n, parallel=True), PatchEstimators(cfg, n=n, parallel=False)
     assert par._claims is not None and ser._claims is None
+    one = TouchEstimator(cfg)  # patch 1 alone, through the one-patch entry point
     nan, fresh = np.full(n, np.nan), np.full(n, 7, dtype=np.int64)
     ended = np.zeros(n, dtype=np.int64)
     for k in range(n_s):
-        args = (k * cfg.sampling.t_s, cols["T_w"][k], cols["T_p"][k], cols["T_a"][k], nan,
-                ser.index(cols["v"][k]), nan, fresh)
-        par.tick(*args)
-        ser.tick(*args)
+        t = k * cfg.sampling.t_s
+        rest = (cols["T_w"][k], cols["T_p"][k], cols["T_a"][k], nan)
+        par.tick(t, *rest, par.index(cols["v"][k]), nan, fresh)
+        ser.tick(t, *rest, ser.index(cols["v"][k]), nan, fresh)
+        one.step(t, cols["T_w"][k, 1], cols["T_p"][k, 1], cols["v"][k, 1], cols["T_a"][k, 1])
         np.testing.assert_array_equal(par.codes, ser.codes)
         done = np.flatnonzero(ser.codes & K.C_ENDED)
         np.testing.assert_array_equal(par.EV[done], ser.EV[done])
         ended[done] += 1
     np.testing.assert_array_equal(par.ST, ser.ST)
-    assert (ended[1::3] >= 1).all() and (ended[::3] == 0).all()  # the touched patches' contacts ended
+    np.testing.assert_array_equal(ser.ST[1], one.st)
+    # the touched patches' contacts ended, the others' never began
+    assert (ended[1::3] >= 1).all() and (ended[2::3] >= 1).all() and (ended[::3] == 0).all()

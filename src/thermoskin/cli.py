@@ -873,7 +873,7 @@ ESTIMATOR_KERNEL = "estimation/kernel.step"
 SKIN_PLANT_KERNELS = ("sim/skin_plant._advance", "sim/skin_plant._gather", "sim/skin_plant._scatter",
                       "sim/board_bank._read")
 
-#: The patches' estimators' (``run_rows`` compiles ``step`` with it): what `observe --skin`
+#: The patches' estimators' (``run_rows``, the sample step inlined): what `observe --skin`
 #: compiles (about 10 s on a cold cache).
 SKIN_ESTIMATOR_KERNELS = ("estimation/kernel.new_state", "estimation/kernel.run_rows",
                           "estimation/kernel.finish")

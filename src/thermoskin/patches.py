@@ -6,7 +6,7 @@ estimated every sample. :class:`PatchEstimators` keeps one state vector per patc
 tables and parameters), and steps every patch with :func:`kernel.step_many` (live, one
 sample of every patch) or :func:`kernel.run_rows` (a long-format log, one row per sample and
 patch). Each patch is exactly the one-patch :class:`~thermoskin.estimator.TouchEstimator`
-(the same compiled sample step), which the tests check.
+(the same sample step, inlined into each entry point), which the tests check bit for bit.
 """
 
 from __future__ import annotations

@@ -230,11 +230,12 @@ _FAST: dict[str, object] = {"cache": True, "fastmath": _CONTRACT}
 if hasattr(numba.core.options.DefaultOptions, "_nrt"):
     _FAST["_nrt"] = False
 _inline = njit(forceinline=True, **_FAST)
-"""The decorator of the sample step's parts: each compiled once, and inlined by LLVM into the
-entry points that call them (the function marked ``alwaysinline``). Numba's own inlining
-(``inline="always"``) gave the same machine code but copied the step's whole IR into each entry
-point: 37 s to compile the estimator on an empty cache instead of 12 s, 84 s for the parallel
-entry point instead of 3 s, and its parfor pass then failed on that IR."""
+"""The decorator of the sample step's parts: each compiled on its own (once for each set of
+argument types), and inlined by LLVM where it is called (the function marked
+``alwaysinline``). Numba's own inlining (``inline="always"``) gave code of the same size and
+speed but copied the step's whole IR into each entry point that inlined it: 37 s to compile the
+estimator on an empty cache instead of 12 s, 84 s for the parallel entry point instead of 3 s,
+and its parfor pass then failed on that IR. So every entry point now inlines the step."""
 
 
 @njit(cache=True)
@@ -1165,16 +1166,16 @@ def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
     contact, gap, the sheet's estimated temperature T_g, their covariance), ``events``
     (``ev``: a scratch event row) and ``marks`` (the rows where a contact started or ended:
     row, those step-result bits, the contact's onset; the re-dating's clock); returns the
-    event count and the mark count. Calls :func:`step`, compiled once: inlining the sample
-    step here too was 12 % faster a sample (170 against 193 ns) but another 20 s of numba's
-    compile on a cold cache."""
+    event count and the mark count. The sample inlined (LLVM's inlining, which adds little to
+    the compile; numba's own had cost another 20 s), rather than a call to :func:`step` a
+    sample: 12 % faster then (170 against 193 ns)."""
     n = t.shape[0]
     ne = 0
     nm = 0
     cap = events.shape[0]
     cap_m = marks.shape[0]
     for k in range(n):
-        c = step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k],
+        c = _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k],
                       T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
         _outputs(st, out, k)
         if c & (C_STARTED | C_ENDED):
@@ -1210,13 +1211,12 @@ def _outputs(st, out, k):
 def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
               fresh, codes, EV):
     """One sample of every patch: the readings are arrays over patches; ``codes[i]`` its bits,
-    ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``). Calls :func:`step` (compiled
-    once, not inlined again: this entry point is for a few patches; many go to
-    :func:`step_many_parallel`)."""
+    ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``). For a few patches, on one
+    core (many go to :func:`step_many_parallel`); the sample inlined, as there."""
     for i in range(ST.shape[0]):
         m = mid[i]
-        codes[i] = step(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t,
-                        T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
+        codes[i] = _step_one(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t,
+                             T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
 
 
 #: Patches a thread claims at a time in :func:`step_many_parallel` (about 3 µs of work).
