@@ -1,7 +1,7 @@
 """Numba's on-disk cache, kept per version of the compiled sources.
 
 Numba invalidates a cached function only when its own source file changes: a function that
-calls a compiled function of another file (the sweep's batch inlines the estimator's ``_step_one``)
+calls a compiled function of another file (the sweep's batch inlines the estimator's ``step``)
 keeps its cached machine code, old state layout included, after that other file changed,
 and then reads and writes the state vectors at the old offsets (a crash, or wrong numbers,
 after a ``git pull`` on an editable install). So the cache goes in a directory named by a

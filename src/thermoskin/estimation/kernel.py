@@ -1030,9 +1030,10 @@ def _switch_correction(st, pr, Rw, iv_old, iv, slot):
 
 
 @_inline
-def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
-              ev):
-    """One sample of one patch; returns the step-result bits (contact, started, ended).
+def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh, ev):
+    """One sample of one patch; returns the step-result bits (contact, started, ended). An
+    entry point (``TouchEstimator.step``, a sample from Python) and, inlined, the body of every
+    loop below, the sweep's batch and the re-dating's trace.
 
     ``iv`` and ``drive``: the pump's table row and the Peltier drive applied over the coming
     interval (``iv = -1``: the pump's velocity is unknown, a NaN); ``Qi`` / ``Qc``: the
@@ -1145,13 +1146,6 @@ def _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cm
     return code
 
 
-@njit(**_FAST)
-def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh, ev):
-    """One sample of one patch (:func:`_step_one`); returns the step-result bits."""
-    return _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
-                     fresh, ev)
-
-
 @_inline
 def _keep_event(events, ne, ev):
     """``events[ne] = ev``, element by element (a row view would need reference counting)."""
@@ -1166,17 +1160,17 @@ def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
     contact, gap, the sheet's estimated temperature T_g, their covariance), ``events``
     (``ev``: a scratch event row) and ``marks`` (the rows where a contact started or ended:
     row, those step-result bits, the contact's onset; the re-dating's clock); returns the
-    event count and the mark count. The sample inlined (LLVM's inlining, which adds little to
-    the compile; numba's own had cost another 20 s), rather than a call to :func:`step` a
-    sample: 12 % faster then (170 against 193 ns)."""
+    event count and the mark count. :func:`step` inlined (LLVM's inlining, which adds little to
+    the compile; numba's own had cost another 20 s) rather than called a sample: 12 % faster
+    then (170 against 193 ns)."""
     n = t.shape[0]
     ne = 0
     nm = 0
     cap = events.shape[0]
     cap_m = marks.shape[0]
     for k in range(n):
-        c = _step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k],
-                      T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
+        c = step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k],
+                 T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
         _outputs(st, out, k)
         if c & (C_STARTED | C_ENDED):
             if nm < cap_m:
@@ -1212,11 +1206,11 @@ def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T
               fresh, codes, EV):
     """One sample of every patch: the readings are arrays over patches; ``codes[i]`` its bits,
     ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``). For a few patches, on one
-    core (many go to :func:`step_many_parallel`); the sample inlined, as there."""
+    core (many go to :func:`step_many_parallel`); :func:`step` inlined, as there."""
     for i in range(ST.shape[0]):
         m = mid[i]
-        codes[i] = _step_one(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t,
-                             T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
+        codes[i] = step(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t,
+                        T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
 
 
 #: Patches a thread claims at a time in :func:`step_many_parallel` (about 3 µs of work).
@@ -1259,9 +1253,8 @@ def step_many_parallel(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_
                 break
             for i in range(lo, hi):
                 m = mid[i]
-                codes[i] = _step_one(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m],
-                                     Rw[m], t, T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i],
-                                     fresh[i], EV[i])
+                codes[i] = step(ST[i], PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m],
+                                t, T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
 
 
 @_inline
@@ -1301,9 +1294,9 @@ def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, 
              drive, fresh, out, events, ev_patch, ev):
     """A long-format log (one row per sample and patch, in time order): each row steps its
     patch's state; fills ``out`` per row (as :func:`run`), ``events`` and ``ev_patch`` (the
-    patch of each; ``ev`` a scratch event row); returns the event count. The sample is
-    inlined (LLVM's inlining, which no longer lengthens the compile much): 149-157 ns a row
-    against 187-193 ns calling :func:`step` (9 patches, the same outputs)."""
+    patch of each; ``ev`` a scratch event row); returns the event count. :func:`step` inlined
+    (LLVM's inlining, which no longer lengthens the compile much): 149-157 ns a row against
+    187-193 ns calling it (9 patches, the same outputs)."""
     n = t.shape[0]
     ne = 0
     cap = events.shape[0]
@@ -1311,8 +1304,8 @@ def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, 
         i = patch[k]
         m = mid[i]
         st = ST[i]
-        c = _step_one(st, PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t[k], T_w[k],
-                      T_p[k], T_a[k], T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
+        c = step(st, PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m], t[k], T_w[k],
+                 T_p[k], T_a[k], T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
         _outputs(st, out, k)
         if c & C_ENDED:
             if ne < cap:

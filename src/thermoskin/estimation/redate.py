@@ -81,8 +81,8 @@ def trace(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, i
     whether the filter was initialised."""
     n = t.shape[0]
     for k in range(n):
-        K._step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k],
-                    T_w_cmd[k], iv[k], drive[k], fresh[k], ev)
+        K.step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t[k], T_w[k], T_p[k], T_a[k], T_w_cmd[k],
+               iv[k], drive[k], fresh[k], ev)
         for j in range(2 * K.NUR):
             rec[k, j] = st[K.UREC + j]
         rec[k, RIV] = st[K.IVP]

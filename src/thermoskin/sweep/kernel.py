@@ -260,7 +260,7 @@ def _row(ps, G_c, T_f, T_a_true, cmd, T_p_presc, cls, NOISE, CONV, pr, Phi, Gam,
         else:
             drv = math.nan
         iv = 1 if on else 0
-        code = K._step_one(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, rw, rp, ra, cm, iv, drv, fresh, ev)
+        code = K.step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, rw, rp, ra, cm, iv, drv, fresh, ev)
         if code & K.C_ENDED:
             if ne < cap:
                 events[ne, :] = ev
