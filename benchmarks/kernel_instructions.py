@@ -14,9 +14,14 @@ native time alike. Needs ``valgrind`` on the PATH; about five minutes (numba's c
 that CPU first, then two runs under valgrind, side by side).
 
 Prints one JSON line ``{"n", "ticks", "cpu", "instructions_per_patch_sample",
-"ns_per_patch_sample", "instructions_per_ns"}``.
+"ns_per_patch_sample", "instructions_per_ns"}``. ``--branches`` also counts the conditional
+branches a patch-sample and those valgrind's branch predictor (``--branch-sim=yes``: a simple
+table of two-bit counters, not the EPYC's) mispredicts: ``"branches_per_patch_sample"``,
+``"mispredicted_per_patch_sample"``. Whatever a real core predicts better, a branch on noise
+(a CUSUM at zero or not) it cannot.
 
-    python benchmarks/kernel_instructions.py [--n 500] [--ticks 200,1200] [--cpu x86-64-v3] [--json]
+    python benchmarks/kernel_instructions.py [--n 500] [--ticks 200,1200] [--cpu x86-64-v3]
+        [--branches] [--json]
 """
 
 from __future__ import annotations
@@ -73,6 +78,8 @@ def main() -> None:
     ap.add_argument("--ticks", default="200,1200", help="the two tick counts counted (after the warm-up)")
     ap.add_argument("--warm", type=int, default=1100, help="ticks before them (the detector's warm-up: 1000)")
     ap.add_argument("--cpu", default="x86-64-v3", help="the CPU numba compiles for (valgrind: no AVX-512)")
+    ap.add_argument("--branches", action="store_true",
+                    help="also count conditional branches and valgrind's mispredictions of them")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
     if shutil.which("valgrind") is None:
@@ -89,24 +96,30 @@ def main() -> None:
         ns = [float(native([str(a.n), str(a.warm), str(hi)], env).split()[0]) for _ in range(5)]
         if not a.json:
             print("counting under valgrind ...", file=sys.stderr)
-        procs = [subprocess.Popen(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
+        sim = ["--branch-sim=yes"] if a.branches else []
+        procs = [subprocess.Popen(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", *sim,
                                    sys.executable, "-c", CHILD, str(a.n), str(a.warm), str(t)],
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
                  for t in (lo, hi)]
         counts, idle = [], []
         for p in procs:
             out, err = p.communicate()
-            m = re.search(r"Collected\s*:\s*(\d+)", err)
+            # the events: Ir, and with --branches Bc Bcm Bi Bim (conditional, mispredicted, indirect)
+            m = re.search(r"Collected\s*:\s*([\d ]+)", err)
             if p.returncode or m is None:
                 raise SystemExit(f"valgrind failed ({p.returncode}): {err.strip()[-400:]}")
-            counts.append(int(m.group(1)))
+            counts.append([int(x) for x in m.group(1).split()])
             idle.append(int(out.split()[1]))
-    per = (counts[1] - counts[0]) / ((hi - lo) * a.n)
+    per_ev = [(y - x) / ((hi - lo) * a.n) for x, y in zip(counts[0], counts[1])]
+    per = per_ev[0]
     ns_med = sorted(ns)[len(ns) // 2]
     res = {"n": a.n, "ticks": [lo, hi], "cpu": a.cpu, "idle_patches": min(idle),
            "instructions_per_patch_sample": round(per, 1),
            "ns_per_patch_sample": round(ns_med, 1), "ns_runs": [round(x, 1) for x in ns],
            "instructions_per_ns": round(per / ns_med, 2)}
+    if a.branches:
+        res["branches_per_patch_sample"] = round(per_ev[1], 1)
+        res["mispredicted_per_patch_sample"] = round(per_ev[2], 2)
     if not a.json:
         print(res)
     print(json.dumps(res))

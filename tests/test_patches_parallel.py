@@ -91,3 +91,41 @@ def test_parallel_kernel_steps_each_patch_as_the_serial_one() -> None:
     np.testing.assert_array_equal(ser.ST[1], one.st)
     # the touched patches' contacts ended, the others' never began
     assert (ended[1::3] >= 1).all() and (ended[2::3] >= 1).all() and (ended[::3] == 0).all()
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_patches_of_two_models_each_step_with_their_own(parallel: bool) -> None:
+    """Patches of two models (a sheet half as thick, another detector design), in runs of
+    five, so that the model changes within a claimed chunk and between chunks: the loops
+    take a model's rows again only where it changes, so each patch must still be stepped with
+    its own. Every patch's state equals, bit for bit, that of the same patch among patches
+    of its model alone, stepped on the same readings."""
+    import dataclasses
+
+    from thermoskin.params import load_config
+    from thermoskin.patches import PatchEstimators
+    from thermoskin.sim.run import simulate
+    from thermoskin.sim.scenarios import SCENARIOS
+
+    a = load_config()
+    b = dataclasses.replace(a, skin=dataclasses.replace(a.skin, C_g=0.5 * a.skin.C_g),
+                            detector=dataclasses.replace(a.detector, dq_design=2.0 * a.detector.dq_design))
+    n, n_s = 70, 3000
+    cfgs = [b if (i // 5) % 2 else a for i in range(n)]
+    log = simulate(SCENARIOS["one-finger"].with_duration(n_s * a.sampling.t_s + 0.5), a)
+    rng = np.random.default_rng(11)
+    T_w = log["T_w"][:n_s, None] + rng.normal(0.0, 0.005, (n_s, n))
+    mixed = PatchEstimators(cfgs, parallel=parallel)
+    assert len(mixed.PR) == 2 and not np.array_equal(mixed._tabs[0][0], mixed._tabs[0][1])
+    alone = {c: PatchEstimators(c, n=n, parallel=False) for c in (a, b)}
+    nan, fresh = np.full(n, np.nan), np.full(n, 7, dtype=np.int64)
+    for k in range(n_s):
+        t = k * a.sampling.t_s
+        rest = (T_w[k], np.full(n, log["T_p"][k]), np.full(n, log["T_a"][k]), nan)
+        v = np.full(n, log["v"][k])
+        mixed.tick(t, *rest, mixed.index(v), nan, fresh)
+        for est in alone.values():
+            est.tick(t, *rest, est.index(v), nan, fresh)
+    for i, c in enumerate(cfgs):
+        np.testing.assert_array_equal(mixed.ST[i], alone[c].ST[i], err_msg=f"patch {i}")
+    assert not np.array_equal(alone[a].ST[0], alone[b].ST[0])
