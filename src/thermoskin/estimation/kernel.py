@@ -261,22 +261,50 @@ def _pu(a, b):
 
 
 @_inline
-def _update(st, pr, i, y, R):
-    """Scalar measurement of state ``i``; adds its evidence about a change of ``q_i``."""
-    S = st[P + 6 * i] + R
+def _tri(a, b):
+    """Index of ``P[a, b]`` in a covariance held as a tuple of its upper triangle's 15 entries
+    (row by row: ``P00 P01 P02 P03 P04 P11 P12 ... P44``), :func:`_p_get`."""
+    lo, hi = (a, b) if a <= b else (b, a)
+    return 5 * lo - lo * (lo - 1) // 2 + hi - lo
+
+
+@_inline
+def _p_get(st):
+    """The covariance's upper triangle from the state, as a tuple (:func:`_tri`)."""
+    return (st[P], st[P + 1], st[P + 2], st[P + 3], st[P + 4], st[P + 6], st[P + 7], st[P + 8],
+            st[P + 9], st[P + 12], st[P + 13], st[P + 14], st[P + 18], st[P + 19], st[P + 24])
+
+
+@_inline
+def _p_put(st, p):
+    """:func:`_p_get` back: the tuple's 15 entries into the state's upper triangle."""
+    st[P], st[P + 1], st[P + 2], st[P + 3], st[P + 4] = p[0], p[1], p[2], p[3], p[4]
+    st[P + 6], st[P + 7], st[P + 8], st[P + 9] = p[5], p[6], p[7], p[8]
+    st[P + 12], st[P + 13], st[P + 14] = p[9], p[10], p[11]
+    st[P + 18], st[P + 19] = p[12], p[13]
+    st[P + 24] = p[14]
+
+
+@_inline
+def _update(st, pr, i, y, R, p):
+    """Scalar measurement of state ``i``; adds its evidence about a change of ``q_i``. ``p``:
+    the covariance (:func:`_p_get`), returned updated; the pipe's and the tank's updates of a
+    sample pass it from one to the other in registers, and the state takes it once."""
+    S = p[_tri(i, i)] + R
     e = y - st[X + i]
     kap = st[KAPPA]
     sS = math.sqrt(S)
     if i == 3 and abs(e) > pr[PR_CMAN] * kap * sS:
         # the tank manoeuvres (the drive jumped): let its slope go, as a fading-memory filter
         # does, and take no evidence about q_i from this reading
-        st[P + 18] += e * e
-        st[P + 24] += (e / pr[PR_TMAN]) ** 2
-        S = st[P + 18] + R
+        p33 = p[12] + e * e
+        p = (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p33, p[13],
+             p[14] + (e / pr[PR_TMAN]) ** 2)
+        S = p33 + R
     else:
         # evidence: the reading's sensitivity to a lasting change of q_i, g = P[i, q] / P[q, q]
-        pqq = st[P + 12]
-        g = st[_pu(i, 2)] / pqq if pqq > 0.0 else 0.0
+        pqq = p[9]
+        g = p[_tri(i, 2)] / pqq if pqq > 0.0 else 0.0
         gS = g / (kap * kap * S)  # one division for both
         st[SGE] += gS * e
         st[SGG] += gS * g
@@ -286,14 +314,13 @@ def _update(st, pr, i, y, R):
         else:
             st[KAPPA] = kap * pr[PR_DOWN]
     inv = 1.0 / S
-    # P's row i, which is its column (P is symmetric): the gain's, read once (the stores below
-    # go to the same array: the compiler would read it again after each)
-    r = (st[_pu(i, 0)], st[_pu(i, 1)], st[_pu(i, 2)], st[_pu(i, 3)], st[_pu(i, 4)])
-    k0 = r[0] * inv
-    k1 = r[1] * inv
-    k2 = r[2] * inv
-    k3 = r[3] * inv
-    k4 = r[4] * inv
+    # P's row i, which is its column (P is symmetric)
+    r0, r1, r2, r3, r4 = p[_tri(i, 0)], p[_tri(i, 1)], p[_tri(i, 2)], p[_tri(i, 3)], p[_tri(i, 4)]
+    k0 = r0 * inv
+    k1 = r1 * inv
+    k2 = r2 * inv
+    k3 = r3 * inv
+    k4 = r4 * inv
     if pr[PR_TRACE] != 0.0:  # the re-dating's detection-free filter keeps the update
         u = UREC if i == 0 else UREC + NUR
         st[u] = 1.0
@@ -322,12 +349,12 @@ def _update(st, pr, i, y, R):
     st[X + 3] += k3 * e
     st[X + 4] += k4 * e
     # P <- P - K P[i, :] with K = P[:, i]/S: P is symmetric, so row i is column i and the gain
-    # k_a = r_a / S; on the upper triangle alone (15 products, not 25; the lower is never read:
-    # every reader of P goes through _pu)
-    for a_ in range(5):
-        ka = r[a_] * inv
-        for b_ in range(a_, 5):
-            st[P + 5 * a_ + b_] -= ka * r[b_]
+    # k_a = r_a / S; on the upper triangle alone (15 products, not 25)
+    return (p[0] - k0 * r0, p[1] - k0 * r1, p[2] - k0 * r2, p[3] - k0 * r3, p[4] - k0 * r4,
+            p[5] - k1 * r1, p[6] - k1 * r2, p[7] - k1 * r3, p[8] - k1 * r4,
+            p[9] - k2 * r2, p[10] - k2 * r3, p[11] - k2 * r4,
+            p[12] - k3 * r3, p[13] - k3 * r4,
+            p[14] - k4 * r4)
 
 
 @_inline
@@ -1081,7 +1108,10 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             st[CONTACT] = 0.0
             st[X + 2] = st[B]
             _cusums_reset(st, t)
-        if (fresh & 1) != 0 and math.isfinite(T_w):
+        upd_w = (fresh & 1) != 0 and math.isfinite(T_w)
+        upd_p = (fresh & 2) != 0 and math.isfinite(T_p)
+        p = _p_get(st)
+        if upd_w:
             y = T_w
             nph = int(pr[PR_NPH])
             if nph > 0:
@@ -1093,7 +1123,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                 if st[MODE] != INCONTACT:
                     st[j] = c + pr[PR_APH] * (T_w - st[X] - c)
                 y = T_w - c
-            _update(st, pr, 0, y, R)
+            p = _update(st, pr, 0, y, R, p)
             st[GAPRUN] = 0.0
             dt = t - st[TLW]
             if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is
@@ -1103,8 +1133,10 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             st[TLW] = t
         else:
             st[GAPRUN] += 1.0
-        if (fresh & 2) != 0 and math.isfinite(T_p):
-            _update(st, pr, 3, T_p, R)
+        if upd_p:
+            p = _update(st, pr, 3, T_p, R, p)
+        if upd_w or upd_p:
+            _p_put(st, p)
     if iv_old >= 0:
         _switch_correction(st, pr, Rw, iv_old, iv, SWA)
     st[Q] = st[X + 2]
