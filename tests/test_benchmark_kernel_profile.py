@@ -1,0 +1,67 @@
+"""``benchmarks/kernel_profile.py``'s reading of callgrind's counts and of the listing (the
+valgrind run itself is the script's, not the suite's)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def kp():  # type: ignore[no-untyped-def]
+    spec = importlib.util.spec_from_file_location("kernel_profile", ROOT / "benchmarks" / "kernel_profile.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.parametrize(("ins", "expect"), [
+    ("vmovsd %xmm1,0xb0(%rsp)", {"stores", "stack_stores"}),
+    ("vmovsd 0x10(%rsp),%xmm7", {"loads", "stack_loads"}),
+    ("vmovsd 0x2b8(%r12),%xmm2", {"loads"}),
+    ("movq   $0x0,0x530(%rdx,%rcx,8)", {"stores"}),
+    ("add    %rax,0x140(%rsp)", {"loads", "stores", "stack_loads", "stack_stores"}),
+    ("cmpq   $0x0,0x70(%rsp)", {"loads", "stack_loads"}),
+    ("vfmadd231sd 0x140(%rsi),%xmm3,%xmm2", {"loads"}),
+    ("lea    0x260(%r12),%rax", set()),
+    ("nopw   0x0(%rax,%rax,1)", set()),
+    ("vdivsd %xmm4,%xmm3,%xmm4", {"divisions"}),
+    ("vsqrtsd %xmm1,%xmm1,%xmm3", {"square_roots"}),
+    ("jae    3138", set()),
+])
+def test_each_instruction_is_classified(kp, ins: str, expect: set[str]) -> None:  # type: ignore[no-untyped-def]
+    """Loads, stores (AT&T order: the destination last), the stack's apart, on hand-picked
+    instructions of the kernel's listing."""
+    got = {k for k, v in kp.classify(ins).items() if v}
+    assert got == expect
+
+
+def test_costs_reads_the_hottest_function_relative_to_its_page(kp, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """A callgrind file in its compressed form (absolute, +relative and * positions; a call's
+    inclusive cost line skipped): the hottest function's own counts, by offset from its page."""
+    f = tmp_path / "cg.out"
+    f.write_text("""# callgrind format
+positions: instr line
+events: Ir Bc Bcm
+
+ob=(1) /usr/bin/python
+fn=(1) main
+0x401000 0 5
+cfn=(2)
+calls=1 0x7f0000001000 0
+* 0 1000 40 3
+
+ob=(2) ???
+fn=(2) 0x7f0000001000
+0x7f0000001000 0 100
++4 0 100 100 7
+* 0 20
++8 0 300
+""")
+    c = kp.costs(str(f))
+    assert c == {0x0: [100, 0, 0], 0x4: [120, 100, 7], 0xC: [300, 0, 0]}
