@@ -35,38 +35,13 @@ import subprocess
 import sys
 import tempfile
 
-#: the child: ``n`` idle patches, ``warm`` ticks then ``ticks`` timed ones; prints ns a patch-sample
-CHILD = """
-import sys, time
-import numpy as np
-from thermoskin.estimation import kernel as K
-from thermoskin.params import load_config
-from thermoskin.patches import PatchEstimators
-
-n, warm, ticks = (int(x) for x in sys.argv[1:4])
-pe = PatchEstimators(load_config(), n=n, parallel=True)
-rng = np.random.default_rng(0)
-m = warm + ticks
-T_w = 30.0 + rng.normal(0.0, 0.01, (m, n))
-T_p = 30.5 + rng.normal(0.0, 0.01, (m, n))
-T_a = 22.0 + rng.normal(0.0, 0.01, (m, n))
-iv = pe.index(np.full(n, pe.v_values[1]))
-cmd, drive = np.full(n, np.nan), np.full(n, np.nan)
-fresh = np.full(n, 7, dtype=np.int64)
-t0 = 0
-for k in range(m):
-    if k == warm:
-        t0 = time.perf_counter_ns()
-    pe.tick(k * 1e-3, T_w[k], T_p[k], T_a[k], cmd, iv, drive, fresh)
-dt = time.perf_counter_ns() - t0
-idle = int((pe.ST[:, K.MODE] == K.IDLE).sum())
-print(f"{dt / max(ticks * n, 1):.3f} {idle}")
-"""
+from _idle_patches import CHILD  # idle patches stepped by the kernel, timed
 
 
 def native(args: list[str], env: dict[str, str]) -> str:
     """The child's output, run natively; a failure ends the script with its last words."""
-    r = subprocess.run([sys.executable, "-c", CHILD, *args], capture_output=True, text=True, env=env)
+    r = subprocess.run([sys.executable, "-c", CHILD, *args, "parallel"], capture_output=True, text=True,
+                       env=env)
     if r.returncode:
         raise SystemExit(f"the child failed ({r.returncode}): {r.stderr.strip()[-400:]}")
     return r.stdout
@@ -98,7 +73,7 @@ def main() -> None:
             print("counting under valgrind ...", file=sys.stderr)
         sim = ["--branch-sim=yes"] if a.branches else []
         procs = [subprocess.Popen(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", *sim,
-                                   sys.executable, "-c", CHILD, str(a.n), str(a.warm), str(t)],
+                                   sys.executable, "-c", CHILD, str(a.n), str(a.warm), str(t), "parallel"],
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
                  for t in (lo, hi)]
         counts, idle = [], []
@@ -110,7 +85,7 @@ def main() -> None:
                 raise SystemExit(f"valgrind failed ({p.returncode}): {err.strip()[-400:]}")
             counts.append([int(x) for x in m.group(1).split()])
             idle.append(int(out.split()[1]))
-    per_ev = [(y - x) / ((hi - lo) * a.n) for x, y in zip(counts[0], counts[1])]
+    per_ev = [(y - x) / ((hi - lo) * a.n) for x, y in zip(counts[0], counts[1], strict=True)]
     per = per_ev[0]
     ns_med = sorted(ns)[len(ns) // 2]
     res = {"n": a.n, "ticks": [lo, hi], "cpu": a.cpu, "idle_patches": min(idle),

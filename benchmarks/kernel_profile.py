@@ -34,32 +34,7 @@ import sys
 import tempfile
 from collections import defaultdict
 
-#: the child: ``n`` idle patches stepped by the serial kernel, ``warm`` ticks then ``ticks``
-#: more; with a path, writes the compiled object there (only where it was compiled, not loaded)
-CHILD = """
-import sys
-import numpy as np
-from thermoskin.estimation import kernel as K
-from thermoskin.params import load_config
-from thermoskin.patches import PatchEstimators
-
-n, warm, ticks = (int(x) for x in sys.argv[1:4])
-pe = PatchEstimators(load_config(), n=n, parallel=False)
-rng = np.random.default_rng(0)
-m = warm + ticks
-T_w = 30.0 + rng.normal(0.0, 0.01, (m, n))
-T_p = 30.5 + rng.normal(0.0, 0.01, (m, n))
-T_a = 22.0 + rng.normal(0.0, 0.01, (m, n))
-iv = pe.index(np.full(n, pe.v_values[1]))
-cmd, drive = np.full(n, np.nan), np.full(n, np.nan)
-fresh = np.full(n, 7, dtype=np.int64)
-for k in range(m):
-    pe.tick(k * 1e-3, T_w[k], T_p[k], T_a[k], cmd, iv, drive, fresh)
-if len(sys.argv) > 4:
-    cres = K.step_many.overloads[K.step_many.signatures[0]]
-    open(sys.argv[4], "wb").write(cres.library._get_compiled_object())
-print(int((pe.ST[:, K.MODE] == K.IDLE).sum()))
-"""
+from _idle_patches import CHILD  # idle patches stepped by the kernel; writes its object
 
 EVENTS = ("Ir", "Bc", "Bcm")
 _FILE_KEYS = ("ob", "fn", "fl", "fi", "fe", "cob", "cfi", "cfn", "calls")
@@ -147,7 +122,7 @@ def main() -> None:
         obj = os.path.join(tmp, "kernel.o")
         if not a.json:
             print(f"compiling for {a.cpu} ...", file=sys.stderr)
-        r = subprocess.run([sys.executable, "-c", CHILD, "4", "10", "10", obj], capture_output=True,
+        r = subprocess.run([sys.executable, "-c", CHILD, "4", "10", "10", "serial", obj], capture_output=True,
                            text=True, env=env)
         if r.returncode or not os.path.getsize(obj):
             raise SystemExit(f"the child failed ({r.returncode}): {r.stderr.strip()[-400:]}")
@@ -156,7 +131,7 @@ def main() -> None:
         outs = [os.path.join(tmp, f"cg.{t}") for t in (lo, hi)]
         procs = [subprocess.Popen(["valgrind", "--tool=callgrind", "--dump-instr=yes", "--branch-sim=yes",
                                    f"--callgrind-out-file={out}", sys.executable, "-c", CHILD,
-                                   str(a.n), str(a.warm), str(t)],
+                                   str(a.n), str(a.warm), str(t), "serial"],
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
                  for t, out in zip((lo, hi), outs, strict=True)]
         idle = []
@@ -164,7 +139,7 @@ def main() -> None:
             out, err = p.communicate()
             if p.returncode:
                 raise SystemExit(f"valgrind failed ({p.returncode}): {err.strip()[-400:]}")
-            idle.append(int(out.split()[-1]))
+            idle.append(int(out.split()[1]))
         c_lo, c_hi = costs(outs[0]), costs(outs[1])
         rows = listing(obj)
     per = (hi - lo) * a.n
