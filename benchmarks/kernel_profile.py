@@ -42,11 +42,27 @@ _FILE_KEYS = ("ob", "fn", "fl", "fi", "fe", "cob", "cfi", "cfn", "calls")
 
 def costs(path: str) -> dict[int, list[int]]:
     """Instruction address -> (executed, conditional branches, mispredicted) of the hottest
-    function of a callgrind output (the kernel: compiled code valgrind has no name for)."""
+    function of a callgrind output (the kernel: compiled code valgrind has no name for). The
+    columns are found from the file's ``positions:`` and ``events:`` lines (a ``~/.valgrindrc``
+    may add others)."""
     by_fn: dict[str, dict[int, list[int]]] = defaultdict(lambda: defaultdict(lambda: [0, 0, 0]))
     fn, last, after_call = "", 0, False
+    npos, cols = 0, None
     with open(path) as f:
         for line in f:
+            if line.startswith("positions:"):
+                pos_names = line.split(":", 1)[1].split()
+                if not pos_names or pos_names[0] != "instr":
+                    raise SystemExit(f"{path}: positions {pos_names}, not by instruction (--dump-instr=yes)")
+                npos = len(pos_names)
+                continue
+            if line.startswith("events:"):
+                names = line.split(":", 1)[1].split()
+                missing = [e for e in EVENTS if e not in names]
+                if missing:
+                    raise SystemExit(f"{path}: no {', '.join(missing)} among its events {names}")
+                cols = [names.index(e) for e in EVENTS]
+                continue
             key = line.split("=", 1)[0]
             if "=" in line and key in _FILE_KEYS:
                 if key == "fn":
@@ -55,16 +71,21 @@ def costs(path: str) -> dict[int, list[int]]:
                 continue
             if not line.strip() or line[0] not in "0123456789+-*":
                 continue
+            if cols is None:
+                raise SystemExit(f"{path}: costs before its events: line")
             parts = line.split()
             pos = parts[0]
-            last = (int(pos, 16) if pos.startswith("0x") else last + int(pos) if pos[0] in "+-"
+            here = (int(pos, 16) if pos.startswith("0x") else last + int(pos) if pos[0] in "+-"
                     else last if pos == "*" else int(pos))
             if after_call:  # the call's inclusive cost, not this function's own
                 after_call = False
                 continue
+            last = here
+            vals = parts[npos:]
             c = by_fn[fn][last]
-            for i, v in enumerate(parts[2:2 + len(EVENTS)]):
-                c[i] += int(v)
+            for i, j in enumerate(cols):
+                if j < len(vals):  # trailing zero costs are left out
+                    c[i] += int(vals[j])
     hot = max(by_fn.values(), key=lambda d: sum(c[0] for c in d.values()))
     base = min(hot) & ~0xFFF  # the object's code section starts on a page of its own
     return {a - base: c for a, c in hot.items()}
@@ -87,15 +108,23 @@ def listing(obj: str) -> list[tuple[int, str]]:
     return rows
 
 
+#: instruction prefixes (padding, locks, repeats): the operation is the word after them
+_PREFIXES = {"data16", "cs", "ds", "es", "ss", "lock", "rep", "repz", "repnz", "repe", "repne", "notrack"}
+
+
 def classify(ins: str) -> dict[str, bool]:
     """What one instruction does: reads or writes memory (on the stack or not), divides, takes
     a square root. (``lea`` computes an address and a ``nop`` or a prefetch reads nothing.)"""
-    op, _, args = ins.partition(" ")
-    args = args.strip()
+    words = ins.split()
+    while words and words[0] in _PREFIXES:
+        words = words[1:]
+    op = words[0] if words else ""
+    args = " ".join(words[1:])
     mem = [] if op.startswith(("lea", "nop", "prefetch")) else re.findall(r"\((%\w+)[^)]*\)", args)
-    # AT&T order: the destination last; a move, or an add or a subtract, to memory writes it
-    store = bool(mem) and args.endswith(")") and op.startswith(("mov", "vmov", "add", "sub"))
-    load = bool(mem) and not (store and op.startswith(("mov", "vmov")))
+    # AT&T order: the destination last; a move (masked too), or an add or a subtract, to
+    # memory writes it
+    store = bool(mem) and args.endswith(")") and op.startswith(("mov", "vmov", "vmaskmov", "add", "sub"))
+    load = bool(mem) and not (store and op.startswith(("mov", "vmov", "vmaskmov")))
     stack = bool(mem) and mem[-1 if store else 0] == "%rsp"
     return {"loads": load, "stores": store, "stack_loads": load and stack,
             "stack_stores": store and stack, "divisions": "div" in op, "square_roots": "sqrt" in op}

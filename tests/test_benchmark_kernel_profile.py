@@ -39,6 +39,9 @@ def kp():  # type: ignore[no-untyped-def]
     ("vdivsd %xmm4,%xmm3,%xmm4", {"divisions"}),
     ("vsqrtsd %xmm1,%xmm1,%xmm3", {"square_roots"}),
     ("jae    3138", set()),
+    ("vmaskmovpd %ymm3,%ymm0,0x420(%r14)", {"stores"}),
+    ("vmaskmovpd 0x420(%r14),%ymm0,%ymm3", {"loads"}),
+    ("data16 cs nopw 0x0(%rax,%rax,1)", set()),
 ])
 def test_each_instruction_is_classified(kp, ins: str, expect: set[str]) -> None:  # type: ignore[no-untyped-def]
     """Loads, stores (AT&T order: the destination last), the stack's apart, on hand-picked
@@ -71,3 +74,21 @@ fn=(2) 0x7f0000001000
 """)
     c = kp.costs(str(f))
     assert c == {0x0: [100, 0, 0], 0x4: [120, 100, 7], 0xC: [300, 0, 0]}
+
+
+def test_costs_finds_its_columns_by_name(kp, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """Other events (a ~/.valgrindrc's cache simulation) and another order: the columns are
+    taken by their names; a file without the branch events is refused."""
+    f = tmp_path / "cg.out"
+    f.write_text("""positions: instr line
+events: Ir Dr Bc Bcm Dw
+
+fn=(2) 0x7f0000001000
+0x7f0000001000 0 10 99 4 1 98
++2 0 5
+""")
+    assert kp.costs(str(f)) == {0x0: [10, 4, 1], 0x2: [5, 0, 0]}
+    g = tmp_path / "nobranch.out"
+    g.write_text("positions: instr line\nevents: Ir\nfn=(1) x\n0x1000 0 3\n")
+    with pytest.raises(SystemExit, match="Bc"):
+        kp.costs(str(g))
