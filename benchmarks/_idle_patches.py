@@ -6,7 +6,15 @@ warm-up: 1000), then ``TICKS`` timed ones, by ``step_many_parallel`` (``parallel
 ``step_many`` (``serial``); prints the timed ticks' ns a patch-sample and the idle patches'
 count. With ``OBJECT``, the serial kernel's compiled object is written there (only where it
 was compiled in this process, not loaded from numba's cache).
+
+Also the two scripts' common options (:func:`child_options`, :func:`tick_counts`) and the
+child's environment (:func:`child_env`).
 """
+
+from __future__ import annotations
+
+import argparse
+import os
 
 CHILD = """
 import sys, time
@@ -37,3 +45,28 @@ if len(sys.argv) > 5:
 idle = int((pe.ST[:, K.MODE] == K.IDLE).sum())
 print(f"{dt / max(ticks * n, 1):.3f} {idle}")
 """
+
+
+def child_options(ap: argparse.ArgumentParser, n: int, ticks: str) -> None:
+    """``--n``, ``--ticks``, ``--warm`` and ``--cpu``, with these defaults for the first two."""
+    ap.add_argument("--n", type=int, default=n, help="patches")
+    ap.add_argument("--ticks", default=ticks, help="the two tick counts counted (after the warm-up)")
+    ap.add_argument("--warm", type=int, default=1100, help="ticks before them (the detector's warm-up: 1000)")
+    ap.add_argument("--cpu", default="x86-64-v3", help="the CPU numba compiles for (valgrind: no AVX-512)")
+
+
+def tick_counts(text: str) -> tuple[int, int]:
+    """``--ticks LO,HI``: two counts, the first smaller; the script ends otherwise."""
+    try:
+        lo, hi = (int(x) for x in text.split(","))
+    except ValueError:
+        raise SystemExit(f"--ticks {text}: two whole numbers, LO,HI") from None
+    if not 0 < lo < hi:
+        raise SystemExit(f"--ticks {text}: two counts, the first smaller")
+    return lo, hi
+
+
+def child_env(cache: str, cpu: str, **more: str) -> dict[str, str]:
+    """The child's environment: numba's cache in ``cache``, compiled for ``cpu`` alone."""
+    return {**os.environ, "NUMBA_CACHE_DIR": cache, "NUMBA_CPU_NAME": cpu, "NUMBA_CPU_FEATURES": "",
+            **more}

@@ -28,14 +28,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import shutil
 import subprocess
 import sys
 import tempfile
 
-from _idle_patches import CHILD  # idle patches stepped by the kernel, timed
+from _idle_patches import CHILD, child_env, child_options, tick_counts  # idle patches, timed
 
 
 def native(args: list[str], env: dict[str, str]) -> str:
@@ -49,22 +48,16 @@ def native(args: list[str], env: dict[str, str]) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=500, help="patches")
-    ap.add_argument("--ticks", default="200,1200", help="the two tick counts counted (after the warm-up)")
-    ap.add_argument("--warm", type=int, default=1100, help="ticks before them (the detector's warm-up: 1000)")
-    ap.add_argument("--cpu", default="x86-64-v3", help="the CPU numba compiles for (valgrind: no AVX-512)")
+    child_options(ap, n=500, ticks="200,1200")
     ap.add_argument("--branches", action="store_true",
                     help="also count conditional branches and valgrind's mispredictions of them")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
     if shutil.which("valgrind") is None:
         raise SystemExit("kernel_instructions.py: needs valgrind on the PATH")
-    lo, hi = (int(x) for x in a.ticks.split(","))
-    if not 0 < lo < hi:
-        raise SystemExit(f"--ticks {a.ticks}: two counts, the first smaller")
+    lo, hi = tick_counts(a.ticks)
     with tempfile.TemporaryDirectory(prefix="kernel_instructions_") as cache:
-        env = {**os.environ, "NUMBA_CACHE_DIR": cache, "NUMBA_CPU_NAME": a.cpu, "NUMBA_CPU_FEATURES": "",
-               "NUMBA_NUM_THREADS": "1"}
+        env = child_env(cache, a.cpu, NUMBA_NUM_THREADS="1")
         if not a.json:
             print(f"compiling for {a.cpu} ...", file=sys.stderr)
         native([str(a.n), str(a.warm), "10"], env)  # fills the cache

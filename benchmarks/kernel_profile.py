@@ -34,7 +34,7 @@ import sys
 import tempfile
 from collections import defaultdict
 
-from _idle_patches import CHILD  # idle patches stepped by the kernel; writes its object
+from _idle_patches import CHILD, child_env, child_options, tick_counts  # idle patches; the object
 
 EVENTS = ("Ir", "Bc", "Bcm")
 _FILE_KEYS = ("ob", "fn", "fl", "fi", "fe", "cob", "cfi", "cfn", "calls")
@@ -132,22 +132,16 @@ def classify(ins: str) -> dict[str, bool]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=200, help="patches")
-    ap.add_argument("--ticks", default="100,400", help="the two tick counts counted (after the warm-up)")
-    ap.add_argument("--warm", type=int, default=1100, help="ticks before them (the detector's warm-up: 1000)")
-    ap.add_argument("--cpu", default="x86-64-v3", help="the CPU numba compiles for (valgrind: no AVX-512)")
+    child_options(ap, n=200, ticks="100,400")
     ap.add_argument("--listing", default=None, metavar="FILE", help="write the annotated listing here")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
     for tool in ("valgrind", "objdump"):
         if shutil.which(tool) is None:
             raise SystemExit(f"kernel_profile.py: needs {tool} on the PATH")
-    lo, hi = (int(x) for x in a.ticks.split(","))
-    if not 0 < lo < hi:
-        raise SystemExit(f"--ticks {a.ticks}: two counts, the first smaller")
+    lo, hi = tick_counts(a.ticks)
     with tempfile.TemporaryDirectory(prefix="kernel_profile_") as tmp:
-        env = {**os.environ, "NUMBA_CACHE_DIR": os.path.join(tmp, "cache"), "NUMBA_CPU_NAME": a.cpu,
-               "NUMBA_CPU_FEATURES": ""}
+        env = child_env(os.path.join(tmp, "cache"), a.cpu)
         obj = os.path.join(tmp, "kernel.o")
         if not a.json:
             print(f"compiling for {a.cpu} ...", file=sys.stderr)

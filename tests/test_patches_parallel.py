@@ -93,73 +93,78 @@ def test_parallel_kernel_steps_each_patch_as_the_serial_one() -> None:
     assert (ended[1::3] >= 1).all() and (ended[2::3] >= 1).all() and (ended[::3] == 0).all()
 
 
-@pytest.mark.parametrize("parallel", [False, True])
-def test_patches_of_two_models_each_step_with_their_own(parallel: bool) -> None:
-    """Patches of two models (a sheet half as thick, another detector design), in runs of
-    eight, so that the model changes within a claimed chunk (of 16) and at the chunks'
-    boundaries: the loops
-    take a model's rows again only where it changes, so each patch must still be stepped with
-    its own. Every patch's state equals, bit for bit, that of the same patch among patches
-    of its model alone, stepped on the same readings."""
+def _two_models(n: int, n_s: int, seed: int):  # type: ignore[no-untyped-def]
+    """Two models (the default; a sheet half as thick and another detector design), a
+    one-finger log of ``n_s`` samples, and each of ``n`` patches its own noise on its T_w."""
     import dataclasses
 
     from thermoskin.params import load_config
-    from thermoskin.patches import PatchEstimators
     from thermoskin.sim.run import simulate
     from thermoskin.sim.scenarios import SCENARIOS
 
     a = load_config()
     b = dataclasses.replace(a, skin=dataclasses.replace(a.skin, C_g=0.5 * a.skin.C_g),
                             detector=dataclasses.replace(a.detector, dq_design=2.0 * a.detector.dq_design))
-    n, n_s = 70, 3000
-    cfgs = [b if (i // 8) % 2 else a for i in range(n)]
     log = simulate(SCENARIOS["one-finger"].with_duration(n_s * a.sampling.t_s + 0.5), a)
-    rng = np.random.default_rng(11)
+    rng = np.random.default_rng(seed)
     T_w = log["T_w"][:n_s, None] + rng.normal(0.0, 0.005, (n_s, n))
-    mixed = PatchEstimators(cfgs, parallel=parallel)
-    assert len(mixed.PR) == 2 and not np.array_equal(mixed._tabs[0][0], mixed._tabs[0][1])
-    alone = {c: PatchEstimators(c, n=n, parallel=False) for c in (a, b)}
+    return a, b, log, T_w, rng
+
+
+def _assert_each_as_alone(mixed, cfgs, log, T_w, step_mixed=None) -> None:  # type: ignore[no-untyped-def]
+    """Patches of each model alone (one estimator a model, every patch of it), stepped a sample
+    at a time on the same readings (and ``step_mixed(k, rest, v)`` with them): each patch of
+    ``mixed`` equals the same patch among its model's alone, bit for bit."""
+    from thermoskin.patches import PatchEstimators
+
+    n, n_s = T_w.shape[1], T_w.shape[0]
+    t_s = cfgs[0].sampling.t_s
+    alone = {c: PatchEstimators(c, n=n, parallel=False) for c in set(cfgs)}
     nan, fresh = np.full(n, np.nan), np.full(n, 7, dtype=np.int64)
     for k in range(n_s):
-        t = k * a.sampling.t_s
         rest = (T_w[k], np.full(n, log["T_p"][k]), np.full(n, log["T_a"][k]), nan)
         v = np.full(n, log["v"][k])
-        mixed.tick(t, *rest, mixed.index(v), nan, fresh)
+        if step_mixed is not None:
+            step_mixed(k * t_s, rest, v)
         for est in alone.values():
-            est.tick(t, *rest, est.index(v), nan, fresh)
+            est.tick(k * t_s, *rest, est.index(v), nan, fresh)
     for i, c in enumerate(cfgs):
         np.testing.assert_array_equal(mixed.ST[i], alone[c].ST[i], err_msg=f"patch {i}")
-    assert not np.array_equal(alone[a].ST[0], alone[b].ST[0])
+    first = [alone[c].ST[0] for c in alone]
+    assert not np.array_equal(first[0], first[1])  # the two models do differ
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_patches_of_two_models_each_step_with_their_own(parallel: bool) -> None:
+    """Patches of two models, in runs of eight, so that the model changes within a claimed
+    chunk (of 16) and at the chunks' boundaries: the loops take a model's rows again only where
+    it changes, so each patch must still be stepped with its own. Every patch's state equals,
+    bit for bit, that of the same patch among patches of its model alone, stepped on the same
+    readings."""
+    from thermoskin.patches import PatchEstimators
+
+    n, n_s = 70, 3000
+    a, b, log, T_w, _ = _two_models(n, n_s, seed=11)
+    cfgs = [b if (i // 8) % 2 else a for i in range(n)]
+    mixed = PatchEstimators(cfgs, parallel=parallel)
+    assert len(mixed.PR) == 2 and not np.array_equal(mixed._tabs[0][0], mixed._tabs[0][1])
+    nan, fresh = np.full(n, np.nan), np.full(n, 7, dtype=np.int64)
+    _assert_each_as_alone(mixed, cfgs, log, T_w,
+                          lambda t, rest, v: mixed.tick(t, *rest, mixed.index(v), nan, fresh))
 
 
 def test_rows_of_two_models_in_any_order_each_step_with_their_own() -> None:
     """``run_rows`` (a long-format log: one row a patch and sample) with patches of two models,
     the patches' order within each sample shuffled: each patch's state equals, bit for bit, the
     same patch's among patches of its model alone, stepped a sample at a time."""
-    import dataclasses
-
-    from thermoskin.params import load_config
     from thermoskin.patches import PatchEstimators
-    from thermoskin.sim.run import simulate
-    from thermoskin.sim.scenarios import SCENARIOS
 
-    a = load_config()
-    b = dataclasses.replace(a, skin=dataclasses.replace(a.skin, C_g=0.5 * a.skin.C_g))
     n, n_s = 6, 2500
+    a, b, log, T_w, rng = _two_models(n, n_s, seed=5)
     cfgs = [a, b, b, a, b, a]
-    log = simulate(SCENARIOS["one-finger"].with_duration(n_s * a.sampling.t_s + 0.5), a)
-    rng = np.random.default_rng(5)
-    T_w = log["T_w"][:n_s, None] + rng.normal(0.0, 0.005, (n_s, n))
     order = np.concatenate([rng.permutation(n) for _ in range(n_s)])
     k = np.repeat(np.arange(n_s), n)
     mixed = PatchEstimators(cfgs, parallel=False)
     mixed.run_rows(order, k * a.sampling.t_s, T_w[k, order], log["T_p"][:n_s][k], log["v"][:n_s][k],
                    log["T_a"][:n_s][k])
-    alone = {c: PatchEstimators(c, n=n, parallel=False) for c in (a, b)}
-    nan, fresh = np.full(n, np.nan), np.full(n, 7, dtype=np.int64)
-    for j in range(n_s):
-        rest = (T_w[j], np.full(n, log["T_p"][j]), np.full(n, log["T_a"][j]), nan)
-        for est in alone.values():
-            est.tick(j * a.sampling.t_s, *rest, est.index(np.full(n, log["v"][j])), nan, fresh)
-    for i, c in enumerate(cfgs):
-        np.testing.assert_array_equal(mixed.ST[i], alone[c].ST[i], err_msg=f"patch {i}")
+    _assert_each_as_alone(mixed, cfgs, log, T_w)

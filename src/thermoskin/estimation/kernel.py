@@ -56,7 +56,7 @@ from thermoskin.events import (  # the event record's layout
 
 # ---------------------------------------------------------------- state layout (one patch)
 X = 0          # x: T_w, T_g, q_i, T_p, dT_p (5)
-P = 5          # P: 5 x 5, row-major (25); symmetric, its upper triangle alone kept (_pu)
+P = 5          # P: 5 x 5, row-major (25); symmetric, its upper triangle alone kept (_p_get)
 XA = 30        # x_a: T_a, T_as (2)
 PA = 32        # P_a: 2 x 2 (4)
 READY = 36     # 1 once the filter is initialised
@@ -254,13 +254,6 @@ def new_state() -> np.ndarray:
 
 
 @_inline
-def _pu(a, b):
-    """Offset of ``P[a, b]`` in the state: its upper triangle's entry (``P`` is symmetric; only
-    that triangle is kept up to date, 15 stores instead of 25 at each update and prediction)."""
-    return P + 5 * a + b if a <= b else P + 5 * b + a
-
-
-@_inline
 def _tri(a, b):
     """Index of ``P[a, b]`` in a covariance held as a tuple of its upper triangle's 15 entries
     (row by row: ``P00 P01 P02 P03 P04 P11 P12 ... P44``), :func:`_p_get`."""
@@ -270,7 +263,9 @@ def _tri(a, b):
 
 @_inline
 def _p_get(st):
-    """The covariance's upper triangle from the state, as a tuple (:func:`_tri`)."""
+    """The covariance's upper triangle from the state, as a tuple (:func:`_tri`). ``P`` is
+    symmetric, and only this triangle is kept up to date (15 stores instead of 25 at each update
+    and prediction); nothing reads the lower one."""
     return (st[P], st[P + 1], st[P + 2], st[P + 3], st[P + 4], st[P + 6], st[P + 7], st[P + 8],
             st[P + 9], st[P + 12], st[P + 13], st[P + 14], st[P + 18], st[P + 19], st[P + 24])
 
@@ -364,7 +359,7 @@ def _predict(st, F, G, QQ, u, w):
     ``q_i`` and ``r_p`` are random walks: their rows of ``Phi`` are unit rows and of
     ``Gamma`` zero (:func:`thermoskin.estimation.model.build_tables` makes them exactly so),
     which this uses (rows 0, 1 and 3 of ``Phi`` only), with ``P`` symmetric: the 15 distinct
-    entries are read and written, in its upper triangle (:func:`_pu`).
+    entries are read and written, in its upper triangle (:func:`_p_get`).
     """
     x0, x1, x2, x3, x4 = st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4]
     a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
@@ -936,7 +931,7 @@ def _detect(st, pr, t, ev):
                 for a_ in range(5):
                     ua = jump * mu[a_]
                     st[X + a_] += ua
-                    for b_ in range(a_, 5):  # P's upper triangle (_pu)
+                    for b_ in range(a_, 5):  # P's upper triangle (_p_get)
                         st[P + 5 * a_ + b_] += 0.25 * ua * jump * mu[b_]
             else:
                 st[X + 2] += jump
@@ -1110,6 +1105,8 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             _cusums_reset(st, t)
         upd_w = (fresh & 1) != 0 and math.isfinite(T_w)
         upd_p = (fresh & 2) != 0 and math.isfinite(T_p)
+        # read whether or not a reading comes (read only where one does, the fresh sample's
+        # code spilled more: 1000 patches on one core 1.0-1.025x, 1461 instructions against 1420)
         p = _p_get(st)
         if upd_w:
             y = T_w
