@@ -21,7 +21,7 @@ import sys, time
 import numpy as np
 from thermoskin.estimation import kernel as K
 from thermoskin.params import load_config
-from thermoskin.patches import PatchEstimators
+from thermoskin.estimation.patches import PatchEstimators
 
 n, warm, ticks = (int(x) for x in sys.argv[1:4])
 pe = PatchEstimators(load_config(), n=n, parallel=sys.argv[4] == "parallel")

@@ -1,4 +1,4 @@
-"""Recovery, interval coverage and time of ``thermoskin.calibrate`` on simulated logs.
+"""Recovery, interval coverage and time of ``thermoskin.fit.calibrate`` on simulated logs.
 
 The skin is not the preset (C_w 0.2, R_g 8, R_ag 1.3, R_w_flowing 0.25, R_w_stopped 40);
 the fit starts from the preset with the true ``C_w`` (the heat scale, which no log fixes).
@@ -25,7 +25,7 @@ import time
 
 import numpy as np
 
-from thermoskin.calibrate import calibrate
+from thermoskin.fit.calibrate import calibrate
 from thermoskin.params import Config
 from thermoskin.physics.finger import Touch
 from thermoskin.sim.run import simulate

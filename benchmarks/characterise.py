@@ -40,13 +40,13 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.characterise import Characteriser
+from thermoskin.analysis.evaluation import match_events
 from thermoskin.control.probe import SetpointProbe
-from thermoskin.evaluation import match_events
 from thermoskin.params import Config
 from thermoskin.physics import contact as ct
 from thermoskin.runtime.closed_loop import run_closed_loop
 from thermoskin.sim.scenarios import toucher_scenario
+from thermoskin.touch.characterise import Characteriser
 
 SEED0 = 13000
 SETTLE_S = 10.0

@@ -32,13 +32,13 @@ CHILD = """
 import sys, time
 import numpy as np
 from thermoskin.params import load_config
-from thermoskin.estimator import warm_up
+from thermoskin.estimation.estimator import warm_up
 cfg = load_config()
 t0 = time.perf_counter()
 warm_up(cfg)
 out = [time.perf_counter() - t0]
 if sys.argv[1] == "1":
-    from thermoskin.patches import PatchEstimators
+    from thermoskin.estimation.patches import PatchEstimators
     n = 200
     pe = PatchEstimators(cfg, n=n, parallel=True)
     x = np.full(n, 24.0)

@@ -49,11 +49,11 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.estimation.freshness import infer_fresh
+from thermoskin.analysis.observe import observe
+from thermoskin.estimation.freshness import infer_fresh, loop_t_s, sample_interval
 from thermoskin.estimation.model import I_Q
 from thermoskin.estimation.reference import ReferenceEstimator
 from thermoskin.params import Config, load_config
-from thermoskin.pipeline import loop_t_s, observe, sample_interval
 from thermoskin.sim.conditions import decimate, get_condition
 from thermoskin.sim.run import simulate
 

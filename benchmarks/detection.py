@@ -29,10 +29,10 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.evaluation import match_events
+from thermoskin.analysis.evaluation import match_events
+from thermoskin.analysis.observe import observe
 from thermoskin.params import Config, load_config
 from thermoskin.physics.finger import PERSONS, Touch
-from thermoskin.pipeline import observe
 from thermoskin.sim.conditions import CONDITIONS, decimate, finger_touch, get_condition, touch_train
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS, Scenario

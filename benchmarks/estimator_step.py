@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from thermoskin.estimator import TouchEstimator
+from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.params import load_config
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS

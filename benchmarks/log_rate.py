@@ -31,10 +31,10 @@ from typing import Any
 
 import numpy as np
 
+from thermoskin.analysis.evaluation import match_events
 from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.estimation.freshness import infer_fresh
-from thermoskin.estimator import TouchEstimator
-from thermoskin.evaluation import match_events
 from thermoskin.params import load_config
 from thermoskin.sim.conditions import decimate, get_condition
 from thermoskin.sim.run import simulate

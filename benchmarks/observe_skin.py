@@ -40,7 +40,7 @@ def main() -> None:
     a = ap.parse_args()
     folder = Path(a.dir) if a.dir else Path(tempfile.mkdtemp(prefix="observe_skin_"))
     folder.mkdir(parents=True, exist_ok=True)
-    from thermoskin.skin import load_skin
+    from thermoskin.skin.layout import load_skin
 
     skin = load_skin(SKIN)
     out: dict[str, object] = {"skin": SKIN.name, "format": a.format, "runs": a.runs, "lengths": []}

@@ -2,7 +2,7 @@
 
 N patches (each the paper's single patch with its own thermocouple noise: N copies of a
 simulated log with independent noise) are stepped one sample at a time by
-:class:`~thermoskin.patches.PatchEstimators` (one compiled loop over state rows).
+:class:`~thermoskin.estimation.patches.PatchEstimators` (one compiled loop over state rows).
 Prints one JSON line ``{"n", "p50_us", "p99_us", "max_abs_diff_W", ...}``: the tick time (µs,
 over many ticks after a warm-up) and the largest difference of ``dq_i_hat`` and ``q_i_hat``
 from stepping the plain-Python one-patch reference (``estimation/reference.py``) on the same
@@ -41,12 +41,12 @@ import numpy as np
 from _proc import check_package_dir
 
 from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation.patches import PatchEstimators
 from thermoskin.estimation.reference import ReferenceEstimator
 from thermoskin.params import load_config
-from thermoskin.patches import PatchEstimators
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS
-from thermoskin.skin_observe import SKIN_ONSET_STATE_JUMP
+from thermoskin.skin.observe import SKIN_ONSET_STATE_JUMP
 
 
 def main() -> None:

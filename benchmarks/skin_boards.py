@@ -25,15 +25,15 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.evaluation import match_events
+from thermoskin.analysis.evaluation import match_events
 from thermoskin.params import load_config
 from thermoskin.physics.finger import Touch
 from thermoskin.runtime.skin_loop import run_skin
 from thermoskin.sim.scenarios import Scenario
 from thermoskin.sim.skin_scenarios import SkinContact, SkinScenario
-from thermoskin.skin import load_skin
-from thermoskin.skin_log import read_skin_log
-from thermoskin.skin_observe import observe_skin
+from thermoskin.skin.layout import load_skin
+from thermoskin.skin.log import read_skin_log
+from thermoskin.skin.observe import observe_skin
 
 ROOT = Path(__file__).resolve().parents[1]
 TOUCHES = ((14.0, 1), (20.0, 2), (27.0, 1), (33.0, 3))

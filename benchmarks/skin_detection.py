@@ -33,12 +33,12 @@ from pathlib import Path
 
 import numpy as np
 
-from thermoskin import skin_observe
 from thermoskin.runtime.skin_loop import run_skin
 from thermoskin.sim.skin_scenarios import skin_scenario
-from thermoskin.skin import load_skin
-from thermoskin.skin_log import read_skin_log
-from thermoskin.skin_observe import observe_skin
+from thermoskin.skin import observe as skin_observe
+from thermoskin.skin.layout import load_skin
+from thermoskin.skin.log import read_skin_log
+from thermoskin.skin.observe import observe_skin
 
 ROOT = Path(__file__).resolve().parent.parent
 NEAR_S = 3.0

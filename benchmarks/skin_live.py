@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
+from thermoskin.live.skin_topics import SkinMessages
 from thermoskin.runtime.skin_loop import run_skin
-from thermoskin.runtime.skin_topics import SkinMessages
 from thermoskin.sim.skin_scenarios import skin_scenario
-from thermoskin.skin import load_skin
-from thermoskin.skin_observe import SkinEstimator
+from thermoskin.skin.layout import load_skin
+from thermoskin.skin.observe import SkinEstimator
 
 ROOT = Path(__file__).resolve().parents[1]
 

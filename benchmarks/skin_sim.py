@@ -25,7 +25,7 @@ import numpy as np
 
 from thermoskin.runtime.skin_loop import run_skin
 from thermoskin.sim.skin_scenarios import skin_scenario
-from thermoskin.skin import load_skin
+from thermoskin.skin.layout import load_skin
 
 ROOT = Path(__file__).resolve().parent.parent
 

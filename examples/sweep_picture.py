@@ -12,7 +12,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from thermoskin.sweep.plot import plot_results  # noqa: E402
+from thermoskin.plots.sweep import plot_results  # noqa: E402
 from thermoskin.sweep.run import run_sweep  # noqa: E402
 from thermoskin.sweep.spec import load_sweep  # noqa: E402
 

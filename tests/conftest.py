@@ -16,7 +16,7 @@ def compiled_estimator() -> None:
     and a test that a worker happens to run first would wait past its limits."""
     import numpy as np
 
-    from thermoskin.estimator import TouchEstimator, warm_up
+    from thermoskin.estimation.estimator import TouchEstimator, warm_up
     from thermoskin.params import load_config
 
     cfg = load_config()

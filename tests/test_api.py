@@ -39,7 +39,7 @@ def test_docs_examples_run() -> None:
 
 def test_no_public_name_hides_a_module() -> None:
     """A lazily exported name equal to a submodule's would replace ``thermoskin.<module>``
-    once used (``thermoskin.calibrate`` the function instead of the module)."""
+    once used (``thermoskin.fit.calibrate`` the function instead of the module)."""
     import pkgutil
 
     import thermoskin

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from thermoskin import calibrate as cal
 from thermoskin.cli import main
+from thermoskin.fit import calibrate as cal
 from thermoskin.logio import write_log
 from thermoskin.params import Config, load_config
 from thermoskin.physics.network import discretize, state_space

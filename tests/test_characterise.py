@@ -12,16 +12,16 @@ import numpy as np
 import pytest
 from scipy.special import erfc
 
-from thermoskin.characterise import (
+from thermoskin.estimation.events import EVENT_COLUMNS, ContactEvent, write_events
+from thermoskin.params import Config
+from thermoskin.physics import contact as ct
+from thermoskin.touch.characterise import (
     Characteriser,
     flux_kernel,
     no_touch_sheet,
     regressors,
     sheet_coupling,
 )
-from thermoskin.events import EVENT_COLUMNS, ContactEvent, write_events
-from thermoskin.params import Config
-from thermoskin.physics import contact as ct
 
 BONDED = Config().replace(skin={"R_g": 1.0, "R_ag": 10.0})
 """A sheet bonded to the pipe, insulated from the air: the pipe moves it by 10/11."""
@@ -156,10 +156,10 @@ def test_annotated_events_table(tmp_path: Path) -> None:
 
 
 def test_bins_are_the_means_of_their_samples_whatever_the_chunks() -> None:
-    """:class:`thermoskin.characterise.Bins`: each 50 ms bin is the mean of its finite samples
+    """:class:`thermoskin.touch.characterise.Bins`: each 50 ms bin is the mean of its finite samples
     (computed here by grouping the samples in plain Python), a bin with a signal all NaN is
     left out, and any chunking of the same samples gives the same bins, bit for bit."""
-    from thermoskin.characterise import BIN_S, Bins
+    from thermoskin.touch.characterise import BIN_S, Bins
 
     rng = np.random.default_rng(5)
     n = 3000
@@ -195,7 +195,7 @@ def test_box_moments_equal_quadrature_for_every_component_at_once() -> None:
     ``(m, v)``, as the posterior calls it."""
     from scipy.special import ndtr
 
-    from thermoskin.characterise import _box_moments
+    from thermoskin.touch.characterise import _box_moments
 
     trap = getattr(np, "trapezoid", None) or np.trapz  # numpy 1.26 has the old name only
     rng = np.random.default_rng(3)

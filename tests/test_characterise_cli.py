@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from thermoskin.cli import main
-from thermoskin.events import EVENT_COLUMNS
+from thermoskin.estimation.events import EVENT_COLUMNS
 from thermoskin.logio import read_log
 from thermoskin.physics.contact import CLASSES
 from thermoskin.sim.scenarios import SCENARIOS

@@ -151,7 +151,7 @@ def test_real_entry_point_no_traceback(tmp_path: Path) -> None:
 
 
 def test_excitation_then_identify(tmp_path: Path) -> None:
-    from thermoskin.identify import load_model
+    from thermoskin.fit.identify import load_model
 
     log, model = tmp_path / "exc.csv", tmp_path / "peltier.toml"
     code, _, _ = invoke("simulate", "--scenario", "excitation", "--duration", "200", "-o", str(log))
@@ -251,7 +251,7 @@ def test_events_table_keeps_numbers_whole_in_80_columns() -> None:
     from rich.console import Console
 
     from thermoskin.cli import events_table
-    from thermoskin.events import ContactEvent
+    from thermoskin.estimation.events import ContactEvent
 
     ev = [ContactEvent(1115.042, 1115.14, 1116.982, 1.94, 1, 1.002, 0.66, 1.28, "hold", "object",
                        "glass-ceramic", T_f_hat=55.3),
@@ -273,7 +273,7 @@ def test_what_touched_is_printed_whole_in_any_terminal(monkeypatch) -> None:  # 
     from rich.console import Console
 
     import thermoskin.cli as cli
-    from thermoskin.events import ContactEvent
+    from thermoskin.estimation.events import ContactEvent
 
     ev = [ContactEvent(1115.042, 1115.14, 1116.982, 1.94, 1, 1.002, 0.66, 1.28, "hold", "object",
                        "glass-ceramic", T_f_hat=55.3),
@@ -369,7 +369,7 @@ def test_run_skin_asks_for_every_kernel_it_compiles(tmp_path: Path, monkeypatch)
     (``kernel.run_rows``, ...) and, with piped patches, the transport correction: the cache is
     asked for each, and any one missing (not only the plant's, as before) is said once."""
     from thermoskin import _numba_cache, cli
-    from thermoskin.skin import load_skin
+    from thermoskin.skin.layout import load_skin
 
     monkeypatch.setattr(cli, "_run_skin_loop", lambda *args, **kwargs: None)  # no loop: only the notice
     forearm = Path(__file__).parents[1] / "examples" / "forearm.toml"
@@ -395,7 +395,7 @@ def test_observe_skin_asks_for_the_estimators_only(tmp_path: Path, monkeypatch) 
     piped patches), not the plant: the notice is about those, once, and only when one of them
     is missing from the cache."""
     from thermoskin import _numba_cache, cli
-    from thermoskin.skin import load_skin
+    from thermoskin.skin.layout import load_skin
 
     forearm = Path(__file__).parents[1] / "examples" / "forearm.toml"
     names = cli.skin_kernels(load_skin(forearm, load_config()), plant=False)

@@ -223,8 +223,8 @@ def test_serial_run_detects_with_10hz_boards_scored_against_truth(tmp_path: Path
     scored against the emulator's --truth; `observe` on the run's log gives the live run again."""
     import csv
 
-    from thermoskin.evaluation import match_events, touches_from_truth
-    from thermoskin.events import ContactEvent
+    from thermoskin.analysis.evaluation import match_events, touches_from_truth
+    from thermoskin.estimation.events import ContactEvent
 
     link, truth = tmp_path / "skin", tmp_path / "truth.csv"
     emu = subprocess.Popen([*CMD, "device-emulator", "--link", str(link), "--scenario", "mixed",

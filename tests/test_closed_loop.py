@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from thermoskin.evaluation import match_events, tracking_errors
+from thermoskin.analysis.evaluation import match_events, tracking_errors
 from thermoskin.params import load_config
 from thermoskin.runtime.closed_loop import COLUMNS, run_closed_loop
 from thermoskin.sim.scenarios import SCENARIOS, Scenario, random_scenario

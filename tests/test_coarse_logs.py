@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from thermoskin.analysis.evaluation import match_events
+from thermoskin.analysis.observe import observe
 from thermoskin.estimation.freshness import FreshInference, infer_fresh
-from thermoskin.evaluation import match_events
 from thermoskin.params import load_config
-from thermoskin.pipeline import observe
 from thermoskin.sim.conditions import decimate, get_condition
 from thermoskin.sim.run import simulate
 
@@ -70,8 +70,8 @@ def test_a_skin_logs_changed_values_are_fresh_too() -> None:
     value changed, per patch, block by block as on the whole log."""
     from types import SimpleNamespace
 
-    from thermoskin.skin import tc_fresh_bit
-    from thermoskin.skin_observe import SkinFreshInference
+    from thermoskin.skin.layout import tc_fresh_bit
+    from thermoskin.skin.observe import SkinFreshInference
 
     skin = SimpleNamespace(n_thermocouples=2)
     T_w = np.array([[20.0, 21.0], [20.0, 21.5], [20.5, 21.5], [20.5, 21.5]])
@@ -101,7 +101,7 @@ def test_a_log_without_bits_is_read_the_same_whole_or_in_chunks() -> None:
     row 0 counted, 32 of 64 would tip it)."""
     from types import SimpleNamespace
 
-    from thermoskin.skin_observe import SkinFreshInference
+    from thermoskin.skin.observe import SkinFreshInference
 
     n = 300
     rng = np.random.default_rng(5)

@@ -14,10 +14,10 @@ import itertools
 import numpy as np
 import pytest
 
-from thermoskin.evaluation import match_events
+from thermoskin.analysis.evaluation import match_events
+from thermoskin.analysis.observe import observe
 from thermoskin.params import load_config
 from thermoskin.physics.finger import PERSONS
-from thermoskin.pipeline import observe
 from thermoskin.sim.conditions import decimate, get_condition
 from thermoskin.sim.run import simulate
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.signal import cont2discrete, lfilter
 
-from thermoskin.dsp import Iir
+from thermoskin.estimation.dsp import Iir
 
 T_S = 1e-3
 # (num, den) of the kinds the observer uses: low-pass, lead/lag, derivative, third order
@@ -137,7 +137,7 @@ def test_bilinear_is_scipys(num: list[float], den: list[float]) -> None:
     """The hand-written Tustin map (no scipy.signal import at start-up) against scipy's."""
     from scipy.signal import bilinear as scipy_bilinear
 
-    from thermoskin.dsp import bilinear
+    from thermoskin.estimation.dsp import bilinear
 
     b, a = bilinear(np.array(num), np.array(den), 1000.0)
     b_ref, a_ref = scipy_bilinear(num, den, 1000.0)

@@ -6,9 +6,9 @@ import math
 
 import numpy as np
 
-from thermoskin.estimator import TouchEstimator
+from thermoskin.analysis.observe import observe
+from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.params import load_config
-from thermoskin.pipeline import observe
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS
 

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import pytest
 
+from thermoskin.analysis.observe import observe
 from thermoskin.params import load_config
-from thermoskin.pipeline import observe
 from thermoskin.sim.conditions import get_condition
 from thermoskin.sim.run import simulate
 

@@ -7,8 +7,8 @@ import csv
 import math
 from pathlib import Path
 
-from thermoskin.events import EVENT_COLUMNS, ContactEvent, EventsStream, write_events
-from thermoskin.skin_observe import SKIN_EVENT_COLUMNS, SkinEvent
+from thermoskin.estimation.events import EVENT_COLUMNS, ContactEvent, EventsStream, write_events
+from thermoskin.skin.observe import SKIN_EVENT_COLUMNS, SkinEvent
 
 TAP = ContactEvent(onset=1.0, detected_at=1.1, release=1.5, duration=0.5, sign=1, peak_dq=0.2,
                    mean_dq=0.1, energy=0.05)

@@ -101,7 +101,7 @@ def test_observe_imports_no_scipy_linalg(tmp_path) -> None:  # type: ignore[no-u
     log = tmp_path / "short.csv"
     write_log(log, simulate(SCENARIOS["one-finger"].with_duration(0.5), cfg))
     code = ("import sys\nfrom thermoskin.params import load_config\n"
-            "from thermoskin.pipeline import observe_file\n"
+            "from thermoskin.analysis.observe import observe_file\n"
             f"observe_file({str(log)!r}, {str(tmp_path / 'out.csv')!r}, load_config())\n"
             "print(sorted(m for m in sys.modules if m.startswith('scipy')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from thermoskin.analysis.observe import observe
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.params import load_config
-from thermoskin.pipeline import observe
 from thermoskin.sim.conditions import decimate, get_condition
 from thermoskin.sim.run import simulate
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from thermoskin.identify import ArxModel, IdentifyError, identify, load_model, save_model
+from thermoskin.fit.identify import ArxModel, IdentifyError, identify, load_model, save_model
 from thermoskin.logio import write_log
 from thermoskin.params import Config
 from thermoskin.sim.excitation import simulate_excitation

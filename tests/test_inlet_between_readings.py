@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from thermoskin.skin import load_skin
-from thermoskin.skin_inlet import FRESH_T_P, INTERP_M, inlet_inputs
+from thermoskin.skin.inlet import FRESH_T_P, INTERP_M, inlet_inputs
+from thermoskin.skin.layout import load_skin
 
 FOREARM = Path(__file__).resolve().parents[1] / "examples" / "forearm.toml"
 T_S = 1e-3

@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
+from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.estimation.freshness import infer_fresh
 from thermoskin.estimation.reference import ReferenceEstimator
-from thermoskin.estimator import TouchEstimator
 from thermoskin.params import load_config
 from thermoskin.sim.conditions import decimate, get_condition
 from thermoskin.sim.run import simulate

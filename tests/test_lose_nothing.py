@@ -254,8 +254,8 @@ def test_sigint_inside_a_log_write_only_asks_to_stop(tmp_path: Path) -> None:
 
 def test_stopped_run_scores_only_what_it_could_see() -> None:
     """Touches scripted after the stop, or cut by it before any detection, are not misses."""
-    from thermoskin.evaluation import match_events
-    from thermoskin.events import ContactEvent
+    from thermoskin.analysis.evaluation import match_events
+    from thermoskin.estimation.events import ContactEvent
     from thermoskin.physics.finger import Touch
 
     touches = [Touch(t_on=t, duration=2.0, n_fingers=1) for t in (5.0, 15.0, 25.0)]
@@ -303,8 +303,8 @@ def test_skin_run_stopped_by_sigterm_keeps_what_ran(tmp_path: Path) -> None:
     assert p.returncode == 143, err
     assert "stopped by SIGTERM" in err.splitlines()[-1], err
     from thermoskin.params import load_config
-    from thermoskin.skin import load_skin
-    from thermoskin.skin_log import read_skin_log
+    from thermoskin.skin.layout import load_skin
+    from thermoskin.skin.log import read_skin_log
 
     t = read_skin_log(log, load_skin(forearm, load_config())).t  # every patch of every sample
     assert 6.0 <= t[-1] < 900.0
@@ -323,8 +323,8 @@ def test_killed_run_keeps_the_contacts_that_had_ended(tmp_path: Path) -> None:
     and it is the contact `observe` finds on the log the killed run left (offline equals live)."""
     import csv
 
+    from thermoskin.analysis.observe import observe
     from thermoskin.params import load_config
-    from thermoskin.pipeline import observe
 
     log, ev = tmp_path / "k.csv", tmp_path / "k_events.csv"
     host = subprocess.Popen([*CMD, "run", "--realtime", "--scenario", "mixed", "--duration", "30",

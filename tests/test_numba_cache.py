@@ -111,8 +111,8 @@ def test_cached_code_loads_without_the_registries(tmp_path: Path) -> None:
 
     import numpy as np
 
+    from thermoskin.estimation.estimator import TouchEstimator
     from thermoskin.estimation.reference import ReferenceEstimator
-    from thermoskin.estimator import TouchEstimator
     from thermoskin.params import load_config
     from thermoskin.sim.run import simulate
     from thermoskin.sim.scenarios import SCENARIOS
@@ -125,7 +125,7 @@ def test_cached_code_loads_without_the_registries(tmp_path: Path) -> None:
     code = f"""
 import json, sys
 import numpy as np
-from thermoskin.estimator import TouchEstimator
+from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.params import load_config
 log = np.load({str(tmp_path / 'log.npz')!r})
 res = TouchEstimator(load_config().replace(detector={{"redate_readings": 0.0}})).run(

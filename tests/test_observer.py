@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from scipy.linalg import expm
 from scipy.signal import lsim
 
-from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.estimation.observer import ThermalExchangeObserver
 from thermoskin.params import ObserverParams, SkinParams
 
 Array = NDArray[np.float64]

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from thermoskin.estimation.patches import PatchEstimators
 from thermoskin.params import Config
-from thermoskin.patches import PatchEstimators
 
 
 def test_index_of_a_block_is_each_velocity_table_and_nan_none() -> None:
@@ -32,7 +32,7 @@ def test_run_rows_reuses_one_scratch_event_row_and_matches_one_patch(monkeypatch
     the same log over three calls gives the one-patch estimator's columns and contacts (one
     spanning two calls, one still open at the end, ended by ``finish``)."""
     from thermoskin.estimation import kernel as K  # noqa: N812
-    from thermoskin.estimator import TouchEstimator
+    from thermoskin.estimation.estimator import TouchEstimator
     from thermoskin.params import load_config
     from thermoskin.sim.run import simulate
     from thermoskin.sim.scenarios import SCENARIOS

@@ -57,9 +57,9 @@ def test_parallel_kernel_steps_each_patch_as_the_serial_one() -> None:
     bit for bit every tick, and one patch's state to the one-patch estimator's. Compiling the
     parallel kernel here is part of the test: it once failed in numba's parfor pass, and no
     test saw it."""
-    from thermoskin.estimator import TouchEstimator
+    from thermoskin.estimation.estimator import TouchEstimator
+    from thermoskin.estimation.patches import PatchEstimators
     from thermoskin.params import load_config
-    from thermoskin.patches import PatchEstimators
     from thermoskin.sim.run import simulate
     from thermoskin.sim.scenarios import SCENARIOS
 
@@ -115,7 +115,7 @@ def _assert_each_as_alone(mixed, cfgs, log, T_w, step_mixed=None) -> None:  # ty
     """Patches of each model alone (one estimator a model, every patch of it), stepped a sample
     at a time on the same readings (and ``step_mixed(k, rest, v)`` with them): each patch of
     ``mixed`` equals the same patch among its model's alone, bit for bit."""
-    from thermoskin.patches import PatchEstimators
+    from thermoskin.estimation.patches import PatchEstimators
 
     n, n_s = T_w.shape[1], T_w.shape[0]
     t_s = cfgs[0].sampling.t_s
@@ -141,7 +141,7 @@ def test_patches_of_two_models_each_step_with_their_own(parallel: bool) -> None:
     it changes, so each patch must still be stepped with its own. Every patch's state equals,
     bit for bit, that of the same patch among patches of its model alone, stepped on the same
     readings."""
-    from thermoskin.patches import PatchEstimators
+    from thermoskin.estimation.patches import PatchEstimators
 
     n, n_s = 70, 3000
     a, b, log, T_w, _ = _two_models(n, n_s, seed=11)
@@ -157,7 +157,7 @@ def test_rows_of_two_models_in_any_order_each_step_with_their_own() -> None:
     """``run_rows`` (a long-format log: one row a patch and sample) with patches of two models,
     the patches' order within each sample shuffled: each patch's state equals, bit for bit, the
     same patch's among patches of its model alone, stepped a sample at a time."""
-    from thermoskin.patches import PatchEstimators
+    from thermoskin.estimation.patches import PatchEstimators
 
     n, n_s = 6, 2500
     a, b, log, T_w, rng = _two_models(n, n_s, seed=5)

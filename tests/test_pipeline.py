@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from thermoskin.estimator import TouchEstimator
-from thermoskin.evaluation import match_events
+from thermoskin.analysis.evaluation import match_events
+from thermoskin.analysis.observe import Observation, observe
+from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.params import load_config
-from thermoskin.pipeline import Observation, observe
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS, random_scenario
 
@@ -79,7 +79,7 @@ def test_streaming_equals_vectorised() -> None:
 
 
 def test_switch_rows_counts_changes_of_v() -> None:
-    from thermoskin.pipeline import switch_rows
+    from thermoskin.analysis.observe import switch_rows
 
     v = np.array([0.0, 0.0, 0.14, 0.14, np.nan, 0.0, 0.14])
     assert switch_rows(v) == 3  # rows 2, 5 (against 0.14 before the NaN) and 6
@@ -87,7 +87,7 @@ def test_switch_rows_counts_changes_of_v() -> None:
     assert switch_rows(np.array([0.0, np.nan, 0.14])) == 1  # a switch across a NaN counts
     assert switch_rows(np.zeros(0)) == 0 and switch_rows(np.full(3, np.nan)) == 0
     # chunk by chunk, carrying the last known velocity, as the whole
-    from thermoskin.pipeline import last_known
+    from thermoskin.analysis.observe import last_known
 
     w = np.array([0.0, 0.14, np.nan, np.nan, 0.0, np.nan, 0.14, 0.14])
     total, before = 0, np.nan
@@ -101,8 +101,8 @@ def test_a_log_coarser_than_the_loop_with_a_switching_pump_is_warned_about(tmp_p
     """A 1 kHz run logged at 50 Hz: the pump (held >= 50 ms) switches within about a third of
     the rows, counted independently from the 1 kHz log's switches; the same log at the loop's
     rate, or without a switch, gets no warning, and the streamed path says the same."""
+    from thermoskin.analysis.observe import coarse_log_warnings, observe_file
     from thermoskin.logio import LogWriter
-    from thermoskin.pipeline import coarse_log_warnings, observe_file
     from thermoskin.sim.conditions import decimate
 
     full = simulate(SCENARIOS["one-finger"].with_duration(20.0), CFG)
@@ -130,8 +130,8 @@ def test_a_log_coarser_than_the_loop_with_a_switching_pump_is_warned_about(tmp_p
 def test_a_stuck_pipe_thermocouple_is_warned_about(tmp_path) -> None:  # type: ignore[no-untyped-def]
     """A T_w that never moves (a stuck or disconnected thermocouple) gets a warning naming it,
     in memory and streamed; the same log as read by 10 Hz boards (held 100 ms) gets none."""
+    from thermoskin.analysis.observe import observe_file, stuck_warnings
     from thermoskin.logio import write_log
-    from thermoskin.pipeline import observe_file, stuck_warnings
 
     log = simulate(SCENARIOS["one-finger"].with_duration(12.0), CFG)
     log = {k: log[k] for k in ("t", "T_w", "T_p", "v", "T_a")}

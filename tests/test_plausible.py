@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from thermoskin.analysis.observe import observe
 from thermoskin.cli import SETTLE_S, main
 from thermoskin.logio import write_log
+from thermoskin.logio.plausible import admit, clean_log, limits
 from thermoskin.params import Config, load_config
-from thermoskin.pipeline import observe
-from thermoskin.plausible import admit, clean_log, limits
 from thermoskin.runtime.closed_loop import COLUMNS, run_closed_loop
 from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import SCENARIOS

@@ -1,4 +1,4 @@
-"""Tests of thermoskin.plotting: a PNG is written, with and without optional columns."""
+"""Tests of thermoskin.plots.log: a PNG is written, with and without optional columns."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from thermoskin.plotting import decimate, plot_run
+from thermoskin.plots.log import decimate, plot_run
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

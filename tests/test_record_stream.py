@@ -167,8 +167,8 @@ def test_a_skins_recording_in_blocks_is_its_whole_table(tmp_path: Path) -> None:
     """A skin's recording (nine patches, their messages in reverse order, the last sample of one
     patch never recorded) read about 2000 rows at a time joins to skin_columns' long table; the
     export's CSV is the whole table's."""
-    from thermoskin.runtime.skin_topics import layout, skin_topics
-    from thermoskin.skin import load_skin
+    from thermoskin.live.skin_topics import layout, skin_topics
+    from thermoskin.skin.layout import load_skin
 
     skin = load_skin(Path(__file__).resolve().parents[1] / "examples" / "forearm.toml")
     names = [p.name for p in skin.patches]

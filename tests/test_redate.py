@@ -16,13 +16,14 @@ import sys
 import numpy as np
 import pytest
 
+from thermoskin.analysis.observe import observe
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation import redate as RD  # noqa: N812
+from thermoskin.estimation.estimator import TouchEstimator
+from thermoskin.estimation.freshness import loop_t_s, sample_interval
 from thermoskin.estimation.model import I_Q
 from thermoskin.estimation.reference import ReferenceEstimator
-from thermoskin.estimator import TouchEstimator
 from thermoskin.params import Config, load_config
-from thermoskin.pipeline import loop_t_s, observe, sample_interval
 from thermoskin.sim.conditions import decimate, get_condition
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS

@@ -9,14 +9,14 @@ import itertools
 import numpy as np
 import pytest
 
-from thermoskin.characterise import characterise_events
-from thermoskin.evaluation import TrackingStream, tracking_errors
+from thermoskin.analysis.evaluation import TrackingStream, tracking_errors
 from thermoskin.params import Config
-from thermoskin.plot_digest import PlotDigest, TrailingMean
-from thermoskin.plotting import _moving_mean, plot_log
+from thermoskin.plots.digest import PlotDigest, TrailingMean
+from thermoskin.plots.log import _moving_mean, plot_log
 from thermoskin.runtime.closed_loop import run_closed_loop
 from thermoskin.runtime.digest import RunDigest
 from thermoskin.sim.scenarios import SCENARIOS
+from thermoskin.touch.characterise import characterise_events
 
 CFG = Config()
 
@@ -170,7 +170,7 @@ def test_a_contact_early_in_a_long_run_is_still_characterised() -> None:
     read its log back at the end). The digest characterises each contact as its samples come
     in, and characterise_events feeds the log up to each contact's window: both tell the early
     contacts as the first minute alone tells them."""
-    from thermoskin.characterise import Characteriser
+    from thermoskin.touch.characterise import Characteriser
 
     c = run_closed_loop(SCENARIOS["touchers"].with_duration(40.0), CFG).columns
     res_events: list = []
@@ -204,7 +204,7 @@ def test_memory_does_not_grow_with_the_run(what: str, monkeypatch: pytest.Monkey
     """Python's peak allocation for a run twice as long is the same (within 10 %): the plant
     holds a window of its profiles (about 250 bytes a sample when it held them whole), the loop
     its current block, the digest its bounded rows."""
-    import thermoskin.plot_digest as pd
+    import thermoskin.plots.digest as pd
     import thermoskin.sim.plant as plant_mod
     from thermoskin.sim.run import simulate_blocks
 

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from thermoskin.params import Config, ConfigError
-from thermoskin.skin import SINGLE, Pipe, load_skin, parse_skin, single_skin
+from thermoskin.skin.layout import SINGLE, Pipe, load_skin, parse_skin, single_skin
 
 ROOT = Path(__file__).resolve().parent.parent
 FOREARM = ROOT / "examples" / "forearm.toml"

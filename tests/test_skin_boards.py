@@ -19,8 +19,8 @@ from thermoskin.params import load_config
 from thermoskin.runtime.skin_loop import run_skin
 from thermoskin.sim.scenarios import Scenario
 from thermoskin.sim.skin_scenarios import SkinScenario
-from thermoskin.skin import load_skin
-from thermoskin.skin_log import read_skin_log
+from thermoskin.skin.layout import load_skin
+from thermoskin.skin.log import read_skin_log
 
 ROOT = Path(__file__).resolve().parents[1]
 BOARDS_10HZ = {"period_T_w": 0.1, "period_T_p": 0.1, "period_T_a": 0.1, "jitter": 0.003}
@@ -46,7 +46,7 @@ def test_the_skins_pump_stays_still_for_two_board_readings(tmp_path: Path) -> No
 def test_slow_boards_are_warned_about_as_measured() -> None:
     """A skin fed through pipes was clean only on 1 kHz boards, a tank-fed patch down to 200 Hz
     (benchmarks/skin_detection.py --rate): each warns under its own rate, in one line."""
-    from thermoskin.skin_observe import board_warnings
+    from thermoskin.skin.observe import board_warnings
 
     forearm = load_skin(ROOT / "examples" / "forearm.toml", load_config())
     single = load_skin(ROOT / "examples" / "single.toml", load_config())
@@ -78,7 +78,7 @@ def test_the_boards_rate_is_read_from_the_log(tmp_path: Path) -> None:
     from click.testing import CliRunner
 
     from thermoskin.cli import main
-    from thermoskin.skin_observe import observe_skin
+    from thermoskin.skin.observe import observe_skin
 
     single = ROOT / "examples" / "single.toml"
     skin = load_skin(single, load_config().replace(sensor=BOARDS_10HZ))
@@ -111,7 +111,7 @@ def test_a_skin_log_without_fresh_bits_is_read_from_its_values(tmp_path: Path) -
     and the touch is found as with the column; at 1 kHz every sample stays a reading."""
     from thermoskin.physics.finger import Touch
     from thermoskin.sim.skin_scenarios import SkinContact
-    from thermoskin.skin_observe import SkinFreshInference, observe_skin
+    from thermoskin.skin.observe import SkinFreshInference, observe_skin
 
     single = ROOT / "examples" / "single.toml"
     p = 1.0 / 200.0
@@ -184,7 +184,7 @@ def test_a_skin_lets_its_pipe_node_go_by_its_boards_period() -> None:
     """A skin patch fed through a pipe has ``S_w_flow`` = ``FLOW_NOISE * period^1.5`` of its
     boards (0 for boards read every sample), a patch fed from its tank none; a larger value the
     user's config sets is kept."""
-    from thermoskin.skin_observe import FLOW_NOISE, patch_config
+    from thermoskin.skin.observe import FLOW_NOISE, patch_config
 
     path = ROOT / "examples" / "forearm.toml"
     every = load_skin(path)
@@ -214,7 +214,7 @@ def test_observe_takes_the_boards_period_from_the_log(tmp_path: Path) -> None:
     them: the same contacts on the same patches, detected at the same readings."""
     from thermoskin.physics.finger import Touch
     from thermoskin.sim.skin_scenarios import SkinContact
-    from thermoskin.skin_observe import log_boards_period, observe_skin
+    from thermoskin.skin.observe import log_boards_period, observe_skin
 
     path = ROOT / "examples" / "forearm.toml"
     skin10 = load_skin(path, load_config().replace(sensor=BOARDS_10HZ))

@@ -39,10 +39,10 @@ from test_live import (  # noqa: E402
     replay_to_client,
 )
 
+from thermoskin.live.skin_topics import COLD, IDLE, SCENE_TOPIC, WARM, scene, skin_topics  # noqa: E402
 from thermoskin.runtime.record import read_mcap  # noqa: E402
-from thermoskin.runtime.skin_topics import COLD, IDLE, SCENE_TOPIC, WARM, scene, skin_topics  # noqa: E402
-from thermoskin.skin import load_skin  # noqa: E402
-from thermoskin.skin_inlet import InletStream, inlet_inputs  # noqa: E402
+from thermoskin.skin.inlet import InletStream, inlet_inputs  # noqa: E402
+from thermoskin.skin.layout import load_skin  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 FOREARM = ROOT / "examples" / "forearm.toml"
@@ -186,8 +186,8 @@ def test_live_estimation_equals_observe_on_the_log(tmp_path: Path) -> None:
     the scripted touch (dorsal1, 5-7 s) is found on its patch."""
     from thermoskin.runtime.skin_loop import run_skin
     from thermoskin.sim.skin_scenarios import skin_scenario
-    from thermoskin.skin_log import read_skin_log
-    from thermoskin.skin_observe import SkinEstimator, observe_skin
+    from thermoskin.skin.log import read_skin_log
+    from thermoskin.skin.observe import SkinEstimator, observe_skin
 
     skin = load_skin(FOREARM)
     P = len(skin.patches)
@@ -383,9 +383,9 @@ def test_export_of_a_skin_recording_is_its_long_table(tmp_path: Path) -> None:
     """`export` of a skin's recording: one row per sample and patch, patches in the skin's order,
     each patch's sample and estimate joined by t (messages written in any order);
     a recording whose last sample is missing on one patch ends at the last whole one."""
+    from thermoskin.live.skin_topics import layout
     from thermoskin.params import Config
     from thermoskin.runtime.record import Recorder, export
-    from thermoskin.runtime.skin_topics import layout
 
     skin = load_skin(FOREARM)
     names = [p.name for p in skin.patches]

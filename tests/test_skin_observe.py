@@ -11,8 +11,8 @@ import pytest
 from thermoskin.physics.finger import Touch
 from thermoskin.sim.scenarios import Scenario
 from thermoskin.sim.skin_scenarios import SkinContact, SkinScenario
-from thermoskin.skin import Pipe, load_skin
-from thermoskin.skin_inlet import delayed, displacement, inlet_inputs
+from thermoskin.skin.inlet import delayed, displacement, inlet_inputs
+from thermoskin.skin.layout import Pipe, load_skin
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -58,8 +58,8 @@ def _short(skin, contacts, duration=22.0):
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     from thermoskin.runtime.skin_loop import run_skin
-    from thermoskin.skin_log import read_skin_log
-    from thermoskin.skin_observe import observe_skin
+    from thermoskin.skin.log import read_skin_log
+    from thermoskin.skin.observe import observe_skin
 
     skin = load_skin(ROOT / "examples" / "forearm.toml")
     d1, d4 = "dorsal1", "dorsal4"

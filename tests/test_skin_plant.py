@@ -32,7 +32,7 @@ from thermoskin.sim.scenarios import Scenario
 from thermoskin.sim.sensors import Board
 from thermoskin.sim.skin_plant import SkinPlant
 from thermoskin.sim.skin_scenarios import SkinContact, SkinScenario, contact_arrays, from_single
-from thermoskin.skin import parse_skin, single_skin
+from thermoskin.skin.layout import parse_skin, single_skin
 
 V_ON = 0.141
 QUIET = Config().replace(sensor={"noise_T": 0.0, "quantum_T": 0.0})

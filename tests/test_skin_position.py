@@ -10,8 +10,8 @@ import scipy.linalg
 
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.spatial import contact_cells, spatial_state_space, spatial_steady_state
-from thermoskin.skin import load_skin
-from thermoskin.skin_position import PatchLocator
+from thermoskin.skin.layout import load_skin
+from thermoskin.skin.position import PatchLocator
 
 ROOT = Path(__file__).resolve().parent.parent
 T_S = 1e-3

@@ -13,10 +13,10 @@ from click.testing import CliRunner
 
 from thermoskin.cli import main
 from thermoskin.logio import LogReader
+from thermoskin.plots.skin import plot_layout
 from thermoskin.runtime.skin_loop import run_skin
 from thermoskin.sim.skin_scenarios import contact_arrays, skin_scenario
-from thermoskin.skin import load_skin
-from thermoskin.skin_plot import plot_layout
+from thermoskin.skin.layout import load_skin
 
 ROOT = Path(__file__).resolve().parent.parent
 FOREARM = ROOT / "examples" / "forearm.toml"

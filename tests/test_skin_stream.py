@@ -13,7 +13,7 @@ from thermoskin.logio import LogError, LogReader, write_log
 from thermoskin.physics.finger import Touch
 from thermoskin.sim.scenarios import Scenario
 from thermoskin.sim.skin_scenarios import SkinContact, SkinScenario
-from thermoskin.skin import load_skin
+from thermoskin.skin.layout import load_skin
 
 ROOT = Path(__file__).resolve().parent.parent
 FOREARM = ROOT / "examples" / "forearm.toml"
@@ -24,7 +24,7 @@ def skin_log(tmp_path_factory):  # type: ignore[no-untyped-def]
     """A forearm's closed loop with three touches on the patches with two thermocouples (whose
     positions are located), as Parquet and as CSV."""
     from thermoskin.runtime.skin_loop import run_skin
-    from thermoskin.skin_log import long_columns, read_skin_log
+    from thermoskin.skin.log import long_columns, read_skin_log
 
     skin = load_skin(FOREARM)
     base = Scenario("t", "test", duration=19.0, T_w_cmd=24.0, T_a=20.0, pump="logic")
@@ -46,8 +46,8 @@ def skin_log(tmp_path_factory):  # type: ignore[no-untyped-def]
 def test_streamed_observation_is_the_whole_logs(skin_log, tmp_path, fmt) -> None:  # type: ignore[no-untyped-def]
     """Blocks of 997 samples (cut anywhere: mid-contact, mid-window of a position) give the outputs,
     events and positions of :func:`observe_skin` on the whole log read at once."""
-    from thermoskin.skin_log import SkinLogReader, long_columns, read_skin_log
-    from thermoskin.skin_observe import observe_skin, observe_skin_file
+    from thermoskin.skin.log import SkinLogReader, long_columns, read_skin_log
+    from thermoskin.skin.observe import observe_skin, observe_skin_file
 
     skin, pq, csv = skin_log
     path = pq if fmt == "parquet" else csv
@@ -77,7 +77,7 @@ def test_without_an_output_the_observation_leaves_nothing(skin_log, tmp_path) ->
     as with an output, through a temporary file beside the log that is gone afterwards."""
     import shutil
 
-    from thermoskin.skin_observe import observe_skin_file
+    from thermoskin.skin.observe import observe_skin_file
 
     skin, pq, _ = skin_log
     log = tmp_path / "log.parquet"
@@ -98,8 +98,8 @@ def test_streamed_memory_does_not_follow_the_log(skin_log, tmp_path, peak_memory
     for each contact's position, not the log's: no more for a log twice as long, where the whole
     log's observation holds 1.6 times as much. (A Parquet output holds a row group, 262 144 rows,
     before writing it: bounded too.)"""
-    from thermoskin.skin_log import long_columns, read_skin_log
-    from thermoskin.skin_observe import observe_skin, observe_skin_file
+    from thermoskin.skin.log import long_columns, read_skin_log
+    from thermoskin.skin.observe import observe_skin, observe_skin_file
 
     skin, pq, _ = skin_log
     log = read_skin_log(pq, skin)
@@ -142,7 +142,7 @@ def test_a_skin_log_read_in_whole_samples(tmp_path, fmt) -> None:  # type: ignor
 
 
 class ThreePatches:
-    """What :class:`~thermoskin.skin_log.SkinLogReader` asks of a skin."""
+    """What :class:`~thermoskin.skin.log.SkinLogReader` asks of a skin."""
 
     name = "three"
     patches = (0, 1, 2)
@@ -180,7 +180,7 @@ def test_a_fault_at_a_carried_sample_is_one_line_naming_its_row(tmp_path, monkey
     skin's own check of the patches' order, which comes first (a dropped row is a patch out of
     place, not a sample of two times)."""
     from thermoskin.logio import LogWriter
-    from thermoskin.skin_log import RTOL, SkinLogReader, _nan_ok
+    from thermoskin.skin.log import RTOL, SkinLogReader, _nan_ok
 
     P, n = 3, 20_000
     base = tmp_path / f"base.{fmt}"
@@ -249,7 +249,7 @@ def test_a_skin_log_fault_of_its_own(tmp_path, fault, needle) -> None:  # type: 
     """Faults a skin log alone has, one line each: its last sample cut short, an interval 0.5 %
     long (a skin log's tolerance is 0.1 %, as before it was streamed), a single patch's log given
     for a skin's (said so), a log of one sample."""
-    from thermoskin.skin_log import SkinLogReader
+    from thermoskin.skin.log import SkinLogReader
 
     cols = _rows(3, 500)
     if fault == "cut":
@@ -276,8 +276,8 @@ def test_contacts_are_placed_by_the_logs_own_times(skin_log, tmp_path) -> None: 
     configured interval): each contact's samples are found from the log's own times, so the
     positions are those of the same log with the configured interval, and a contact's window
     does not slide along the log (1.6 s in 30 minutes)."""
-    from thermoskin.skin_log import long_columns, read_skin_log
-    from thermoskin.skin_observe import observe_skin_file
+    from thermoskin.skin.log import long_columns, read_skin_log
+    from thermoskin.skin.observe import observe_skin_file
 
     skin, pq, _ = skin_log
     cols = long_columns(read_skin_log(pq, skin), {})

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from thermoskin import skin_observe as so
 from thermoskin.runtime.skin_loop import run_skin
 from thermoskin.sim.skin_scenarios import skin_scenario
-from thermoskin.skin import load_skin
-from thermoskin.skin_log import read_skin_log
+from thermoskin.skin import observe as so
+from thermoskin.skin.layout import load_skin
+from thermoskin.skin.log import read_skin_log
 
 ROOT = Path(__file__).resolve().parent.parent
 

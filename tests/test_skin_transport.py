@@ -12,9 +12,9 @@ from scipy.integrate import solve_ivp
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.network import state_space, steady_state
 from thermoskin.physics.spatial import spatial_state_space, spatial_steady_state
-from thermoskin.skin import load_skin
-from thermoskin.skin_observe import patch_config
-from thermoskin.skin_transport import TransportCorrection
+from thermoskin.skin.layout import load_skin
+from thermoskin.skin.observe import patch_config
+from thermoskin.skin.transport import TransportCorrection
 
 ROOT = Path(__file__).resolve().parent.parent
 T_S = 1e-3

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.estimation.observer import ThermalExchangeObserver
 from thermoskin.params import Config, ConfigError, ObserverParams, SkinParams
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.network import discretize, state_space

@@ -108,7 +108,8 @@ def test_a_cold_cache_ends_the_start_up_before_compiling(tmp_path: Path, restore
                                                          monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """On a cold cache ``observe`` compiles its kernel after the first chunk: the collector is
     on by then, so the compiler's garbage (millions of objects) is collected, not frozen."""
-    from thermoskin import _numba_cache, pipeline
+    from thermoskin import _numba_cache
+    from thermoskin.analysis import observe as pipeline
 
     log = tmp_path / "short.csv"
     write_log(log, simulate(SCENARIOS["one-finger"].with_duration(2.0), load_config()))
@@ -164,7 +165,7 @@ def test_a_failing_command_still_exits_cleanly(tmp_path: Path) -> None:
 WARM_UP = """
 import sys
 from thermoskin.estimation import redate
-from thermoskin.estimator import warm_up
+from thermoskin.estimation.estimator import warm_up
 from thermoskin.params import load_config
 warm_up(load_config(), fits=sys.argv[1] == "fits")
 print(len(redate.trace.overloads), len(redate.pulse_sums.overloads))

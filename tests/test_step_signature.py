@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.estimation.model import I_Q, I_TP, I_TW
 from thermoskin.estimation.reference import ReferenceEstimator
-from thermoskin.estimator import TouchEstimator
 from thermoskin.params import load_config
 from thermoskin.sim.conditions import get_condition
 from thermoskin.sim.run import simulate

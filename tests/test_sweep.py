@@ -16,12 +16,12 @@ import pyarrow.parquet as pq
 import pytest
 from click.testing import CliRunner
 
+from thermoskin.analysis.evaluation import match_events
+from thermoskin.analysis.observe import observe
 from thermoskin.cli import main
 from thermoskin.control.mpc import Mpc
-from thermoskin.evaluation import match_events
 from thermoskin.params import load_config
 from thermoskin.physics.peltier import PeltierTank
-from thermoskin.pipeline import observe
 from thermoskin.runtime.closed_loop import run_closed_loop
 from thermoskin.sim.run import simulate
 from thermoskin.sweep import qp

@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from thermoskin.estimation import kernel as K  # noqa: N812
-from thermoskin.estimator import TouchEstimator
+from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.params import load_config
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS

@@ -7,8 +7,8 @@ import math
 
 import pytest
 
-from thermoskin.events import ContactEvent
-from thermoskin.touchkind import GRASP_S, LINK_S, TAP_S, kinds_of, one_patch_kind, touches
+from thermoskin.estimation.events import TAP_S, ContactEvent, one_patch_kind
+from thermoskin.touch.kinds import GRASP_S, LINK_S, kinds_of, touches
 
 
 def ev(onset: float, release: float) -> ContactEvent:
@@ -77,9 +77,9 @@ def test_on_the_forearm_neighbours_are_the_patches_side_by_side() -> None:
     grasp a hold of its own."""
     from pathlib import Path
 
-    from thermoskin.skin import load_skin
-    from thermoskin.skin_groups import touch_kinds
-    from thermoskin.skin_observe import SkinEvent
+    from thermoskin.skin.groups import touch_kinds
+    from thermoskin.skin.layout import load_skin
+    from thermoskin.skin.observe import SkinEvent
 
     skin = load_skin(Path(__file__).resolve().parents[1] / "examples" / "forearm.toml")
     idx = {p.name: p.index for p in skin.patches}

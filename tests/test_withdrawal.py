@@ -14,10 +14,10 @@ import math
 import numpy as np
 import pytest
 
+from thermoskin.analysis.observe import observe
+from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.estimation.reference import ReferenceEstimator
-from thermoskin.estimator import TouchEstimator
 from thermoskin.params import load_config
-from thermoskin.pipeline import observe
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS
 

@@ -14,7 +14,7 @@ The objects a lab composes in its own code (``docs/api.md`` shows each with exam
     ts.write_events("events.csv", res.events)     # one row per contact
     skin = ts.load_skin("examples/forearm.toml")  # a skin of many patches: ts.run_skin, ts.read_skin_log,
                                                   # ts.observe_skin, ts.group_events
-    ts.characterise_events(events, columns, cfg)  # what touched; thermoskin.calibrate.calibrate (a fit);
+    ts.characterise_events(events, columns, cfg)  # what touched; thermoskin.fit.calibrate.calibrate (a fit);
                                                   # ts.load_sweep / ts.run_sweep (design sweeps)
 
 Names are imported on first use, so ``import thermoskin`` stays light.
@@ -37,15 +37,15 @@ _EXPORTS = {
     "ConfigError": "thermoskin.params",
     "load_config": "thermoskin.params",
     "save_config": "thermoskin.params",
-    "TouchEstimator": "thermoskin.estimator",
-    "Observation": "thermoskin.estimator",
-    "PatchEstimators": "thermoskin.patches",
-    "ThermalExchangeObserver": "thermoskin.observer",
-    "ContactEvent": "thermoskin.events",
-    "EVENT_COLUMNS": "thermoskin.events",
-    "write_events": "thermoskin.events",
-    "observe": "thermoskin.pipeline",
-    "observe_file": "thermoskin.pipeline",
+    "TouchEstimator": "thermoskin.estimation.estimator",
+    "Observation": "thermoskin.estimation.estimator",
+    "PatchEstimators": "thermoskin.estimation.patches",
+    "ThermalExchangeObserver": "thermoskin.estimation.observer",
+    "ContactEvent": "thermoskin.estimation.events",
+    "EVENT_COLUMNS": "thermoskin.estimation.events",
+    "write_events": "thermoskin.estimation.events",
+    "observe": "thermoskin.analysis.observe",
+    "observe_file": "thermoskin.analysis.observe",
     "read_log": "thermoskin.logio",
     "write_log": "thermoskin.logio",
     "LogReader": "thermoskin.logio",
@@ -57,14 +57,14 @@ _EXPORTS = {
     "Touch": "thermoskin.physics.finger",
     "run_closed_loop": "thermoskin.runtime.closed_loop",
     "SkinController": "thermoskin.runtime.controller",
-    "match_events": "thermoskin.evaluation",
-    "Skin": "thermoskin.skin",
-    "load_skin": "thermoskin.skin",
-    "read_skin_log": "thermoskin.skin_log",
-    "observe_skin": "thermoskin.skin_observe",
-    "group_events": "thermoskin.skin_groups",
+    "match_events": "thermoskin.analysis.evaluation",
+    "Skin": "thermoskin.skin.layout",
+    "load_skin": "thermoskin.skin.layout",
+    "read_skin_log": "thermoskin.skin.log",
+    "observe_skin": "thermoskin.skin.observe",
+    "group_events": "thermoskin.skin.groups",
     "run_skin": "thermoskin.runtime.skin_loop",
-    "characterise_events": "thermoskin.characterise",
+    "characterise_events": "thermoskin.touch.characterise",
     "load_sweep": "thermoskin.sweep.spec",
     "run_sweep": "thermoskin.sweep.run",
 }
@@ -122,24 +122,24 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs
-    from thermoskin.characterise import characterise_events
-    from thermoskin.estimator import Observation, TouchEstimator
-    from thermoskin.evaluation import match_events
-    from thermoskin.events import EVENT_COLUMNS, ContactEvent, write_events
+    from thermoskin.analysis.evaluation import match_events
+    from thermoskin.analysis.observe import observe, observe_file
+    from thermoskin.estimation.estimator import Observation, TouchEstimator
+    from thermoskin.estimation.events import EVENT_COLUMNS, ContactEvent, write_events
+    from thermoskin.estimation.observer import ThermalExchangeObserver
+    from thermoskin.estimation.patches import PatchEstimators
     from thermoskin.logio import LogError, LogReader, LogWriter, read_log, write_log
-    from thermoskin.observer import ThermalExchangeObserver
     from thermoskin.params import Config, ConfigError, load_config, save_config
-    from thermoskin.patches import PatchEstimators
     from thermoskin.physics.finger import Touch
-    from thermoskin.pipeline import observe, observe_file
     from thermoskin.runtime.closed_loop import run_closed_loop
     from thermoskin.runtime.controller import SkinController
     from thermoskin.runtime.skin_loop import run_skin
     from thermoskin.sim.run import simulate
     from thermoskin.sim.scenarios import SCENARIOS, Scenario
-    from thermoskin.skin import Skin, load_skin
-    from thermoskin.skin_groups import group_events
-    from thermoskin.skin_log import read_skin_log
-    from thermoskin.skin_observe import observe_skin
+    from thermoskin.skin.groups import group_events
+    from thermoskin.skin.layout import Skin, load_skin
+    from thermoskin.skin.log import read_skin_log
+    from thermoskin.skin.observe import observe_skin
     from thermoskin.sweep.run import run_sweep
     from thermoskin.sweep.spec import load_sweep
+    from thermoskin.touch.characterise import characterise_events

@@ -24,14 +24,14 @@ COMPILED_ELSEWHERE = ("control/mpc.py", "physics/peltier.py", "sim/skin.py")
 the MPC's interval test, the tank's and the skin's own arithmetic), whose changes must renew
 its cache too (numba would keep the caller's stale copy)."""
 
-CONSTANTS_FROM = ("estimation/model.py", "events.py", "physics/finger.py", "sim/sensors.py")
+CONSTANTS_FROM = ("estimation/model.py", "estimation/events.py", "physics/finger.py", "sim/sensors.py")
 """Modules whose constants (upper-case names) a compiled module imports: numba freezes a
 global's value into the machine code (the event record's layout, the onset threshold's rate
 tolerance, the noise block's length)."""
 
 SOURCES = ("estimation/kernel.py", "estimation/redate.py", "sweep/kernel.py", "sweep/qp.py",
-           "sim/skin_plant.py", "sim/board_bank.py", "skin_transport.py", "calibrate.py", *COMPILED_ELSEWHERE,
-           *CONSTANTS_FROM)
+           "sim/skin_plant.py", "sim/board_bank.py", "skin/transport.py", "fit/calibrate.py",
+           *COMPILED_ELSEWHERE, *CONSTANTS_FROM)
 """Every module with compiled (``@njit``) code, relative to the package, and those of
 :data:`COMPILED_ELSEWHERE` and :data:`CONSTANTS_FROM` (a test keeps it whole)."""
 

@@ -27,7 +27,7 @@ from rich.console import Console
 from rich.table import Table
 
 from thermoskin import __version__, startup
-from thermoskin.events import ContactEvent
+from thermoskin.estimation.events import ContactEvent
 from thermoskin.params import Config, ConfigError, load_config
 from thermoskin.paths import PathError
 
@@ -220,7 +220,7 @@ def events_table(events: list[ContactEvent], title: str = "Detected contacts",
                  what: bool | None = None) -> Table:
     """The events as a rich table (heat flows signed: negative for heat out, a cold object);
     a long list shows its first and last rows. ``what``: a column of what touched (default:
-    where the events are characterised, :mod:`thermoskin.characterise`)."""
+    where the events are characterised, :mod:`thermoskin.touch.characterise`)."""
     title, shown = _shown(events, title)
     if what is None:
         what = any(e.kind for e in events)
@@ -295,7 +295,7 @@ EVENTS_OPT = click.option("--events", "events_path", type=click.Path(path_type=P
 def _write_events(path: Path | None, events: list[ContactEvent]) -> None:
     if path is None:
         return
-    from thermoskin.events import write_events
+    from thermoskin.estimation.events import write_events
 
     try:
         write_events(path, events)
@@ -374,10 +374,10 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     are used if present, as the loop used them, so a log written by `thermoskin run` gives the
     live run's estimates and contacts again. NaN samples are held over (`gap`).
     """
+    from thermoskin.analysis.observe import observe_file
     from thermoskin.estimation.freshness import CHANNELS
     from thermoskin.logio import partial_last_line
     from thermoskin.paths import LOG_SUFFIXES
-    from thermoskin.pipeline import observe_file
 
     _outputs(("-o", output_csv, LOG_SUFFIXES, "log"), ("--events", events_path, (".csv",), "events file"),
              ("--groups", groups_path, (".csv",), "groups file"), inputs=(input_csv,))
@@ -427,10 +427,10 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
 def _observe_skin(input_path: Path, output: Path, events_path: Path | None, groups_path: Path | None,
                   skin_path: Path, cfg: Config) -> None:
     """``observe --skin``: every patch of a skin over its long-format log (``skin_observe``),
-    streamed (:func:`~thermoskin.skin_observe.observe_skin_file`)."""
+    streamed (:func:`~thermoskin.skin.observe.observe_skin_file`)."""
     startup.resume()  # a progress of its own (pass 2), after a pass that checks the log
-    from thermoskin.skin import load_skin
-    from thermoskin.skin_observe import observe_skin_file
+    from thermoskin.skin.layout import load_skin
+    from thermoskin.skin.observe import observe_skin_file
 
     skin = load_skin(skin_path, cfg)
     with _progress_bar("observing") as bar:
@@ -453,10 +453,10 @@ def _skin_report(skin: Any, events: list[Any], picture: Path, events_path: Path 
     """Print a skin's contacts and body contacts; write the events, groups and the layout picture."""
     import math as _m
 
-    from thermoskin.skin_groups import group_events, groups_columns, touch_kinds
-    from thermoskin.skin_log import write_table
-    from thermoskin.skin_observe import events_columns
-    from thermoskin.skin_plot import plot_layout
+    from thermoskin.plots.skin import plot_layout
+    from thermoskin.skin.groups import group_events, groups_columns, touch_kinds
+    from thermoskin.skin.log import write_table
+    from thermoskin.skin.observe import events_columns
 
     groups = group_events(skin, events)
     kinds = touch_kinds(skin, events)
@@ -515,8 +515,8 @@ def plot(log_path: Path, output: Path | None, title: str | None) -> None:
     warning saying where that is.
     """
     from thermoskin.logio import LogReader, partial_last_line
-    from thermoskin.plot_digest import PlotDigest
-    from thermoskin.plotting import FORMATS, plot_log
+    from thermoskin.plots.digest import PlotDigest
+    from thermoskin.plots.log import FORMATS, plot_log
 
     output = output if output is not None else log_path.with_suffix(".png")
     _outputs(("-o", output, FORMATS, "plot"))
@@ -590,8 +590,8 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
     output is a config file (a [peltier_model] table) that `thermoskin run --config` takes:
     the inner loop then adds the model's steady-state drive as a feed-forward.
     """
-    from thermoskin.identify import IdentifyError, save_model
-    from thermoskin.identify import identify as fit
+    from thermoskin.fit.identify import IdentifyError, save_model
+    from thermoskin.fit.identify import identify as fit
 
     _outputs(("-o", output_toml, (".toml",), "config"))
     log = _read_log(log_csv, ("t", "T_p", "drive"))
@@ -651,8 +651,9 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
     95 % intervals from the Jacobian at the optimum; what the log cannot determine is held
     at the config's value and said so.
     """
-    from thermoskin import calibrate as cal_mod
+    from thermoskin.fit import calibrate as cal_mod
     from thermoskin.logio import read_log
+    from thermoskin.plots.calibration import plot_fit
 
     _outputs(("-o", output_toml, (".toml",), "fitted config"),
              ("-o", output_toml.with_suffix(".png"), (".png",), "fit figure"), inputs=(log_path,))
@@ -709,9 +710,9 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
         console.print(line)
     try:
         cal_mod.save(res, output_toml, source=str(log_path))
-        png = cal_mod.plot_fit(res, output_toml.with_suffix(".png"),
-                               title=f"thermoskin calibrate {log_path.name}: residual rms "
-                                     f"{res.rms * 1e3:.2f} mK")
+        png = plot_fit(res, output_toml.with_suffix(".png"),
+                       title=f"thermoskin calibrate {log_path.name}: residual rms "
+                             f"{res.rms * 1e3:.2f} mK")
     except OSError as e:
         raise UserError(f"cannot write {e.filename or output_toml}: {e.strerror or e}") from None
     console.print(f"wrote {output_toml} and {png}")
@@ -788,7 +789,7 @@ def _simulate_skin(skin_path: Path, scenario: str, duration: float | None, cfg: 
     from thermoskin.logio import log_format
     from thermoskin.runtime.skin_loop import run_skin
     from thermoskin.sim.skin_scenarios import skin_scenario
-    from thermoskin.skin import load_skin
+    from thermoskin.skin.layout import load_skin
 
     skin = load_skin(skin_path, cfg)
     log_format(output)
@@ -882,7 +883,7 @@ SKIN_ESTIMATOR_KERNELS = ("estimation/kernel.new_state", "estimation/kernel.run_
 SKIN_KERNELS = SKIN_PLANT_KERNELS + SKIN_ESTIMATOR_KERNELS
 
 #: What the estimators compile besides when a patch is fed through a pipe (its transport correction).
-PIPE_KERNEL = "thermoskin/skin_transport._run"
+PIPE_KERNEL = "skin/transport._run"
 
 
 def skin_kernels(skin: Any, plant: bool = True, estimators: bool = True) -> tuple[str, ...]:
@@ -891,7 +892,7 @@ def skin_kernels(skin: Any, plant: bool = True, estimators: bool = True) -> tupl
     :data:`PIPE_KERNEL` unless every patch is fed straight from its tank), or both (`run
     --skin`): a skin whose run never compiles the transport correction must not wait for it in
     the cache. (Measured by running each command on an empty ``NUMBA_CACHE_DIR`` and listing it.)"""
-    from thermoskin.skin_observe import tank_fed
+    from thermoskin.skin.observe import tank_fed
 
     out = SKIN_PLANT_KERNELS if plant else ()
     if estimators:
@@ -960,7 +961,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     a complete recording) and exit with 130, 143 and 129 (128 + the signal number).
     """
     from thermoskin.paths import LOG_SUFFIXES
-    from thermoskin.plotting import FORMATS, plot_log
+    from thermoskin.plots.log import FORMATS, plot_log
     from thermoskin.runtime.closed_loop import COLUMNS, TRUTH, run_closed_loop
     from thermoskin.runtime.digest import RunDigest
     from thermoskin.runtime.runlog import RunLog
@@ -1056,7 +1057,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             except OSError as e:
                 raise UserError(f"cannot write {log_path}: {e.strerror or e}") from None
             if events_path is not None:  # each contact as it ends; the whole table at the end
-                from thermoskin.events import EventsStream
+                from thermoskin.estimation.events import EventsStream
 
                 try:
                     evstream = EventsStream(events_path)
@@ -1184,8 +1185,8 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     beside the log."""
     from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.sim.skin_scenarios import skin_scenario
-    from thermoskin.skin import load_skin
-    from thermoskin.skin_observe import SkinEstimator, board_warnings
+    from thermoskin.skin.layout import load_skin
+    from thermoskin.skin.observe import SkinEstimator, board_warnings
 
     if plot_path is None:
         plot_path = log_path.with_suffix(".png")
@@ -1232,10 +1233,10 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
                    events_path: Path | None, groups_path: Path | None, record_path: Path | None,
                    live_addr: str | None, live_rate: float, live_wait: float) -> None:
     """The body of ``run --skin`` (:func:`_run_skin`) under its stop request."""
-    from thermoskin.events import EventsStream
+    from thermoskin.estimation.events import EventsStream
+    from thermoskin.live.skin_topics import figures
     from thermoskin.runtime.skin_loop import run_skin
-    from thermoskin.runtime.skin_topics import figures
-    from thermoskin.skin_observe import SKIN_EVENT_COLUMNS, SkinEvent, observe_skin_file
+    from thermoskin.skin.observe import SKIN_EVENT_COLUMNS, SkinEvent, observe_skin_file
 
     sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait)
     P = len(skin.patches)
@@ -1332,8 +1333,8 @@ class _RecorderSink:
 def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str | None, live_rate: float,
                 live_wait: float) -> list[tuple[Any, Any]]:
     """The recording (every sample) and the live server (decimated) of a skin's run, each with its
-    :class:`~thermoskin.runtime.skin_topics.SkinMessages`."""
-    from thermoskin.runtime.skin_topics import SkinMessages, layout, skin_topics
+    :class:`~thermoskin.live.skin_topics.SkinMessages`."""
+    from thermoskin.live.skin_topics import SkinMessages, layout, skin_topics
 
     sinks: list[tuple[Any, Any]] = []
     topics = skin_topics(skin)
@@ -1424,7 +1425,7 @@ def _record_end(recorder: Any, res: Any, t_end: float) -> None:
 
 def _tracking(segments: Sequence[Any], with_T_p_cmd: bool = False) -> None:
     """Tracking over the last minute (or half) of each command
-    (:class:`~thermoskin.evaluation.Tracking` each)."""
+    (:class:`~thermoskin.analysis.evaluation.Tracking` each)."""
     for seg in segments:
         bounds = (f"; T_p_cmd within [{seg.T_p_cmd_min:.2f}, {seg.T_p_cmd_max:.2f}] degC"
                   if with_T_p_cmd else "")
@@ -1436,7 +1437,7 @@ def _tracking(segments: Sequence[Any], with_T_p_cmd: bool = False) -> None:
 def _summary(sc: Any, segments: Sequence[Any], events: list[ContactEvent], t_stop: float = math.inf) -> None:
     """Tracking of each command (with T_p_cmd's range); touches vs detections (a run stopped
     at ``t_stop`` scores only the touches it could tell)."""
-    from thermoskin.evaluation import match_events
+    from thermoskin.analysis.evaluation import match_events
 
     _tracking(segments, with_T_p_cmd=True)
     m = match_events(sc.touches, events, t_end=t_stop)
@@ -1716,7 +1717,7 @@ def sweep(sweep_toml: Path, output: Path, dask_address: str | None) -> None:
 def sweep_plot(results: Path, output: Path, metrics: tuple[str, ...]) -> None:
     """Heat maps (two keys) or parallel coordinates of metrics against a sweep's keys."""
     from thermoskin.paths import check_output
-    from thermoskin.sweep.plot import plot_results
+    from thermoskin.plots.sweep import plot_results
 
     check_output(output, "-o", (".png", ".pdf", ".svg"), "plot")
     plot_results(results, output, list(metrics) or None)

@@ -387,7 +387,7 @@ class PeltierModelParams(_Validated):
     """An identified model of the Peltier tank, as ``thermoskin identify`` writes it.
 
     The ARX model ``A(q) T_p[k] = B(q) drive[k] + d T_a[k-1] + c`` at sample time ``t_s``
-    (``A = 1 + a_1 q^-1 + ...``, ``B = b_1 q^-nk + ...``; :mod:`thermoskin.identify`). With
+    (``A = 1 + a_1 q^-1 + ...``, ``B = b_1 q^-nk + ...``; :mod:`thermoskin.fit.identify`). With
     ``use = "feedforward"`` the inner loop adds the drive that holds the commanded ``T_p`` in
     the model's steady state, ``drive_ff = (T_p_cmd - T_a) A(1)/B(1)`` (without the ``T_a``
     input; the tank at zero drive sits at the air) or ``(A(1) T_p_cmd - d T_a - c)/B(1)``
@@ -452,7 +452,7 @@ class PeltierModelParams(_Validated):
 
 @dataclass(frozen=True)
 class PlausibleParams(_Validated):
-    """Physical ranges of the measured columns (``thermoskin.plausible``).
+    """Physical ranges of the measured columns (``thermoskin.logio.plausible``).
 
     A reading outside its column's range is no reading: it is treated as a NaN (held over,
     flagged ``gap``) before it reaches any filter, live and offline. ``T_w_cmd`` is checked

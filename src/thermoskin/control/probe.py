@@ -1,6 +1,6 @@
 """Active sensing: the set-point modulated a little during a hold, to tell conductance from temperature.
 
-A toucher's heat ``q_i = G' (T_0 - T_x)`` (:mod:`thermoskin.characterise`) shows only the
+A toucher's heat ``q_i = G' (T_0 - T_x)`` (:mod:`thermoskin.touch.characterise`) shows only the
 product of its conductance and its temperature difference while the sheet's no-touch
 temperature ``T_x`` stands still. Moving ``T_x`` separates them (the trick of the
 two-temperature sensors of Bhattacharjee et al., 2020): the flow changes by ``-G' ΔT_x``.

@@ -492,7 +492,7 @@ class PtyEmulator:
         if stop.is_set():
             return
         if self.rt_priority > 0:
-            from thermoskin.runtime.sched import set_fifo
+            from thermoskin.devices.sched import set_fifo
 
             self.priority = set_fifo(self.rt_priority)
         t0 = self._t0
@@ -597,7 +597,7 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
         except OSError as e:
             print(f"device-emulator: cannot create the link {link}: {e}", file=sys.stderr)
             return 2
-        from thermoskin.runtime.sched import set_fifo
+        from thermoskin.devices.sched import set_fifo
 
         emu.priority = set_fifo(rt_priority)
         if verbose:

@@ -26,6 +26,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thermoskin.logio import LogError
+from thermoskin.params import Config, SamplingParams
+
 CHANNELS = ("T_w", "T_p", "T_a")
 BITS = {"T_w": 1, "T_p": 2, "T_a": 4}
 #: A one-patch log's channels and their bits.
@@ -128,3 +131,32 @@ def infer_fresh(log: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.int6
     channel's update period in samples (1 = every sample)."""
     inf = FreshInference()
     return inf.feed(log), inf.periods
+
+
+# A log's sampling interval, as the estimator takes it
+
+
+def sample_interval(t: NDArray[np.float64]) -> float:
+    """The log's sampling interval: the median step of ``t`` (s)."""
+    t = np.asarray(t, dtype=float)
+    if len(t) < 2:
+        raise ValueError("a log needs at least 2 samples to have a sampling interval")
+    return float(np.median(np.diff(t)))
+
+
+def check_interval(t_s: float, where: str = "the log") -> None:
+    """Refuse a sampling interval outside ``sampling.t_s``'s range (one-line :class:`LogError`)."""
+    import dataclasses
+
+    meta = {f.name: f.metadata for f in dataclasses.fields(SamplingParams)}["t_s"]
+    if not meta["lo"] <= t_s <= meta["hi"]:
+        raise LogError(f"{where} is sampled every {t_s:.3g} s; the estimator works at "
+                       f"{meta['lo']:g} to {meta['hi']:g} s per sample")
+
+
+def loop_t_s(t_s: float, cfg: Config) -> float:
+    """A log's sampling interval as the estimator takes it: the configured ``sampling.t_s``
+    where the log's is that within 0.1 % (the median of the differences of its times carries
+    their rounding; the live loop used the configured value), else the log's own."""
+    cfg_t_s = cfg.sampling.t_s
+    return cfg_t_s if abs(t_s - cfg_t_s) <= 1e-3 * cfg_t_s else float(t_s)

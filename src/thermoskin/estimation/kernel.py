@@ -41,8 +41,7 @@ import numba.core.options
 import numpy as np
 
 from thermoskin._jit import fetch_add, njit, prange, prefetch_w
-from thermoskin.estimation.model import RATE_TOL
-from thermoskin.events import (  # the event record's layout
+from thermoskin.estimation.events import (  # the event record's layout
     EV_DETECTED,
     EV_DURATION,
     EV_ENERGY,
@@ -53,6 +52,7 @@ from thermoskin.events import (  # the event record's layout
     EV_SIGN,
     NEV,
 )
+from thermoskin.estimation.model import RATE_TOL
 
 # ---------------------------------------------------------------- state layout (one patch)
 X = 0          # x: T_w, T_g, q_i, T_p, dT_p (5)
@@ -525,8 +525,9 @@ def _eq8(st, pr, Rw, T_w, T_p, T_a, iv):
     ``T_w, T_p, T_a`` and ``q_net = (T_p - T_w)/R_w(v_{k-1}) - (T_w - T_a)/R_aw`` (eqs. 1, 3);
     ``q_i_hat = q_hat + (T_w - T_a)/R_ag``. The first ``n_init`` samples are averaged and the
     filters start in that steady state; a NaN sample is held over; a NaN run longer than
-    ``max_gap`` restarts it. The same arithmetic as :class:`thermoskin.observer.ThermalExchangeObserver`
-    (with multiply-adds fused: equal to about 2e-14 W).
+    ``max_gap`` restarts it. The same arithmetic as
+    :class:`thermoskin.estimation.observer.ThermalExchangeObserver` (with multiply-adds fused:
+    equal to about 2e-14 W).
     """
     if iv < 0 or not (math.isfinite(T_w) and math.isfinite(T_p) and math.isfinite(T_a)):
         st[E8GAP] += 1.0

@@ -4,7 +4,7 @@ The detector dates an onset when it fires and a release when its release test tr
 from the readings it has by then. When the contact has ended, more is known: the readings
 after the release, and that the heat came as one pulse of one height. Where the pipe
 readings are slow (10 Hz boards, a 100 Hz log) that dates the contact better, and the
-event (:class:`~thermoskin.events.ContactEvent`) is written with the fit's onset and
+event (:class:`~thermoskin.estimation.events.ContactEvent`) is written with the fit's onset and
 release, ``detector.redate_tail`` after the detector's release.
 
 The fit is the generalised likelihood ratio of a rectangular pulse of heat of free height
@@ -51,7 +51,7 @@ from numpy.typing import NDArray
 
 from thermoskin._jit import njit
 from thermoskin.estimation import kernel as K  # noqa: N812
-from thermoskin.events import ContactEvent
+from thermoskin.estimation.events import ContactEvent
 from thermoskin.params import Config
 
 Array = NDArray[np.float64]
@@ -337,7 +337,7 @@ def _worker_start() -> None:
 
 class Redater:
     """One patch's re-dating: the buffer of its last input rows and the contact waiting for
-    its due time. :class:`~thermoskin.estimator.TouchEstimator` hands it every row it steps
+    its due time. :class:`~thermoskin.estimation.estimator.TouchEstimator` hands it every row it steps
     (:meth:`push`, :meth:`push_block`) and every row where a contact starts or ends or the
     waiting one falls due (:meth:`on_row`), one sample at a time live and a chunk at a time
     offline: the same rows, the same moments, the same events.

@@ -2,7 +2,7 @@
 
 The same algorithm as :mod:`thermoskin.estimation.kernel` (see its docstring and
 ``docs/model.md``), written the textbook way: matrices and vectors with ``numpy``, the paper's
-observer (eq. 8) from :class:`thermoskin.observer.ThermalExchangeObserver`, the detector as a
+observer (eq. 8) from :class:`thermoskin.estimation.observer.ThermalExchangeObserver`, the detector as a
 small state machine. It is slow (tens of µs a sample) and not used at run time; the tests and
 ``benchmarks/patches.py`` hold the kernel to it.
 """
@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from thermoskin.estimation.events import ContactEvent
 from thermoskin.estimation.model import (
     I_DTP,
     I_Q,
@@ -26,8 +27,7 @@ from thermoskin.estimation.model import (
     ModelTables,
     build_tables,
 )
-from thermoskin.events import ContactEvent
-from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.estimation.observer import ThermalExchangeObserver
 from thermoskin.params import Config
 from thermoskin.physics.convection import FlowResistance
 

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.evaluation import match_events
-from thermoskin.events import ContactEvent
+from thermoskin.analysis.evaluation import match_events
+from thermoskin.estimation.events import ContactEvent
 from thermoskin.experiments.scenarios import PERIOD_S
 from thermoskin.physics.finger import Touch
 

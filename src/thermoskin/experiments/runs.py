@@ -20,12 +20,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.control.pump import PumpLogic
-from thermoskin.estimator import TouchEstimator
-from thermoskin.events import ContactEvent
+from thermoskin.estimation.estimator import TouchEstimator
+from thermoskin.estimation.events import ContactEvent
+from thermoskin.estimation.observer import ThermalExchangeObserver
 from thermoskin.experiments.analysis import aligned_response, contact_stats, setpoint_stats
 from thermoskin.experiments.scenarios import T_A, contact_scenario, setpoint_scenario
-from thermoskin.identify import decimate_blocks
-from thermoskin.observer import ThermalExchangeObserver
+from thermoskin.fit.identify import decimate_blocks
 from thermoskin.params import Config, load_config
 from thermoskin.physics.spatial import SpatialParams
 from thermoskin.runtime.closed_loop import run_closed_loop

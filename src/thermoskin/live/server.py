@@ -7,7 +7,7 @@ live runs and recordings. Messages carry ``log_time = t`` in ns of the loop cloc
 the recording. Signals are decimated to ``rate`` Hz (:mod:`thermoskin.live.messages`);
 events are sent at once; ``/params`` (and a skin's ``/skin/scene``) is sent again to every new
 subscriber (latched). A skin's run serves its own topics (``topics``,
-:mod:`thermoskin.runtime.skin_topics`), the scene as protobuf (``foxglove.SceneUpdate``).
+:mod:`thermoskin.live.skin_topics`), the scene as protobuf (``foxglove.SceneUpdate``).
 
 The WebSocket is served by ``foxglove-sdk`` (its subprotocol is ``foxglove.sdk.v1``, the
 Foxglove WebSocket protocol v1 under its current name). The page (``page.html``, one
@@ -125,7 +125,7 @@ class LiveServer:
     (``params``: more fields of that message, e.g. a skin's layout);
     ``rate`` (Hz of the loop clock) is what :meth:`write_rows` decimates signals to;
     ``topics`` (topic: schema, a JSON schema or a ``foxglove.Schema``) replaces the recording's
-    topics (a skin's run, :func:`~thermoskin.runtime.skin_topics.skin_topics`).
+    topics (a skin's run, :func:`~thermoskin.live.skin_topics.skin_topics`).
     Raises :class:`~thermoskin.live.address.LiveError` if a port cannot be bound.
     """
 

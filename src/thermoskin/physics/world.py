@@ -1,7 +1,7 @@
 """Who touches a robot skin, and how: the distributions of touchers, their contacts and temperatures.
 
 One table serves both sides: :func:`thermoskin.sim.scenarios.toucher_scenario` draws its
-touches from it, and :mod:`thermoskin.characterise` takes it as its prior (what a person or
+touches from it, and :mod:`thermoskin.touch.characterise` takes it as its prior (what a person or
 an object touching the skin is likely to be). A skin working elsewhere (a kitchen, a
 foundry) would get another table; the numbers here are assumptions for a robot among
 people indoors, with the sources given where there are some.

@@ -22,9 +22,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.control.probe import SetpointProbe
-from thermoskin.events import ContactEvent
+from thermoskin.estimation.events import ContactEvent
+from thermoskin.logio.plausible import admit, limits
 from thermoskin.params import Config
-from thermoskin.plausible import admit, limits
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.controller import SkinController
 from thermoskin.sim.plant import SimulatedPlant

@@ -10,7 +10,7 @@ The same object runs against the simulated skin, a serial device, or a benchmark
                                                       detector (it feeds no control decision)
 
 Plain floats in, plain floats out; the results stay as attributes for a recorder. The
-readings it is given have passed :func:`thermoskin.plausible.admit` (done by the loops,
+readings it is given have passed :func:`thermoskin.logio.plausible.admit` (done by the loops,
 before the supervisor): an implausible reading arrives as NaN and is held over.
 
 Active sensing (``probe``, :class:`~thermoskin.control.probe.SetpointProbe`): while a
@@ -24,7 +24,7 @@ from thermoskin.control.inner import InnerLoop, model_feedforward
 from thermoskin.control.mpc import Mpc
 from thermoskin.control.probe import SetpointProbe
 from thermoskin.control.pump import PumpLogic
-from thermoskin.estimator import TouchEstimator
+from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.params import Config
 
 
@@ -40,7 +40,7 @@ class SkinController:
         temperature control only (pump, MPC, inner loop), no estimator (``estimator`` is None,
         ``contact`` stays 0, so no probe either): a water loop of many patches, whose patches
         are estimated elsewhere (``estimation.patches``). ``background_fits``: the estimator's
-        (:class:`~thermoskin.estimator.TouchEstimator`), for a realtime loop."""
+        (:class:`~thermoskin.estimation.estimator.TouchEstimator`), for a realtime loop."""
         t_s = cfg.sampling.t_s
         self.probe = probe
         self.estimator = TouchEstimator(cfg, background_fits=background_fits) if estimate else None

@@ -3,17 +3,17 @@
 The loop hands every block of rows to the log, the recording and a :class:`RunDigest`,
 which keeps, in memory that does not grow with the run's length:
 
-- the plot's columns (:class:`~thermoskin.plot_digest.PlotDigest`: every row of a short
+- the plot's columns (:class:`~thermoskin.plots.digest.PlotDigest`: every row of a short
   run, an exact min/max envelope of a long one);
-- each command's tracking (:class:`~thermoskin.evaluation.TrackingStream`);
-- what touched (:class:`~thermoskin.characterise.Characteriser`): each contact is
+- each command's tracking (:class:`~thermoskin.analysis.evaluation.TrackingStream`);
+- what touched (:class:`~thermoskin.touch.characterise.Characteriser`): each contact is
   characterised as soon as its samples are in (the characteriser holds only the last few
   minutes of its binned signals, so a contact of the first minutes of an hour's run could
   not be characterised at the end);
 - the rows and the last ``t``.
 
 A live run's digest gives what the same computations on its whole log give: the tracking
-and the characterisation exactly, the plot exactly up to :data:`~thermoskin.plot_digest.ROWS` rows.
+and the characterisation exactly, the plot exactly up to :data:`~thermoskin.plots.digest.ROWS` rows.
 """
 
 from __future__ import annotations
@@ -24,11 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.characterise import BIN_S, Characteriser, window_end
-from thermoskin.evaluation import Tracking, TrackingStream
-from thermoskin.events import ContactEvent
+from thermoskin.analysis.evaluation import Tracking, TrackingStream
+from thermoskin.estimation.events import ContactEvent
 from thermoskin.params import Config
-from thermoskin.plot_digest import PlotDigest
+from thermoskin.plots.digest import PlotDigest
+from thermoskin.touch.characterise import BIN_S, Characteriser, window_end
 
 #: Columns the characteriser reads.
 CHARACTER_INPUTS = ("t", "dq_i_hat", "T_w", "T_a")
@@ -95,5 +95,5 @@ class RunDigest:
         return self.plot.columns()
 
     def tracking_errors(self) -> list[Tracking]:
-        """Each command's tracking (:func:`thermoskin.evaluation.tracking_errors`)."""
+        """Each command's tracking (:func:`thermoskin.analysis.evaluation.tracking_errors`)."""
         return self.tracking.finish()

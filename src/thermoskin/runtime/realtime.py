@@ -57,9 +57,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.devices.base import DeviceError
-from thermoskin.events import ContactEvent
+from thermoskin.estimation.events import ContactEvent
+from thermoskin.logio.plausible import admit, limits
 from thermoskin.params import Config
-from thermoskin.plausible import admit, limits
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.closed_loop import COLUMNS, LoopResult
 from thermoskin.sim.scenarios import Scenario
@@ -191,7 +191,7 @@ class TimingHistogram:
 # ----------------------------------------------------------------------------- loop process
 
 def _set_priority(prio: int) -> str:
-    from thermoskin.runtime.sched import set_fifo
+    from thermoskin.devices.sched import set_fifo
 
     return set_fifo(prio)
 
@@ -213,7 +213,7 @@ def _make_device(spec: LoopSpec) -> Any:
 
 def _warm_up(cfg: Config, T: float) -> None:
     """Step a throw-away loop body so that first-call costs (imports, caches) are paid now."""
-    from thermoskin.estimator import warm_up
+    from thermoskin.estimation.estimator import warm_up
     from thermoskin.runtime.controller import SkinController
 
     c = SkinController(cfg)

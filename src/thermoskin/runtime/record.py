@@ -283,7 +283,7 @@ class Recorder:
     recorder from the thread that made it.
 
     ``schemas`` (topic: schema) adds topics to :data:`TOPIC_SCHEMAS` (a skin's,
-    :mod:`~thermoskin.runtime.skin_topics`): a JSON schema (a dict), or a ``foxglove.Schema``
+    :mod:`~thermoskin.live.skin_topics`): a JSON schema (a dict), or a ``foxglove.Schema``
     (``name``, ``encoding``, ``data``) whose messages are written as the bytes given (protobuf).
     ``params``: more fields of the ``/params`` message (a skin's layout).
     """
@@ -1073,8 +1073,8 @@ def replay_blocks(path: str | os.PathLike[str], config: Any = None, info: dict[s
     ``whole``)."""
     import numpy as np
 
-    from thermoskin.estimator import TouchEstimator
-    from thermoskin.plausible import admit_arrays, limits
+    from thermoskin.estimation.estimator import TouchEstimator
+    from thermoskin.logio.plausible import admit_arrays, limits
 
     if config is None:
         params = read_mcap(path, ["/params"]).get("/params", [])

@@ -46,7 +46,7 @@ from thermoskin.runtime.controller import SkinController
 from thermoskin.runtime.runlog import FLUSH_S
 from thermoskin.sim.skin_plant import SkinPlant
 from thermoskin.sim.skin_scenarios import SkinScenario
-from thermoskin.skin import Skin
+from thermoskin.skin.layout import Skin
 
 Array = NDArray[np.float64]
 

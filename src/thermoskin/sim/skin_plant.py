@@ -84,7 +84,7 @@ from thermoskin.physics.spatial import (
 from thermoskin.sim.board_bank import BoardBank
 from thermoskin.sim.sensors import Board
 from thermoskin.sim.skin_scenarios import SkinScenario, contact_arrays
-from thermoskin.skin import Skin, tc_fresh_bit
+from thermoskin.skin.layout import Skin, tc_fresh_bit
 
 Array = NDArray[np.float64]
 

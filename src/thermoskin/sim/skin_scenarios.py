@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from thermoskin.physics.finger import PERSONS, RAMP_S, Touch, body_temperature, full_conductance
 from thermoskin.sim.scenarios import SCENARIOS, Scenario
-from thermoskin.skin import Skin
+from thermoskin.skin.layout import Skin
 
 Array = NDArray[np.float64]
 

@@ -5,7 +5,7 @@ same scenario length, sampling interval and MPC horizon), builds each row's para
 tables and input profiles in numpy, runs them all in :func:`thermoskin.sweep.kernel.run_rows`
 and scores each row. The same point through the one-point path
 (:func:`~thermoskin.runtime.closed_loop.run_closed_loop`, or
-:func:`~thermoskin.sim.run.simulate` then :func:`~thermoskin.pipeline.observe`) is the
+:func:`~thermoskin.sim.run.simulate` then :func:`~thermoskin.analysis.observe.observe`) is the
 reference ``tests/test_sweep.py`` holds the batch to.
 
 Metrics of a point (a row of ``RESULTS.parquet``):
@@ -31,11 +31,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thermoskin.analysis.evaluation import match_events
 from thermoskin.control.inner import model_feedforward
 from thermoskin.control.mpc import Mpc
-from thermoskin.estimator import TouchEstimator
-from thermoskin.evaluation import match_events
-from thermoskin.events import NEV, ContactEvent
+from thermoskin.estimation.estimator import TouchEstimator
+from thermoskin.estimation.events import NEV, ContactEvent
 from thermoskin.params import Config
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.finger import contact_profile

@@ -20,7 +20,7 @@ body (:class:`~thermoskin.runtime.controller.SkinController`)::
 
 An **open-loop** row is :func:`thermoskin.sim.run.simulate` (the prescribed tank
 ``T_p(t)``, the pump logic on the measured ``T_w``) followed by
-:func:`thermoskin.pipeline.observe` (the estimator over the log, no drive), fused into one
+:func:`thermoskin.analysis.observe.observe` (the estimator over the log, no drive), fused into one
 loop. The supervisor and the ``[plausible]`` screen of the live loop are not run: a
 simulated reading is always plausible, and a sweep reports what the design does, not
 when its safety limits would stop it.

@@ -47,7 +47,7 @@ import numpy as np
 
 from thermoskin.params import Config, ConfigError, load_config, read_toml, to_toml
 from thermoskin.sim.scenarios import SCENARIOS
-from thermoskin.skin import REF_LENGTH, REF_WIDTH, _scaled_skin
+from thermoskin.skin.layout import REF_LENGTH, REF_WIDTH, _scaled_skin
 from thermoskin.sweep.engine import EXTRA, LOOPS, METRICS, ScenarioSpec
 
 SAMPLERS = ("grid", "random", "lhs")

@@ -1,9 +1,10 @@
 """Kind of touch: tap, hold, stroke, grasp, from contacts on one patch or on several.
 
 **One patch** (one thermocouple per patch: where on the patch the contact sits is not
-seen): a contact shorter than :data:`TAP_S` is a ``tap``, a longer one a ``hold``.
+seen): a contact shorter than :data:`thermoskin.estimation.events.TAP_S` is a ``tap``, a
+longer one a ``hold``.
 
-**Several patches** (a skin description, :mod:`thermoskin.skin`, with one contact list
+**Several patches** (a skin description, :mod:`thermoskin.skin.layout`, with one contact list
 per patch): the contacts are first joined into *touches*. Two contacts on different
 patches belong to the same touch when one begins before the other has ended, or at most
 :data:`LINK_S` after it (a hand sliding across the gap between two patches), and, when
@@ -28,25 +29,15 @@ observed per patch (events with a ``patch`` column), it is applied to lists of
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from thermoskin.events import ContactEvent
+from thermoskin.estimation.events import ContactEvent, one_patch_kind
 
-TAP_S = 1.0
-"""A contact shorter than this is a tap, s (taps last 0.2-0.6 s, holds 1.5 s and more)."""
 LINK_S = 0.5
 """Contacts on two patches up to this long apart belong to one touch, s."""
 GRASP_S = 0.5
 """Several patches in contact at once for this long make a grasp, s."""
-
-
-def one_patch_kind(duration: float) -> str:
-    """``tap`` or ``hold`` by the contact's ``duration`` (s); ``""`` while not known (NaN)."""
-    if not math.isfinite(duration):
-        return ""
-    return "tap" if duration < TAP_S else "hold"
 
 
 @dataclass(frozen=True)

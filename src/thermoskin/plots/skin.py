@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from thermoskin.atomic import atomic_path
-from thermoskin.skin import Skin
+from thermoskin.skin.layout import Skin
 
 MM = 1000.0
 LOOP_COLOURS = ("tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:cyan", "tab:olive")

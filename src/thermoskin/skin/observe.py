@@ -1,7 +1,8 @@
 """Estimation and detection on a skin of many patches: ``thermoskin observe LOG --skin SKIN.toml``.
 
-Per patch, the one-patch estimator of the compiled kernel (:class:`~thermoskin.patches.PatchEstimators`,
-one state row per patch, ``kernel.run_rows`` over the long-format rows), each patch with
+Per patch, the one-patch estimator of the compiled kernel
+(:class:`~thermoskin.estimation.patches.PatchEstimators`, one state row per patch,
+``kernel.run_rows`` over the long-format rows), each patch with
 
 - **its own model**: the network of its ``[skin]`` (Table I scaled to its size, ``skin.py``)
   and its loop's flow (eq. 1's ``R_w(v)``, the loop's pump), :func:`patch_config`;
@@ -36,13 +37,13 @@ A key the user's config sets above these is kept.
 
 **Live and offline, one estimator.** :class:`SkinEstimator` takes the rows block by block
 (``thermoskin run --skin`` hands it every block of the closed loop as it is written); its inlet
-water is :class:`~thermoskin.skin_inlet.InletStream` and every patch's filter and detector keep
+water is :class:`~thermoskin.skin.inlet.InletStream` and every patch's filter and detector keep
 their state from block to block, so the outputs do not depend on where the blocks are cut.
 :func:`observe_skin` is the same estimator fed a log in memory as one block, and
 :func:`observe_skin_file` (``observe --skin``) fed a log file block by block, memory bounded
 whatever its length: on a run's log they give the run's live contacts again. The position along
 the pipe needs the whole contact and the samples before it, so it is computed from the log
-(:func:`observe_skin_file` reads back only those samples, :func:`~thermoskin.skin_position.window`).
+(:func:`observe_skin_file` reads back only those samples, :func:`~thermoskin.skin.position.window`).
 """
 
 from __future__ import annotations
@@ -59,16 +60,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
-from thermoskin.estimation.freshness import CHANNEL_BITS, FreshInference
-from thermoskin.events import ContactEvent
+from thermoskin.estimation.events import ContactEvent
+from thermoskin.estimation.freshness import CHANNEL_BITS, FreshInference, loop_t_s
+from thermoskin.estimation.patches import PatchEstimators
 from thermoskin.params import Config
-from thermoskin.patches import PatchEstimators
-from thermoskin.pipeline import loop_t_s
-from thermoskin.skin import NETWORK_KEYS, Skin, tc_fresh_bit
-from thermoskin.skin_inlet import InletStream
-from thermoskin.skin_log import CHUNK_SAMPLES, SkinLog, SkinLogReader, long_block
-from thermoskin.skin_position import NAN_POSITION, PatchLocator, Position, window
-from thermoskin.skin_transport import TransportCorrection
+from thermoskin.skin.inlet import InletStream
+from thermoskin.skin.layout import NETWORK_KEYS, Skin, tc_fresh_bit
+from thermoskin.skin.log import CHUNK_SAMPLES, SkinLog, SkinLogReader, long_block
+from thermoskin.skin.position import NAN_POSITION, PatchLocator, Position, window
+from thermoskin.skin.transport import TransportCorrection
 
 Array = NDArray[np.float64]
 
@@ -110,7 +110,7 @@ on boards of this rate and faster; on 100 Hz boards 11 of 12, on 50 Hz 9 (the sa
 
 SKIN_EVENT_COLUMNS = ("patch", "onset", "detected", "release", "duration", "sign", "peak_dq", "mean_dq",
                       "energy", "position", "position_sd", "heat")
-"""Columns of a skin's events table: the patch's name, :data:`~thermoskin.events.EVENT_COLUMNS`,
+"""Columns of a skin's events table: the patch's name, :data:`~thermoskin.estimation.events.EVENT_COLUMNS`,
 the position along its pipe and its sd (m from the inlet; empty where not identifiable), the
 heat of the position fit (W)."""
 
@@ -339,7 +339,7 @@ class SkinEstimator:
     def __init__(self, skin: Skin, t_s: float, boards_period: float | None = None) -> None:
         """``boards_period``: the pipe thermocouples' period (s) where not the config's
         (:func:`log_boards_period`)."""
-        from thermoskin.pipeline import check_interval
+        from thermoskin.estimation.freshness import check_interval
 
         check_interval(t_s)
         self.skin, self.t_s = skin, float(t_s)
@@ -443,7 +443,7 @@ def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os
     2. the :class:`SkinEstimator` takes it block by block (as ``run --skin`` does live) and
        the blocks are written to ``output`` (whole or not at all), ``progress`` told the share done;
     3. ``output`` is read back for the samples each contact's position needs
-       (:func:`~thermoskin.skin_position.window`: a few seconds each), which alone are kept.
+       (:func:`~thermoskin.skin.position.window`: a few seconds each), which alone are kept.
 
     The same outputs and events as :func:`observe_skin` on the whole log (tested)."""
     from thermoskin.logio import write_blocks

@@ -12,7 +12,7 @@ plausible command; an implausible ``drive`` is an unknown drive.
 
 The check is done in one place on each path: :func:`admit` (three plain floats, the loop
 body's input, :mod:`thermoskin.runtime.realtime` and :mod:`~thermoskin.runtime.closed_loop`)
-and :func:`clean_log` (whole columns, :func:`thermoskin.pipeline.observe`, and ``replay``).
+and :func:`clean_log` (whole columns, :func:`thermoskin.analysis.observe.observe`, and ``replay``).
 A log written by a run therefore gives the live run's estimates again offline: the same
 values are dropped on both paths. The log keeps what the device sent.
 """

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.events import ContactEvent
+from thermoskin.estimation.events import ContactEvent
 from thermoskin.physics.finger import Touch
 
 

@@ -1,13 +1,13 @@
 """The estimator over a whole log: the offline path of ``thermoskin observe``.
 
-It runs the same compiled kernel as the live loop (:class:`~thermoskin.estimator.TouchEstimator`),
+It runs the same compiled kernel as the live loop (:class:`~thermoskin.estimation.estimator.TouchEstimator`),
 on the log's own sampling interval, with the log's ``T_w_cmd`` (if it has one: the detector
 is then armed the way the loop armed it) and the log's ``fresh`` column (if it has one;
 otherwise each channel's update rate is read from the data, :mod:`thermoskin.estimation.freshness`).
 On a log written by ``thermoskin run`` it therefore reproduces the live estimates and events.
 
 Before the estimator, implausible values (outside the ``[plausible]`` ranges) are dropped
-as the loop drops them (:func:`thermoskin.plausible.clean_log`): held over and flagged
+as the loop drops them (:func:`thermoskin.logio.plausible.clean_log`): held over and flagged
 ``gap``. A sampling interval the estimator cannot work at (outside ``sampling.t_s``'s range)
 is refused with :class:`~thermoskin.logio.LogError`.
 """
@@ -22,13 +22,18 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.characterise import Characteriser
-from thermoskin.estimation.freshness import FreshInference, infer_fresh
-from thermoskin.estimator import Observation, TouchEstimator, warm_up
-from thermoskin.events import ContactEvent
-from thermoskin.logio import LogError
-from thermoskin.params import Config, SamplingParams
-from thermoskin.plausible import Cleaned, clean_log
+from thermoskin.estimation.estimator import Observation, TouchEstimator, warm_up
+from thermoskin.estimation.events import ContactEvent
+from thermoskin.estimation.freshness import (
+    FreshInference,
+    check_interval,
+    infer_fresh,
+    loop_t_s,
+    sample_interval,
+)
+from thermoskin.logio.plausible import Cleaned, clean_log
+from thermoskin.params import Config
+from thermoskin.touch.characterise import Characteriser
 
 INPUT_COLUMNS = ("t", "T_w", "T_p", "v", "T_a")
 
@@ -41,24 +46,6 @@ __all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "StreamResult", "coar
 OUTPUT_COLUMNS = ("q_i_hat", "dq_i_hat", "contact", "gap")
 #: Chunks :func:`observe_file` reads ahead (4 of 262 144 rows: about 50 MiB for six columns).
 PREFETCH_CHUNKS = 4
-
-
-def sample_interval(t: NDArray[np.float64]) -> float:
-    """The log's sampling interval: the median step of ``t`` (s)."""
-    t = np.asarray(t, dtype=float)
-    if len(t) < 2:
-        raise ValueError("a log needs at least 2 samples to have a sampling interval")
-    return float(np.median(np.diff(t)))
-
-
-def check_interval(t_s: float, where: str = "the log") -> None:
-    """Refuse a sampling interval outside ``sampling.t_s``'s range (one-line :class:`LogError`)."""
-    import dataclasses
-
-    meta = {f.name: f.metadata for f in dataclasses.fields(SamplingParams)}["t_s"]
-    if not meta["lo"] <= t_s <= meta["hi"]:
-        raise LogError(f"{where} is sampled every {t_s:.3g} s; the estimator works at "
-                       f"{meta['lo']:g} to {meta['hi']:g} s per sample")
 
 
 def observe(log: dict[str, NDArray[np.float64]], cfg: Config, t_s: float | None = None,
@@ -148,14 +135,6 @@ def last_known(v: NDArray[np.float64], before: float = math.nan) -> float:
     return float(v[ok[-1]]) if len(ok) else before
 
 
-def loop_t_s(t_s: float, cfg: Config) -> float:
-    """A log's sampling interval as the estimator takes it: the configured ``sampling.t_s``
-    where the log's is that within 0.1 % (the median of the differences of its times carries
-    their rounding; the live loop used the configured value), else the log's own."""
-    cfg_t_s = cfg.sampling.t_s
-    return cfg_t_s if abs(t_s - cfg_t_s) <= 1e-3 * cfg_t_s else float(t_s)
-
-
 @dataclass
 class StreamResult:
     """What :func:`observe_file` found: the contacts, the log's rate, the channels' update
@@ -196,7 +175,7 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
     input's own estimates renamed ``*_live``, then ``q_i_hat, dq_i_hat, contact, gap``.
     Implausible values are dropped per chunk as :func:`observe` drops them (a log still being
     written, or cut by a kill, is read to its last whole line). ``characterise``: say what
-    touched, per contact as it closes (:mod:`thermoskin.characterise`; about 14 ms a contact);
+    touched, per contact as it closes (:mod:`thermoskin.touch.characterise`; about 14 ms a contact);
     False leaves the events' character fields empty. ``compiling``: the kernel is not compiled
     yet (a cold cache), so it is compiled only once the first chunk has passed every check
     (a bad log is one error, not a compile first), and ``compiling()`` is called just before;

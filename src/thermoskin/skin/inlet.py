@@ -47,7 +47,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.skin import Skin, tc_fresh_bit
+from thermoskin.skin.layout import Skin, tc_fresh_bit
 
 Array = NDArray[np.float64]
 Ints = NDArray[np.int64]

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from thermoskin.atomic import atomic_path
 from thermoskin.logio import LogError
-from thermoskin.skin import Skin
+from thermoskin.skin.layout import Skin
 
 Array = NDArray[np.float64]
 

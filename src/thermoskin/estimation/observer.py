@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.dsp import Iir
+from thermoskin.estimation.dsp import Iir
 from thermoskin.params import ObserverParams, SkinParams
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.network import D_poly, Q_den

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from thermoskin.skin import Skin
-from thermoskin.skin_observe import SkinEvent
+from thermoskin.skin.layout import Skin
+from thermoskin.skin.observe import SkinEvent
 
 REACH = 0.02
 """Patches whose rectangles come within this distance (m) are neighbours."""
@@ -138,9 +138,9 @@ def groups_columns(groups: list[BodyContact]) -> dict[str, np.ndarray]:
 
 def touch_kinds(skin: Skin, events: list[SkinEvent], *, reach: float = REACH) -> list[str]:
     """Per event, the kind of the touch it belongs to: ``tap``, ``hold``, ``stroke`` or
-    ``grasp`` (:func:`thermoskin.touchkind.touches`, with the patches within ``reach`` of
+    ``grasp`` (:func:`thermoskin.touch.kinds.touches`, with the patches within ``reach`` of
     each other on a link as neighbours)."""
-    from thermoskin.touchkind import kinds_of
+    from thermoskin.touch.kinds import kinds_of
 
     P = len(skin.patches)
     neighbours = {a: {b for b in range(P) if b != a and gap(skin, a, b) <= reach} for a in range(P)}

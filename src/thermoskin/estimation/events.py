@@ -4,7 +4,7 @@ One row per contact with the columns of :data:`EVENT_COLUMNS` (s, s, s, s, +1/-1
 ``onset`` (when the touch began, back-dated by the detector), ``detected`` (when the detector
 decided), ``release``, ``duration``, ``sign`` (+1: heat into the skin, a warm body; -1: heat
 out of it, a cold object), ``peak_dq`` and ``mean_dq`` (the estimated touch heat, signed)
-and ``energy``; then what touched (:mod:`thermoskin.characterise`, empty where not
+and ``energy``; then what touched (:mod:`thermoskin.touch.characterise`, empty where not
 identifiable): ``kind`` (``tap``/``hold``), ``toucher`` (``human``/``object``), ``material``
 (the most likely material class), ``p_human``, the contact conductance ``G_hat`` and its
 standard deviation ``G_sd`` (W/K), the toucher's surface temperature at the onset
@@ -40,9 +40,20 @@ CHARACTER_COLUMNS = ("kind", "toucher", "material", "p_human", "G_hat", "G_sd", 
 EVENT_COLUMNS = DETECTION_COLUMNS + CHARACTER_COLUMNS
 #: The text columns among them (the others are numbers).
 TEXT_COLUMNS = ("kind", "toucher", "material")
+
+TAP_S = 1.0
+"""A contact shorter than this is a tap, s (taps last 0.2-0.6 s, holds 1.5 s and more)."""
+
 #: The compiled kernel's event record: these fields, in this order (``estimation.kernel``).
 EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
 NEV = 8
+
+
+def one_patch_kind(duration: float) -> str:
+    """``tap`` or ``hold`` by the contact's ``duration`` (s); ``""`` while not known (NaN)."""
+    if not math.isfinite(duration):
+        return ""
+    return "tap" if duration < TAP_S else "hold"
 
 
 @dataclass(frozen=True)
@@ -58,7 +69,7 @@ class ContactEvent:
     peak_dq: float
     mean_dq: float
     energy: float
-    # what touched (:mod:`thermoskin.characterise`): empty text and NaN where not identified
+    # what touched (:mod:`thermoskin.touch.characterise`): empty text and NaN where not identified
     kind: str = ""
     toucher: str = ""
     material: str = ""
@@ -117,8 +128,6 @@ class EventsStream:
 
     def __init__(self, path: str | os.PathLike[str], columns: Sequence[str] = EVENT_COLUMNS,
                  fill_kind: bool = True) -> None:
-        from thermoskin.touchkind import one_patch_kind
-
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.columns = tuple(columns)

@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.expm import expm
 from thermoskin.physics.spatial import contact_cells, spatial_state_space, spatial_steady_state
-from thermoskin.skin import Patch, Skin
+from thermoskin.skin.layout import Patch, Skin
 
 Array = NDArray[np.float64]
 

@@ -1,6 +1,6 @@
 """A run's plot, fed block by block in bounded memory (``thermoskin run`` and ``plot`` of a log).
 
-:func:`thermoskin.plotting.plot_run` draws at most about ``MAX_POINTS`` points a line
+:func:`thermoskin.plots.log.plot_run` draws at most about ``MAX_POINTS`` points a line
 (min/max decimation), so a long run needs only an envelope of its columns.
 :class:`PlotDigest` holds every row of :data:`PLOT_COLUMNS` while there are at most
 ``rows`` of them (the plot is then the whole log's, exactly). Beyond, it holds *ranges*:
@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 Array = NDArray[np.float64]
 
-#: The columns :func:`thermoskin.plotting.plot_run` draws.
+#: The columns :func:`thermoskin.plots.log.plot_run` draws.
 PLOT_COLUMNS = ("t", "T_w", "T_p", "T_g", "T_w_cmd", "T_a", "q_i_hat", "dq_i_hat", "q_i", "T_p_cmd",
                 "drive", "v", "contact", "contact_true")
 #: Trailing means the plot draws: ``(column, window s)``.

@@ -34,10 +34,10 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.events import DETECTION_COLUMNS, ContactEvent
+from thermoskin.estimation.events import DETECTION_COLUMNS, ContactEvent
 from thermoskin.live.messages import Decimator
 from thermoskin.runtime.record import TOPIC_SCHEMAS
-from thermoskin.skin import Skin
+from thermoskin.skin.layout import Skin
 
 SCENE_TOPIC = "/skin/scene"
 FRAME = "skin"
@@ -196,7 +196,7 @@ class SkinMessages:
 
     def messages(self, t: Any, cols: Mapping[str, Any], blk: Any) -> Iterator[tuple[str, float, Any]]:
         """One block: ``t`` (m), the log's ``(m, P)`` columns, the estimator's
-        :class:`~thermoskin.skin_observe.SkinBlock`."""
+        :class:`~thermoskin.skin.observe.SkinBlock`."""
         ch = blk.changes
         for j, c in enumerate(ch):
             name = self.names[c.patch]
@@ -241,7 +241,7 @@ class SkinMessages:
 
 
 def figures(e: ContactEvent) -> dict[str, Any]:
-    """A finished contact's figures (:data:`~thermoskin.events.DETECTION_COLUMNS`), JSON-clean."""
+    """A finished contact's figures (:data:`~thermoskin.estimation.events.DETECTION_COLUMNS`), JSON-clean."""
     row = e.row()
     return {k: _num(row[k]) for k in DETECTION_COLUMNS}
 

@@ -5,7 +5,7 @@ estimated every sample. :class:`PatchEstimators` keeps one state vector per patc
 ``ST``) and one model per distinct configuration (patches built alike share their discretised
 tables and parameters), and steps every patch with :func:`kernel.step_many` (live, one
 sample of every patch) or :func:`kernel.run_rows` (a long-format log, one row per sample and
-patch). Each patch is exactly the one-patch :class:`~thermoskin.estimator.TouchEstimator`
+patch). Each patch is exactly the one-patch :class:`~thermoskin.estimation.estimator.TouchEstimator`
 (the same sample step, inlined into each entry point), which the tests check bit for bit.
 """
 
@@ -19,8 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
-from thermoskin.estimator import TouchEstimator
-from thermoskin.events import ContactEvent
+from thermoskin.estimation.estimator import TouchEstimator
+from thermoskin.estimation.events import ContactEvent
 from thermoskin.params import Config
 
 Array = NDArray[np.float64]

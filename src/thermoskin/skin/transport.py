@@ -43,7 +43,7 @@ from thermoskin.params import SkinParams
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.network import discretize, state_space
 from thermoskin.physics.spatial import spatial_state_space
-from thermoskin.skin import Skin
+from thermoskin.skin.layout import Skin
 
 Array = NDArray[np.float64]
 

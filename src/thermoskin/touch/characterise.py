@@ -56,8 +56,8 @@ seen); ``toucher`` where ``p_human`` is at least ``P_DECIDE`` or at most ``1 - P
 always given (the prior's 0.5 when the contact has not shown itself yet).
 
 **Kind**: ``tap`` or ``hold`` from the contact on its patch
-(:func:`thermoskin.touchkind.one_patch_kind`); ``stroke`` and ``grasp`` need the contacts
-of several patches together (:func:`thermoskin.touchkind.touches`).
+(:func:`thermoskin.estimation.events.one_patch_kind`); ``stroke`` and ``grasp`` need the contacts
+of several patches together (:func:`thermoskin.touch.kinds.touches`).
 """
 
 from __future__ import annotations
@@ -71,9 +71,8 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.events import ContactEvent
+from thermoskin.estimation.events import ContactEvent, one_patch_kind
 from thermoskin.params import Config
-from thermoskin.touchkind import one_patch_kind
 
 Array = NDArray[np.float64]
 
@@ -423,7 +422,7 @@ class Character:
     t_used: float
 
     def fields(self) -> dict[str, str | float]:
-        """The event fields (:data:`thermoskin.events.CHARACTER_COLUMNS`)."""
+        """The event fields (:data:`thermoskin.estimation.events.CHARACTER_COLUMNS`)."""
         return {"kind": self.kind, "toucher": self.toucher, "material": self.material,
                 "p_human": self.p_human, "G_hat": self.G_hat, "G_sd": self.G_sd,
                 "T_f_hat": self.T_f_hat, "T_f_sd": self.T_f_sd, "effusivity_hat": self.effusivity_hat}
@@ -665,7 +664,7 @@ class Characteriser:
                        at)
 
     def annotate(self, event: ContactEvent, at: float | None = None) -> ContactEvent:
-        """``event`` with what touched (:data:`thermoskin.events.CHARACTER_COLUMNS`)."""
+        """``event`` with what touched (:data:`thermoskin.estimation.events.CHARACTER_COLUMNS`)."""
         return dataclasses.replace(event, **self.characterise(event, at).fields())  # type: ignore[arg-type]
 
 

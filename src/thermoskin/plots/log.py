@@ -103,7 +103,7 @@ def plot_run(
     no-touch baseline ``dq_i_hat``; the simulator's true ``q_i`` if present; ``T_p_cmd``,
     the Peltier drive and the pump if present. The trailing means are computed here, or
     taken from ``q_i_hat_mean`` and ``v_mean`` if given (a long run's digest,
-    :class:`thermoskin.plot_digest.PlotDigest`). Detected
+    :class:`thermoskin.plots.digest.PlotDigest`). Detected
     contacts (``events``: objects or mappings with ``onset``/``release`` in s) are shaded
     in both panels; true contacts (``contact_true``) are a thin band at the top of each
     panel. Returns the path.

@@ -4,7 +4,7 @@ Per sample (``step``, the live loop) or over a whole log (``run``, offline), wit
 compiled kernel (:mod:`thermoskin.estimation.kernel`), so the two agree bit for bit:
 
 - ``q_i_hat``: the paper's thermal exchange observer, eq. 8 with its ``q_ag`` correction
-  (:class:`~thermoskin.observer.ThermalExchangeObserver`), kept as the paper defines it;
+  (:class:`~thermoskin.estimation.observer.ThermalExchangeObserver`), kept as the paper defines it;
 - ``dq_i_hat``: the touch's heat into the sheet, W, from a Kalman filter on the network of
   Fig. 3 that updates only on fresh readings (:mod:`thermoskin.estimation.model`), minus its
   no-touch baseline; its standard deviation ``sd``;
@@ -27,11 +27,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation.events import ContactEvent
 from thermoskin.estimation.model import ModelTables, build_tables
+from thermoskin.estimation.observer import ThermalExchangeObserver
 from thermoskin.estimation.redate import Redater
 from thermoskin.estimation.redate import load as redate_load
-from thermoskin.events import ContactEvent
-from thermoskin.observer import ThermalExchangeObserver
 from thermoskin.params import Config
 from thermoskin.physics.convection import FlowResistance
 
