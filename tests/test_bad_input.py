@@ -218,7 +218,7 @@ def test_storage_errors_are_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
     import thermoskin.cli as cli
 
     def boom(code: int):  # type: ignore[no-untyped-def]
-        @cli._user_errors
+        @cli.common._user_errors
         def f() -> None:
             raise OSError(code, os.strerror(code), "/mnt/usb/run.mcap")
         return f

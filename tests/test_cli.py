@@ -250,7 +250,7 @@ def test_events_table_keeps_numbers_whole_in_80_columns() -> None:
     "15.0…" once the what-touched column came); only the text column wraps."""
     from rich.console import Console
 
-    from thermoskin.cli import events_table
+    from thermoskin.cli.common import events_table
     from thermoskin.estimation.events import ContactEvent
 
     ev = [ContactEvent(1115.042, 1115.14, 1116.982, 1.94, 1, 1.002, 0.66, 1.28, "hold", "object",
@@ -280,8 +280,8 @@ def test_what_touched_is_printed_whole_in_any_terminal(monkeypatch) -> None:  # 
           ContactEvent(24.061, 24.127, 26.47, 2.41, -1, -0.143, -0.078, -0.632, "tap", "human", "human")]
     for width, tables in ((80, 2), (140, 1)):
         c = Console(width=width, highlight=False, record=True)
-        monkeypatch.setattr(cli, "console", c)
-        cli.show_events(ev)
+        monkeypatch.setattr(cli.common, "console", c)
+        cli.common.show_events(ev)
         text = c.export_text()
         assert max(len(line) for line in text.splitlines()) <= width
         assert "hold object glass-ceramic 55.3C" in text and "tap human" in text  # whole, one line
@@ -329,9 +329,9 @@ def test_run_says_when_it_compiles_on_every_device(tmp_path: Path, monkeypatch, 
     from thermoskin.runtime import closed_loop
 
     def loop(*args, **kwargs):  # type: ignore[no-untyped-def]
-        raise cli.UserError("the loop would start here")
+        raise cli.common.UserError("the loop would start here")
 
-    monkeypatch.setattr(cli, "_run_fixed_rate", loop)
+    monkeypatch.setattr(cli.run, "_run_fixed_rate", loop)
     monkeypatch.setattr(closed_loop, "run_closed_loop", loop)
     (tmp_path / "tty").touch()  # a port that exists (a missing one is refused before any of this)
     args = {"sim": [], "realtime": ["--realtime"],
@@ -351,7 +351,7 @@ def test_run_says_when_it_compiles_on_every_device(tmp_path: Path, monkeypatch, 
 
 def test_note_compile_notes_once_if_any_is_missing(monkeypatch, capsys) -> None:  # type: ignore[no-untyped-def]
     from thermoskin import _numba_cache
-    from thermoskin.cli import _note_compile
+    from thermoskin.cli.common import _note_compile
 
     names = ("a/b.c", "d/e.f", "g/h.i")
     for missing, expected in ((set(), 0), ({"d/e.f"}, 1), ({"g/h.i"}, 1), (set(names), 1)):
@@ -371,12 +371,12 @@ def test_run_skin_asks_for_every_kernel_it_compiles(tmp_path: Path, monkeypatch)
     from thermoskin import _numba_cache, cli
     from thermoskin.skin.layout import load_skin
 
-    monkeypatch.setattr(cli, "_run_skin_loop", lambda *args, **kwargs: None)  # no loop: only the notice
+    monkeypatch.setattr(cli.run, "_run_skin_loop", lambda *args, **kwargs: None)  # no loop: only the notice
     forearm = Path(__file__).parents[1] / "examples" / "forearm.toml"
-    expected = [*cli.SKIN_KERNELS, cli.PIPE_KERNEL]
-    assert cli.skin_kernels(load_skin(forearm, load_config())) == tuple(expected)  # forearm has pipes
+    expected = [*cli.common.SKIN_KERNELS, cli.common.PIPE_KERNEL]
+    assert cli.common.skin_kernels(load_skin(forearm, load_config())) == tuple(expected)  # forearm has pipes
     single = forearm.with_name("single.toml")  # one patch fed straight from its tank: no transport
-    assert cli.skin_kernels(load_skin(single, load_config())) == cli.SKIN_KERNELS
+    assert cli.common.skin_kernels(load_skin(single, load_config())) == cli.common.SKIN_KERNELS
     assert {"sim/skin_plant._advance", "estimation/kernel.run_rows"} <= set(expected)
     for missing in (None, *expected):
         asked: list[str] = []
@@ -398,8 +398,8 @@ def test_observe_skin_asks_for_the_estimators_only(tmp_path: Path, monkeypatch) 
     from thermoskin.skin.layout import load_skin
 
     forearm = Path(__file__).parents[1] / "examples" / "forearm.toml"
-    names = cli.skin_kernels(load_skin(forearm, load_config()), plant=False)
-    assert not set(names) & set(cli.SKIN_PLANT_KERNELS) and cli.PIPE_KERNEL in names
+    names = cli.common.skin_kernels(load_skin(forearm, load_config()), plant=False)
+    assert not set(names) & set(cli.common.SKIN_PLANT_KERNELS) and cli.common.PIPE_KERNEL in names
     log = tmp_path / "skin.csv"
     code, _, err = invoke("simulate", "--skin", str(forearm), "--duration", "0.5", "-o", str(log))
     assert code == 0, err

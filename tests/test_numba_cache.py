@@ -90,9 +90,9 @@ def test_the_cli_looks_up_real_cached_functions() -> None:
 
     from thermoskin import cli
 
-    text = (nc.HERE / "cli.py").read_text(encoding="utf-8")
+    text = "".join(f.read_text(encoding="utf-8") for f in sorted((nc.HERE / "cli").glob("*.py")))
     names = set(re.findall(r'"([a-z_]+/[a-z_]+\.[A-Za-z_]+)"', text))
-    assert {cli.ESTIMATOR_KERNEL, cli.PIPE_KERNEL, *cli.SKIN_KERNELS} <= names
+    assert {cli.common.ESTIMATOR_KERNEL, cli.common.PIPE_KERNEL, *cli.common.SKIN_KERNELS} <= names
     assert {"estimation/kernel.run", "sweep/kernel.run_rows"} <= names
     for name in sorted(names):
         folder, stem = name.split("/")

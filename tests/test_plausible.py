@@ -12,7 +12,8 @@ import pytest
 from click.testing import CliRunner
 
 from thermoskin.analysis.observe import observe
-from thermoskin.cli import SETTLE_S, main
+from thermoskin.cli import main
+from thermoskin.cli.run import SETTLE_S
 from thermoskin.logio import write_log
 from thermoskin.logio.plausible import admit, clean_log, limits
 from thermoskin.params import Config, load_config

@@ -132,7 +132,7 @@ def test_a_cold_cache_ends_the_start_up_before_compiling(tmp_path: Path, restore
 def test_an_early_exit_turns_the_collector_back_on(restored_gc: None, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """``--help`` (or a usage error) ends before any command's start-up does; the program's
     entry still turns the collector back on, unfrozen, for a caller that goes on, and has the
-    exit freeze what is left (as every command does: ``cli._freeze_at_exit``), so that the
+    exit freeze what is left (as every command does: ``cli.app._freeze_at_exit``), so that the
     interpreter's teardown does not traverse the start-up's objects, all still young."""
     import atexit
 
@@ -152,7 +152,7 @@ def test_an_early_exit_turns_the_collector_back_on(restored_gc: None, monkeypatc
         with pytest.raises(SystemExit):
             program()
         assert gc.isenabled() and not startup.paused() and gc.get_freeze_count() == 0, args
-        assert registered == [cli._freeze_at_exit], args  # once, though observe --help asks twice
+        assert registered == [cli.app._freeze_at_exit], args  # once, though observe --help asks twice
 
 
 def test_a_failing_command_still_exits_cleanly(tmp_path: Path) -> None:
