@@ -291,6 +291,11 @@ class SensorParams(_Validated):
     lag_T_a: float = _p(0.0, "s", 0.0, 600.0,
                         doc="time constant of the air sensor's lag (0 = none; a bead in still air "
                             "about 1 s)")
+    offset_T_w: float = _p(0.0, "K", -5.0, 5.0,
+                           doc="the T_w reading's offset: reading minus true temperature (a board's "
+                               "cold junction); only the differences between channels are observable")
+    offset_T_p: float = _p(0.0, "K", -5.0, 5.0, doc="the T_p reading's offset (as offset_T_w)")
+    offset_T_a: float = _p(0.0, "K", -5.0, 5.0, doc="the T_a reading's offset (as offset_T_w)")
 
     def __post_init__(self) -> None:
         super().__post_init__()
