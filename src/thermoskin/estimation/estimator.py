@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.events import ContactEvent
-from thermoskin.estimation.model import ModelTables, build_tables
+from thermoskin.estimation.model import ModelTables, build_tables, measurement_variance
 from thermoskin.estimation.observer import ThermalExchangeObserver
 from thermoskin.estimation.redate import Redater
 from thermoskin.estimation.redate import load as redate_load
@@ -101,6 +101,23 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_RAG] = cfg.skin.R_ag
     pr[K.PR_BAND] = d.arm_band
     pr[K.PR_NARM] = max(1, round(d.t_arm / t_s))
+    # what is learnt of the sensors: their priors (the configuration) and how fast
+    sn, es = cfg.sensor, cfg.estimator
+    pr[K.PR_RW0] = measurement_variance(cfg, "T_w")
+    pr[K.PR_RP0] = measurement_variance(cfg, "T_p")
+    pr[K.PR_RA0] = measurement_variance(cfg, "T_a")
+    pr[K.PR_OFW], pr[K.PR_OFP], pr[K.PR_OFA] = sn.offset_T_w, sn.offset_T_p, sn.offset_T_a
+    pr[K.PR_BD0] = 0.0
+    pr[K.PR_PB0] = sn.offset_sd**2
+    pr[K.PR_SB] = es.offset_drift
+    pr[K.PR_TAUR] = es.tau_noise
+    pr[K.PR_LEARN] = 1.0
+    pr[K.PR_RMIN] = 400.0
+    pr[K.PR_RHOW] = d.rho_window
+    pr[K.PR_RHOETA] = 0.03
+    pr[K.PR_RHODB] = d.rho_deadband
+    pr[K.PR_RHOSET] = 0.5
+    pr[K.PR_AIR] = min(1.0, t_s / 10.0)
     return pr
 
 
@@ -253,7 +270,8 @@ class TouchEstimator:
             if self.started or self.ended or t >= rd.due:
                 self.written = [*self.written, *rd.on_row(
                     self, rd.n - 1, t, self.st[K.ONSET] if self.started else math.nan,
-                    ContactEvent.from_kernel(self._ev) if self.ended else None)]
+                    ContactEvent.from_kernel(self._ev) if self.ended else None,
+                    learnt=self._ev if self.ended else None)]
         if self.written:
             self.events.extend(self.written)
         self.contact = code & K.C_CONTACT
@@ -267,7 +285,7 @@ class TouchEstimator:
         if K.finish(self.st, t, self._ev):
             e = ContactEvent.from_kernel(self._ev)
             self.events.append(e if rd is None else rd.redate(self, e, rd.n - 1, math.inf,
-                                                              open_end=True))
+                                                              open_end=True, learnt=self._ev))
             self.contact = 0
 
     # -- arrays -----------------------------------------------------------------------------
@@ -294,7 +312,7 @@ class TouchEstimator:
         new = [ContactEvent.from_kernel(events[i]) for i in range(min(ne, len(events)))]
         if rd is not None:
             new = self._redate_chunk(rd, new, (t, T_w, T_p, T_a, cmd, iv, drv, fr),
-                                     marks[:min(nm, len(marks))])
+                                     marks[:min(nm, len(marks))], events)
         self.events.extend(new)
         self.contact = int(self.st[K.CONTACT])
         cols = {"q_i_hat": out[0], "dq_i_hat": out[1], "sd": out[3],
@@ -303,13 +321,14 @@ class TouchEstimator:
         return cols, new
 
     def _redate_chunk(self, rd: Redater, ended: list[ContactEvent], block: tuple[Array, ...],
-                      marks: Array) -> list[ContactEvent]:
+                      marks: Array, records: Array) -> list[ContactEvent]:
         """The chunk's rows where a contact started or ended (``marks``: row, bits, onset), or
         the waiting one fell due, in order, as :meth:`step` hands them to the re-dating one
         sample at a time."""
         t = block[0]
         n0 = rd.n
         it = iter(ended)
+        ie = 0  # the next ended contact's kernel record
         written: list[ContactEvent] = []
         pos, im = 0, 0
         while True:
@@ -319,9 +338,13 @@ class TouchEstimator:
             if k >= len(t):
                 break
             c = int(marks[im, 1]) if im < len(marks) and marks[im, 0] == k else 0
+            learnt = None
+            if c & K.C_ENDED:
+                learnt = records[ie]
+                ie += 1
             written.extend(rd.on_row(self, n0 + k, float(t[k]),
                                      float(marks[im, 2]) if c & K.C_STARTED else math.nan,
-                                     next(it) if c & K.C_ENDED else None, block, n0))
+                                     next(it) if c & K.C_ENDED else None, block, n0, learnt))
             if c:
                 im += 1
             pos = k + 1

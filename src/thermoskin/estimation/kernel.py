@@ -42,13 +42,18 @@ import numpy as np
 
 from thermoskin._jit import fetch_add, njit, prange, prefetch_w
 from thermoskin.estimation.events import (  # the event record's layout
+    EV_BD,
     EV_DETECTED,
     EV_DURATION,
     EV_ENERGY,
     EV_MEAN,
     EV_ONSET,
+    EV_PBD,
     EV_PEAK,
+    EV_RA,
     EV_RELEASE,
+    EV_RP,
+    EV_RW,
     EV_SIGN,
     NEV,
 )
@@ -146,7 +151,33 @@ UREC = WBUF + NWB  # traced (PR_TRACE): this sample's pipe and tank updates, NUR
 NUR = 9                # made (1/0), innovation e, kappa^2 S, evidence (1/0), the gain K (5)
 SWB = UREC + 2 * NUR   # traced: a pump-switch correction's x_Tw += c (x_Tp - x_Tw), its c, before
 SWA = SWB + 1          # the updates and after them (0: none)
-NSTATE = SWA + 1
+# what is learnt of the sensors from their readings (docs/model.md, Sensors that calibrate
+# themselves): each channel's reading variance, its converter's step, the offset of the tank's
+# readings against the pipe's (a slow state of the two-stage filter) and the evidence's dispersion
+RW = SWA + 1       # the variance of a T_w reading, K^2 (noise and quantum), learnt
+RP = RW + 1        # ... of a T_p reading
+RA = RW + 2        # ... of a T_a reading
+QW = RW + 3        # the smallest non-zero change between two fresh T_w readings (the converter's
+QP = RW + 4        # step, if it has one), K; 1e300 before any change; T_p, T_a
+QA = RW + 5
+LYW = RW + 6       # the last fresh readings of T_w, T_p, T_a (NaN before the first)
+LYP = RW + 7
+LYA = RW + 8
+TLP = RW + 9       # the time of the last fresh T_p reading, s
+TLA = RW + 10      # ... of T_a
+BD = RW + 11       # the offset of the T_p readings against the T_w readings beyond the configured
+#                    ones (reading minus truth, K): the two-stage filter's slow state
+PBD = RW + 12      # its variance, K^2
+VB = RW + 13       # 5: the patch state's sensitivity to an error of BD (dx/db, the two-stage
+#                    filter's V: Friedland 1969)
+RHO = VB + 5       # the onset evidence's dispersion over its model value (1 when the model fits)
+WGE = RHO + 1      # this window's sums of g e/S and g^2/S, and where it began, s
+WGG = RHO + 2
+WT0 = RHO + 3
+IRATE = RHO + 4    # the information on a step of q_i the readings bring, W^-2 per s (idle)
+LINIT = RHO + 5    # 1 once what is learnt has its priors
+RHON = RHO + 6     # the dispersion's windows seen
+NSTATE = RHON + 1
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -207,7 +238,24 @@ PR_GLR = 58      # 1: an onset is dated by the GLR over the change time; 0: at t
 PR_GPOOL = 59    # a buffer entry pools the readings less than this after its first, s
 PR_HMIN = 60     # the onset threshold's floor
 PR_TRACE = 61    # 1: no detection; each update is recorded in the state (UREC), for the re-dating
-NPARAM = 62
+PR_RW0 = 62      # the prior variance of a T_w reading (noise_T_w² + quantum_T²/12), K^2
+PR_RP0 = 63      # ... of a T_p reading
+PR_RA0 = 64      # ... of a T_a reading
+PR_OFW = 65      # the configured offsets of the T_w, T_p, T_a readings, K (subtracted)
+PR_OFP = 66
+PR_OFA = 67
+PR_BD0 = 68      # the learnt offset's starting value (0; the re-dating's filter: the live one's), K
+PR_PB0 = 69      # its prior variance, K^2 (0: not learnt)
+PR_SB = 70       # its random walk, K^2/s
+PR_TAUR = 71     # the readings' variances are learnt over about this long, s (0: not learnt)
+PR_LEARN = 72    # 1: learn (offset, variances, dispersion); 0: hold them (the re-dating's filter)
+PR_RHOW = 73     # the dispersion's window, s (0: none)
+PR_RHOETA = 74   # its tracker's least step (in its logarithm, a window)
+PR_RHODB = 77    # the dispersion below this is taken as 1 (its tracker's own scatter)
+PR_AIR = 78      # the information rate's weight per sample (t_s / its time constant)
+PR_RMIN = 79     # a learnt variance stays within this factor of its prior, both ways
+PR_RHOSET = 80   # the dispersion's windows begin this long after a release, s
+NPARAM = 81
 
 
 # step result bits
@@ -250,6 +298,10 @@ def new_state() -> np.ndarray:
     st[TAMB] = -1e300
     st[CMD] = np.nan
     st[QIH] = np.nan
+    st[QW] = st[QP] = st[QA] = 1e300
+    st[LYW] = st[LYP] = st[LYA] = np.nan
+    st[TLP] = st[TLA] = -1e300
+    st[RHO] = 1.0
     return st
 
 
@@ -281,26 +333,41 @@ def _p_put(st, p):
 
 
 @_inline
-def _update(st, pr, i, y, R, p):
-    """Scalar measurement of state ``i``; adds its evidence about a change of ``q_i``. ``p``:
-    the covariance (:func:`_p_get`), returned updated; the pipe's and the tank's updates of a
-    sample pass it from one to the other in registers, and the state takes it once."""
+def _update(st, pr, i, y, p, eta):
+    """Scalar measurement of state ``i`` (0: the pipe, 3: the tank) with the learnt variance of
+    its readings; adds its evidence about a change of ``q_i``. ``p``: the covariance
+    (:func:`_p_get`), returned updated; the pipe's and the tank's updates of a sample pass it
+    from one to the other in registers, and the state takes it once. ``eta``: the weight of
+    this reading in the variance's tracker (0: not learnt).
+
+    The offset of the tank's readings against the pipe's is the slow state of a two-stage
+    filter (Friedland 1969): the patch filter runs as if the offset were known (``BD``, taken
+    off the tank's readings), ``V`` (:data:`VB`) carries the patch state's sensitivity to an
+    error of it, ``s = C - H V`` the innovation's (``C`` 1 for a tank reading, 0 for a pipe
+    one), and each reading moves the offset by ``k e``, ``k = P_b s / (S + s² P_b)``, and the
+    state by ``-V k e``: the augmented filter's estimate, exactly for a constant offset."""
+    R = st[RW] if i == 0 else st[RP]
     S = p[_tri(i, i)] + R
+    s = 1.0 - st[VB + 3] if i == 3 else -st[VB]
+    pb = st[PBD]
+    Sf = S + s * s * pb  # the innovation's variance with the offset's uncertainty
     e = y - st[X + i]
     kap = st[KAPPA]
-    sS = math.sqrt(S)
-    if i == 3 and abs(e) > pr[PR_CMAN] * kap * sS:
+    sS = math.sqrt(Sf)
+    man = i == 3 and abs(e) > pr[PR_CMAN] * kap * sS
+    if man:
         # the tank manoeuvres (the drive jumped): let its slope go, as a fading-memory filter
         # does, and take no evidence about q_i from this reading
         p33 = p[12] + e * e
         p = (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p33, p[13],
              p[14] + (e / pr[PR_TMAN]) ** 2)
         S = p33 + R
+        Sf = S + s * s * pb
     else:
         # evidence: the reading's sensitivity to a lasting change of q_i, g = P[i, q] / P[q, q]
         pqq = p[9]
         g = p[_tri(i, 2)] / pqq if pqq > 0.0 else 0.0
-        gS = g / (kap * kap * S)  # one division for both
+        gS = g / (kap * kap * Sf)  # one division for both
         st[SGE] += gS * e
         st[SGG] += gS * g
         # the innovations' scale: running median of |e| / sqrt(S) (0.6745 for a unit normal)
@@ -308,6 +375,16 @@ def _update(st, pr, i, y, R, p):
             st[KAPPA] = kap * pr[PR_UP]
         else:
             st[KAPPA] = kap * pr[PR_DOWN]
+        if eta > 0.0:
+            # the reading's variance: its median tracker, e²/S at chi2(1)'s median 0.4549
+            # (robust to the few large innovations of a touch not yet seen or a pump switch)
+            r = R * (1.0 + eta) if e * e > 0.4549 * Sf else R / (1.0 + eta)
+            lo = pr[PR_RW0 if i == 0 else PR_RP0]
+            q = st[QW if i == 0 else QP]
+            qq = q * q / 12.0 if q < 1e299 else 0.0
+            lo = lo / pr[PR_RMIN] if lo / pr[PR_RMIN] > qq else qq
+            hi = pr[PR_RW0 if i == 0 else PR_RP0] * pr[PR_RMIN]
+            st[RW if i == 0 else RP] = lo if r < lo else (hi if r > hi else r)
     inv = 1.0 / S
     # P's row i, which is its column (P is symmetric)
     r0, r1, r2, r3, r4 = p[_tri(i, 0)], p[_tri(i, 1)], p[_tri(i, 2)], p[_tri(i, 3)], p[_tri(i, 4)]
@@ -320,8 +397,8 @@ def _update(st, pr, i, y, R, p):
         u = UREC if i == 0 else UREC + NUR
         st[u] = 1.0
         st[u + 1] = e
-        st[u + 2] = kap * kap * S
-        st[u + 3] = 0.0 if (i == 3 and abs(e) > pr[PR_CMAN] * kap * sS) else 1.0
+        st[u + 2] = kap * kap * Sf
+        st[u + 3] = 0.0 if man else 1.0
         st[u + 4] = k0
         st[u + 5] = k1
         st[u + 6] = k2
@@ -338,11 +415,31 @@ def _update(st, pr, i, y, R, p):
         st[u + 3] = k2
         st[u + 4] = k3
         st[u + 5] = k4
-    st[X] += k0 * e
-    st[X + 1] += k1 * e
-    st[X + 2] += k2 * e
-    st[X + 3] += k3 * e
-    st[X + 4] += k4 * e
+    x0 = st[X] + k0 * e
+    x1 = st[X + 1] + k1 * e
+    x2 = st[X + 2] + k2 * e
+    x3 = st[X + 3] + k3 * e
+    x4 = st[X + 4] + k4 * e
+    # the offset's sensitivity through this update: V <- V - K (H V - C) = V + K s
+    v0 = st[VB] + k0 * s
+    v1 = st[VB + 1] + k1 * s
+    v2 = st[VB + 2] + k2 * s
+    v3 = st[VB + 3] + k3 * s
+    v4 = st[VB + 4] + k4 * s
+    st[VB], st[VB + 1], st[VB + 2], st[VB + 3], st[VB + 4] = v0, v1, v2, v3, v4
+    if pb > 0.0 and pr[PR_LEARN] != 0.0 and not man and st[MODE] != INCONTACT:
+        # the offset learnt from this reading (held during a contact), and the state moved
+        # as the filter would stand had its readings been corrected by the new offset all along
+        kb = pb * s / Sf
+        db = kb * e
+        st[BD] += db
+        st[PBD] = pb - kb * s * pb
+        x0 -= v0 * db
+        x1 -= v1 * db
+        x2 -= v2 * db
+        x3 -= v3 * db
+        x4 -= v4 * db
+    st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4] = x0, x1, x2, x3, x4
     # P <- P - K P[i, :] with K = P[:, i]/S: P is symmetric, so row i is column i and the gain
     # k_a = r_a / S; on the upper triangle alone (15 products, not 25)
     return (p[0] - k0 * r0, p[1] - k0 * r1, p[2] - k0 * r2, p[3] - k0 * r3, p[4] - k0 * r4,
@@ -423,8 +520,9 @@ def _predict(st, F, G, QQ, u, w):
 
 
 @_inline
-def _ambient(st, pr, t, y, fresh, R, idx):
-    """Update the ambient filter with a fresh air reading (if any).
+def _ambient(st, pr, t, y, fresh, idx, eta):
+    """Update the ambient filter with a fresh air reading (if any), with its learnt variance
+    (``eta``: this reading's weight in its tracker, as :func:`_update`).
 
     A sudden change of the air (a door) is found by Page's CUSUM on the standardised
     innovations (drift ``PR_KAIR``, threshold ``PR_HAIR``, either sign): the air's estimate is
@@ -432,8 +530,17 @@ def _ambient(st, pr, t, y, fresh, R, idx):
     to wait until the lagging sensor has caught up.
     """
     if fresh:
+        R = st[RA]
         S = st[PA + 3 * idx] + R
         e = y - st[XA + idx]
+        if eta > 0.0:
+            r = R * (1.0 + eta) if e * e > 0.4549 * S else R / (1.0 + eta)
+            q = st[QA]
+            qq = q * q / 12.0 if q < 1e299 else 0.0
+            lo = pr[PR_RA0] / pr[PR_RMIN]
+            lo = lo if lo > qq else qq
+            hi = pr[PR_RA0] * pr[PR_RMIN]
+            st[RA] = lo if r < lo else (hi if r > hi else r)
         z = e / math.sqrt(S)
         k = pr[PR_KAIR]
         ap = st[AGP] + z - k
@@ -488,9 +595,24 @@ def _ambient_predict(st, Fa, Qa):
 
 
 @_inline
+def _learnt_init(st, pr):
+    """What is learnt of the sensors at its priors (once: a restart after a gap keeps it)."""
+    st[RW] = pr[PR_RW0]
+    st[RP] = pr[PR_RP0]
+    st[RA] = pr[PR_RA0]
+    st[BD] = pr[PR_BD0]
+    st[PBD] = pr[PR_PB0]
+    st[LINIT] = 1.0
+
+
+@_inline
 def _init(st, pr, T_w, T_p, T_a):
-    """Start from the first valid readings: the network's no-touch sheet, no touch, still tank."""
-    R = pr[PR_RT]
+    """Start from the first valid readings (offsets taken off): the network's no-touch sheet,
+    no touch, still tank. The tank's state is its reading, so its sensitivity to an error of
+    the learnt offset is 1 (``V = e_Tp``)."""
+    if st[LINIT] == 0.0:
+        _learnt_init(st, pr)
+    R = st[RW]
     Rg, Rag = pr[PR_RG], pr[PR_RAG]
     for i in range(25):
         st[P + i] = 0.0
@@ -502,14 +624,18 @@ def _init(st, pr, T_w, T_p, T_a):
     st[P] = R
     st[P + 6] = R
     st[P + 12] = pr[PR_P0Q]
-    st[P + 18] = R
+    st[P + 18] = st[RP]
     st[P + 24] = 1e-4
+    for i in range(5):
+        st[VB + i] = 0.0
+    st[VB + 3] = 1.0
+    Ra = st[RA]
     st[XA] = T_a
     st[XA + 1] = T_a
-    st[PA] = R
-    st[PA + 1] = R
-    st[PA + 2] = R
-    st[PA + 3] = R
+    st[PA] = Ra
+    st[PA + 1] = Ra
+    st[PA + 2] = Ra
+    st[PA + 3] = Ra
     st[READY] = 1.0
     st[GAPRUN] = 0.0
     _mu_reset_all(st)
@@ -713,6 +839,11 @@ def _end(st, t_release, ev):
     ev[EV_PEAK] = sg * st[PEAK]
     ev[EV_MEAN] = sg * mean
     ev[EV_ENERGY] = sg * mean * dur
+    ev[EV_RW] = st[RW]
+    ev[EV_RP] = st[RP]
+    ev[EV_RA] = st[RA]
+    ev[EV_BD] = st[BD]
+    ev[EV_PBD] = st[PBD]
     st[MODE] = IDLE
     st[CONTACT] = 0.0
     st[TREL] = t_release
@@ -837,6 +968,43 @@ def _median_in_place(a, lo, m):
 
 
 @_inline
+def _irho(st, pr):
+    """The weight of the onset evidence: ``1/rho``, 1 where ``rho`` is within its dead band."""
+    rho = st[RHO] / pr[PR_RHODB]
+    return 1.0 / rho if rho > 1.0 else 1.0
+
+
+@_inline
+def _dispersion(st, pr, t, sge, sgg, on):
+    """The onset evidence's dispersion ``rho`` and the information rate, while no contact is
+    seen (``on``). Where the model fits the readings (the innovations white, their variances
+    right) the evidence a window of ``PR_RHOW`` s gathers, ``z² = (sum g e/S)² / sum g²/S``, is
+    chi2(1); where it does not (an unmodelled lag, a skin unlike its configuration, coarse
+    converters) the innovations are coloured and ``z²`` is ``rho`` chi2(1). ``rho`` tracks the
+    median of ``z²`` over chi2(1)'s (0.4549) in steps of ``max(PR_RHOETA, 1/(n+1))`` in its
+    logarithm at the ``n``-th window (a running median at first, then a tracker): a few
+    seconds to learn it. The information rate, ``sum g²/S`` a second over ``rho``, is what the
+    one-finger SNR is figured from."""
+    if not on:
+        st[WGE] = st[WGG] = 0.0
+        st[WT0] = t
+        return
+    st[IRATE] += pr[PR_AIR] * (sgg * _irho(st, pr) / pr[PR_TS] - st[IRATE])
+    st[WGE] += sge
+    st[WGG] += sgg
+    if t - st[WT0] >= pr[PR_RHOW]:
+        a, b = st[WGE], st[WGG]
+        if b > 0.0:
+            n = st[RHON] + 1.0
+            st[RHON] = n
+            eta = 1.0 / n if 1.0 / n > pr[PR_RHOETA] else pr[PR_RHOETA]
+            r = st[RHO] * math.exp(eta if a * a > 0.4549 * st[RHO] * b else -eta)
+            st[RHO] = r if r > 1e-3 else 1e-3
+        st[WGE] = st[WGG] = 0.0
+        st[WT0] = t
+
+
+@_inline
 def _detect(st, pr, t, ev):
     """The detector's sample; returns the step-result bits."""
     q = st[Q]
@@ -869,6 +1037,10 @@ def _detect(st, pr, t, ev):
         hold_other = t - st[TREL] < pr[PR_TREF]  # no onset of the other sign after a release
         hold_all = t - st[TAMB] < pr[PR_TAMBH]  # the air changed: its sensor catches up first
         h = st[HTH]
+        # the evidence's dispersion (:func:`_dispersion`): where the model does not fit the
+        # readings the CUSUMs take the evidence as that much less (a quasi-likelihood), so that
+        # noise alarms no more often than the threshold is for, and a touch needs that much more
+        irho = _irho(st, pr)
         fire = -1
         best = 0.0
         quiet = True
@@ -876,7 +1048,7 @@ def _detect(st, pr, t, ev):
             o = CU + 4 * j
             D = pr[PR_D] if j < 2 else (pr[PR_DHI] if j < 4 else pr[PR_DLO])
             sgj = 1.0 if j % 2 == 0 else -1.0
-            g = st[o] + sgj * D * sge - 0.5 * D * D * sgg
+            g = st[o] + (sgj * D * sge - 0.5 * D * D * sgg) * irho
             if hold_all or (hold_other and sgj != st[LASTSIGN]):
                 g = 0.0
             if g <= 0.0:
@@ -1049,6 +1221,7 @@ def _switch_correction(st, pr, Rw, iv_old, iv, slot):
         st[slot] = c
     half = (st[X + 3] - st[X]) * c
     st[X] += half
+    st[VB] += (st[VB + 3] - st[VB]) * c
     st[P] += (pr[PR_VSW] * 2.0 * half) ** 2
 
 
@@ -1062,7 +1235,6 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     interval (``iv = -1``: the pump's velocity is unknown, a NaN); ``Qi`` / ``Qc``: the
     process-noise tables while idle and in contact; ``Rw`` the water's resistance per row.
     """
-    R = pr[PR_RT]
     st[KUP] = st[KUP + 6] = 0.0  # no update for the step signatures yet
     if pr[PR_TRACE] != 0.0:  # the trace's records of this sample
         st[UREC] = st[UREC + NUR] = st[SWB] = st[SWA] = 0.0
@@ -1092,12 +1264,29 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     st[GAP] = 1.0 if gap else 0.0
     st[SGE] = st[SGG] = 0.0
     st[QPRI] = st[X + 2]
+    # the readings' converter steps (each channel's smallest change between fresh readings)
+    if (fresh & 1) != 0:
+        _quantum(st, QW, LYW, T_w)
+    if (fresh & 2) != 0:
+        _quantum(st, QP, LYP, T_p)
+    if (fresh & 4) != 0:
+        _quantum(st, QA, LYA, T_a)
+    # the configured offsets off the readings (the learnt one of the tank's at its update)
+    T_w_raw = T_w
+    T_w = T_w - pr[PR_OFW]
+    T_a = T_a - pr[PR_OFA]
+    learn = pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0 and st[MODE] != INCONTACT
     if st[READY] == 0.0:
         if gap:
             return C_CONTACT if st[MODE] == INCONTACT else 0
-        _init(st, pr, T_w, T_p, T_a)
+        _init(st, pr, T_w, T_p - pr[PR_OFP] - (pr[PR_BD0] if st[LINIT] == 0.0 else st[BD]), T_a)
+        st[TLP] = t
+        st[TLA] = t
     else:
-        _ambient(st, pr, t, T_a, (fresh & 4) != 0 and math.isfinite(T_a), R, int(pr[PR_AMB]))
+        upd_a = (fresh & 4) != 0 and math.isfinite(T_a)
+        _ambient(st, pr, t, T_a, upd_a, int(pr[PR_AMB]), _eta(pr, t - st[TLA]) if learn else 0.0)
+        if upd_a:
+            st[TLA] = t
         if st[TAMB] == t and st[MODE] == INCONTACT and t - st[DETECTED] < pr[PR_TRETR]:
             # the "contact" just begun was the air changing: withdraw it (no event)
             st[MODE] = IDLE
@@ -1121,7 +1310,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                 if st[MODE] != INCONTACT:
                     st[j] = c + pr[PR_APH] * (T_w - st[X] - c)
                 y = T_w - c
-            p = _update(st, pr, 0, y, R, p)
+            p = _update(st, pr, 0, y, p, _eta(pr, t - st[TLW]) if learn else 0.0)
             st[GAPRUN] = 0.0
             dt = t - st[TLW]
             if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is
@@ -1132,11 +1321,16 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         else:
             st[GAPRUN] += 1.0
         if upd_p:
-            p = _update(st, pr, 3, T_p, R, p)
+            p = _update(st, pr, 3, T_p - pr[PR_OFP] - st[BD], p,
+                        _eta(pr, t - st[TLP]) if learn else 0.0)
+            st[TLP] = t
         if upd_w or upd_p:
             _p_put(st, p)
     if iv_old >= 0:
         _switch_correction(st, pr, Rw, iv_old, iv, SWA)
+    if pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0:
+        _dispersion(st, pr, t, st[SGE], st[SGG], not gap and st[MODE] != INCONTACT
+                    and t - st[TAMB] >= pr[PR_TAMBH] and t - st[TREL] >= pr[PR_RHOSET])
     st[Q] = st[X + 2]
     pq = st[P + 12]
     st[SQ] = math.sqrt(pq) if pq > 0.0 else 1e-12
@@ -1152,7 +1346,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     if st[ARMED] == 0.0:
         if T_w_cmd != T_w_cmd:
             st[ARMED] = 1.0
-        elif math.isfinite(T_w) and abs(T_w - T_w_cmd) <= pr[PR_BAND]:
+        elif math.isfinite(T_w_raw) and abs(T_w_raw - T_w_cmd) <= pr[PR_BAND]:
             st[NIN] += 1.0
             if st[NIN] >= pr[PR_NARM]:
                 st[ARMED] = 1.0
@@ -1169,11 +1363,45 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     _ambient_predict(st, Phi_a, Q_a)
     Qd = Qc if st[MODE] == INCONTACT else Qi
     _predict(st, Phi[iv], Gam[iv], Qd[iv], st[XA], drive if drive == drive else 0.0)
+    _offset_predict(st, pr, Phi[iv])
     if _keeps_mu(st, pr):  # the step signatures, for the onset's whole-state jump
         _mu_carry(st, Phi[iv])
     if st[GAPRUN] > pr[PR_MAXGAP]:
         st[READY] = 0.0  # restart from the next valid readings
     return code
+
+
+@_inline
+def _quantum(st, iq, ily, y):
+    """A channel's converter step: the smallest non-zero change between its fresh readings
+    (``st[iq]``; the last reading in ``st[ily]``). A board without one shows changes far below
+    its noise at once."""
+    if math.isfinite(y):
+        d = abs(y - st[ily])
+        if d > 1e-9 * (1.0 + abs(y)) and d < st[iq]:
+            st[iq] = d
+        st[ily] = y
+
+
+@_inline
+def _eta(pr, dt):
+    """A reading's weight in its variance's tracker: the time since the channel's last reading
+    over the tracker's time constant (at most 0.05: a slow board's readings, each weighed so,
+    still average about 40 of them)."""
+    w = dt / pr[PR_TAUR]
+    return w if w < 0.05 else 0.05
+
+
+@_inline
+def _offset_predict(st, pr, F):
+    """The two-stage filter's prediction: the offset's sensitivity ``V <- Phi V`` (rows 2 and 4
+    of ``Phi`` are unit rows) and its variance's random walk ``P_b += S_b t_s``."""
+    v0, v1, v2, v3, v4 = st[VB], st[VB + 1], st[VB + 2], st[VB + 3], st[VB + 4]
+    st[VB] = F[0, 0] * v0 + F[0, 1] * v1 + F[0, 2] * v2 + F[0, 3] * v3 + F[0, 4] * v4
+    st[VB + 1] = F[1, 0] * v0 + F[1, 1] * v1 + F[1, 2] * v2 + F[1, 3] * v3 + F[1, 4] * v4
+    st[VB + 3] = F[3, 0] * v0 + F[3, 1] * v1 + F[3, 2] * v2 + F[3, 3] * v3 + F[3, 4] * v4
+    if st[PBD] > 0.0:
+        st[PBD] += pr[PR_SB] * pr[PR_TS]
 
 
 @_inline

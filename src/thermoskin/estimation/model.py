@@ -155,10 +155,12 @@ class ModelTables:
             raise KeyError(f"no model tables for v = {v!r} m/s") from None
 
 
-def measurement_variance(cfg: Config) -> float:
-    """Thermocouple variance assumed by the estimator: ``noise_T² + quantum_T²/12`` (K²)."""
+def measurement_variance(cfg: Config, channel: str = "T_w") -> float:
+    """A channel's reading variance as configured (the estimator's prior; it learns the
+    readings' own): ``noise² + quantum_T²/12`` (K²), ``noise`` the channel's
+    (``sensor.noise_T_w`` etc., or ``noise_T``)."""
     s = cfg.sensor
-    return s.noise_T**2 + s.quantum_T**2 / 12.0 + 1e-12
+    return s.noise(channel) ** 2 + s.quantum_T**2 / 12.0 + 1e-12
 
 
 def build_tables(cfg: Config, t_s: float, v_values: tuple[float, ...] | list[float]) -> ModelTables:

@@ -311,6 +311,15 @@ def load(est: TracedModel) -> None:
     pulse_sums(rec, est.tabs[0], 0, one, one + 1)
 
 
+def held(pr: Array, learnt: Array | None) -> None:
+    """``pr`` (a copy of the kernel's parameters) for a filter that holds what the live one had
+    learnt (``learnt``: a contact's kernel record, ``EV_RW`` on) instead of learning it again."""
+    pr[K.PR_LEARN] = 0.0
+    if learnt is not None:
+        pr[K.PR_RW0], pr[K.PR_RP0], pr[K.PR_RA0] = learnt[K.EV_RW], learnt[K.EV_RP], learnt[K.EV_RA]
+        pr[K.PR_BD0], pr[K.PR_PB0] = learnt[K.EV_BD], learnt[K.EV_PBD]
+
+
 class _Model(NamedTuple):
     """The estimator's parameters and tables as they were when a fit was handed over."""
 
@@ -357,6 +366,7 @@ class Redater:
         self.n_handed = 0  # rows pushed and gone from the list (to the buffer, or the worker)
         self.rows: list[tuple[float, ...]] = []  # rows pushed one at a time, not yet written
         self.pending: ContactEvent | None = None
+        self.learnt: Array | None = None  # the pending contact's kernel record (what was learnt)
         self.due = math.inf
         self.last_release = -math.inf  # the release of the last contact written
         self._pool: ThreadPoolExecutor | None = None  # the worker (background), until closed
@@ -456,33 +466,36 @@ class Redater:
 
     # -- the contacts -----------------------------------------------------------------------
     def on_row(self, est: TracedModel, k: int, t: float, onset_started: float,
-               ended: ContactEvent | None, block: tuple[Array, ...] | None = None, n0: int = 0
-               ) -> list[ContactEvent]:
+               ended: ContactEvent | None, block: tuple[Array, ...] | None = None, n0: int = 0,
+               learnt: Array | None = None) -> list[ContactEvent]:
         """Row ``k`` at ``t``: a contact started there (its onset; NaN if none) or ended
-        there (its event as the detector has it). Returns the events to write now: the one
-        waiting, dated again from the rows before its due time (or before the new contact's
-        onset), once that time has come or a contact has started."""
+        there (its event as the detector has it; ``learnt``: the kernel's event record, whose
+        fields from ``EV_RW`` on say what the estimator had learnt of the sensors then).
+        Returns the events to write now: the one waiting, dated again from the rows before its
+        due time (or before the new contact's onset), once that time has come or a contact has
+        started."""
         out: list[ContactEvent] = []
         if self.pending is not None and (onset_started == onset_started or t >= self.due):
             t_end = min(self.due, onset_started) if onset_started == onset_started else self.due
-            out.extend(self._date(est, self.pending, k, t_end, block, n0))
+            out.extend(self._date(est, self.pending, k, t_end, block, n0, self.learnt))
             self.pending, self.due = None, math.inf
         if ended is not None:
             self.pending, self.due = ended, ended.release + self.tail
+            self.learnt = None if learnt is None else np.array(learnt, dtype=float)
             if t >= self.due:
-                out.extend(self._date(est, ended, k, self.due, block, n0))
+                out.extend(self._date(est, ended, k, self.due, block, n0, self.learnt))
                 self.pending, self.due = None, math.inf
         return out
 
     def _date(self, est: TracedModel, e: ContactEvent, k: int, t_end: float,
-              block: tuple[Array, ...] | None, n0: int) -> list[ContactEvent]:
+              block: tuple[Array, ...] | None, n0: int, learnt: Array | None) -> list[ContactEvent]:
         """``e`` dated again now; or, in the background (a live row), handed to the worker:
         nothing now, the event from :meth:`ready`."""
         if self._pool is None or block is not None:
-            return [self.redate(est, e, k, t_end, block, n0)]
+            return [self.redate(est, e, k, t_end, block, n0, learnt=learnt)]
         self._write()  # the rows up to k into the buffer, which alone the worker reads
         model = _Model(est.pr, est.tabs)  # as they are now (a new pump velocity adds tables)
-        self._jobs.append(self._pool.submit(self.redate, model, e, k, t_end))
+        self._jobs.append(self._pool.submit(self.redate, model, e, k, t_end, learnt=learnt))
         return []
 
     @property
@@ -518,7 +531,7 @@ class Redater:
         if self.pending is None:
             return out
         e, self.pending, self.due = self.pending, None, math.inf
-        return [*out, self.redate(est, e, self.n - 1, math.inf)]
+        return [*out, self.redate(est, e, self.n - 1, math.inf, learnt=self.learnt)]
 
     def close(self) -> None:
         """Stop the worker (after the fits handed over)."""
@@ -527,18 +540,21 @@ class Redater:
             self._pool = None
 
     def redate(self, est: TracedModel, e: ContactEvent, k_now: int, t_end: float,
-               block: tuple[Array, ...] | None = None, n0: int = 0, open_end: bool = False
-               ) -> ContactEvent:
+               block: tuple[Array, ...] | None = None, n0: int = 0, open_end: bool = False,
+               learnt: Array | None = None) -> ContactEvent:
         """``e`` dated again from the rows before ``t_end`` that the buffer holds at row
         ``k_now`` (its last ``nr``); ``e`` itself where the readings came fast, or no pulse
         of its sign fits. ``open_end``: the contact had not ended (the log or the run did):
-        its onset alone is dated again. Nothing is dated into the contact written before."""
-        out = self._redate(est, e, k_now, t_end, block, n0, open_end)
+        its onset alone is dated again. Nothing is dated into the contact written before.
+        ``learnt``: the contact's kernel record; the filter run again holds what the live one
+        had learnt of the sensors when the contact ended (their variances, the offset)."""
+        out = self._redate(est, e, k_now, t_end, block, n0, open_end, learnt)
         self.last_release = out.release
         return out
 
     def _redate(self, est: TracedModel, e: ContactEvent, k_now: int, t_end: float,
-                block: tuple[Array, ...] | None, n0: int, open_end: bool) -> ContactEvent:
+                block: tuple[Array, ...] | None, n0: int, open_end: bool,
+                learnt: Array | None) -> ContactEvent:
         if self.most <= 0:
             return e
         k_lo, k_hi = max(0, k_now + 1 - self.nr), k_now + 1
@@ -567,6 +583,7 @@ class Redater:
         pr = est.pr.copy()
         pr[K.PR_TRACE] = 1.0
         pr[K.PR_OSJ] = 0.0  # no step signatures: nothing jumps
+        held(pr, learnt)
         rec = np.zeros((len(tw), NREC))
         trace(K.new_state(), pr, *est.tabs, tw, w[1], w[2], w[3], w[4], w[5].astype(np.int64),
               w[6], w[7].astype(np.int64), rec, np.zeros(K.NEV))
