@@ -174,6 +174,9 @@ class EstimatorParams(_Validated):
                           doc="each channel's reading variance is learnt from its innovations over "
                               "about this long (0: the configured noise_T and quantum_T are taken as "
                               "they are)")
+    lag_drift: float = _p(1e-6, "s^2/s", 0.0, 1.0,
+                          doc="the learnt lag's random walk")
+    lag_max: float = _p(1.0, "s", 0.0, 60.0, doc="the longest pipe-thermocouple lag learnt")
     offset_drift: float = _p(1e-6, "K^2/s", 0.0, 1.0,
                              doc="the learnt offset's random walk (it follows slow changes: a board "
                                  "warming, a skin slightly off at a new operating point)")
@@ -315,6 +318,10 @@ class SensorParams(_Validated):
                                "cold junction); only the differences between channels are observable")
     offset_T_p: float = _p(0.0, "K", -5.0, 5.0, doc="the T_p reading's offset (as offset_T_w)")
     offset_T_a: float = _p(0.0, "K", -5.0, 5.0, doc="the T_a reading's offset (as offset_T_w)")
+    lag_sd: float = _p(0.05, "s", 0.0, 60.0,
+                       doc="how far the T_w thermocouple's lag may be from lag_T_w (the prior of the "
+                           "lag the estimator learns; 0: lag_T_w is taken as it is): a bead in water "
+                           "lags tens of ms")
     offset_sd: float = _p(0.3, "K", 0.0, 5.0,
                           doc="how far the T_p readings' offset against the T_w readings' may be from "
                               "the configured ones (the prior of the offset the estimator learns; "

@@ -47,9 +47,10 @@ TAP_S = 1.0
 #: The compiled kernel's event record: these fields, in this order (``estimation.kernel``),
 #: then what the estimator had learnt of the sensors when the contact ended (held through it):
 #: the readings' variances of ``T_w``, ``T_p``, ``T_a`` (K²), the learnt offset of ``T_p``'s
-#: readings against ``T_w``'s and its variance (K, K²) (the re-dating's filter takes them).
+#: readings against ``T_w``'s (K) and the pipe thermocouple's lag (s) (the re-dating's filter
+#: takes them).
 EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
-EV_RW, EV_RP, EV_RA, EV_BD, EV_PBD = range(8, 13)
+EV_RW, EV_RP, EV_RA, EV_BD, EV_LAG = range(8, 13)
 NEV = 13
 
 

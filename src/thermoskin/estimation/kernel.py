@@ -46,9 +46,9 @@ from thermoskin.estimation.events import (  # the event record's layout
     EV_DETECTED,
     EV_DURATION,
     EV_ENERGY,
+    EV_LAG,
     EV_MEAN,
     EV_ONSET,
-    EV_PBD,
     EV_PEAK,
     EV_RA,
     EV_RELEASE,
@@ -140,7 +140,8 @@ GT0 = GHEAD + 2         # time of the first reading pooled in the newest entry, 
 GOPEN = GHEAD + 3       # the newest entry, still pooling (3 fields as in GBUF): kept here, with
 #                         the fields every sample reads, and written to GBUF once it is full
 KUP = GOPEN + 3   # this sample's pipe and tank updates for the step signatures, 6 fields each:
-#                   made (1/0), the gain K (5); applied to them with the prediction (_mu_carry)
+#                   made (1/0), the gain K (5); applied to them with the prediction (_mu_carry);
+#                   their gains on the bead (KUPM) further on
 NPH = 64          # most phase bins of the pump-cycle correction, per direction
 TPL = KUP + 12    # the correction: mean no-touch innovation of T_w per (direction, phase), K
 GBUF = TPL + 2 * NPH    # NGB entries of 3: time of the last reading pooled, sums of g e/S, g^2/S
@@ -148,7 +149,8 @@ NGB = 256
 WBUF = GBUF + 3 * NGB  # warm-up buffer: NWB q values
 NWB = 256
 UREC = WBUF + NWB  # traced (PR_TRACE): this sample's pipe and tank updates, NUR fields each:
-NUR = 9                # made (1/0), innovation e, kappa^2 S, evidence (1/0), the gain K (5)
+NUR = 11               # made (1/0), innovation e, kappa^2 S, evidence (1/0), the gain K (5), the
+#                        gain on the bead, and the bead's weight a in the reading
 SWB = UREC + 2 * NUR   # traced: a pump-switch correction's x_Tw += c (x_Tp - x_Tw), its c, before
 SWA = SWB + 1          # the updates and after them (0: none)
 # what is learnt of the sensors from their readings (docs/model.md, Sensors that calibrate
@@ -166,9 +168,11 @@ LYA = RW + 8
 TLP = RW + 9       # the time of the last fresh T_p reading, s
 TLA = RW + 10      # ... of T_a
 BD = RW + 11       # the offset of the T_p readings against the T_w readings beyond the configured
-#                    ones (reading minus truth, K): the two-stage filter's slow state
-PBD = RW + 12      # its variance, K^2
-VB = RW + 13       # 5: the patch state's sensitivity to an error of BD (dx/db, the two-stage
+#                    ones (reading minus truth, K): a slow state of the two-stage filter
+PBB = RW + 12      # the covariance of the two-stage filter's slow states (offset, lag): b b, b t,
+PBT = RW + 13      # t t (K^2, K s, s^2)
+PTT = RW + 14
+VB = RW + 15       # 5: the patch state's sensitivity to an error of BD (dx/db, the two-stage
 #                    filter's V: Friedland 1969)
 RHO = VB + 5       # the onset evidence's dispersion over its model value (1 when the model fits)
 WGE = RHO + 1      # this window's sums of g e/S and g^2/S, and where it began, s
@@ -177,7 +181,23 @@ WT0 = RHO + 3
 IRATE = RHO + 4    # the information on a step of q_i the readings bring, W^-2 per s (idle)
 LINIT = RHO + 5    # 1 once what is learnt has its priors
 RHON = RHO + 6     # the dispersion's windows seen
-NSTATE = RHON + 1
+# the pipe thermocouple's bead: y = (1 - a) T_w + a m, m <- (1 - a) T_w + a m a sample (a first-order
+# lag, a = exp(-t_s / tau)); m is a measurement-only state: nothing of the patch's depends on it,
+# so the patch's covariance P is as without it, and m carries its own covariance with the state
+XM = RHON + 1      # m, the bead's temperature through the last sample, degC
+CM = XM + 1        # 5: its covariance with the patch state
+PMM = CM + 5       # its variance
+LAGA = PMM + 1     # a, the bead's weight a sample (0: no lag)
+LAGT = LAGA + 1    # tau, the pipe thermocouple's lag, s: the two-stage filter's other slow state
+VBM = LAGT + 1     # the bead's sensitivity to an error of BD (V_b's sixth component)
+VT = VBM + 1       # 6: the state's (5) and the bead's sensitivity to an error of tau
+WL1 = VT + 6       # the model's pipe rate through the lag once and twice, K/s: the reading's
+WL2 = WL1 + 1      # sensitivity to tau is -WL2 (the lag's derivative, -s/(tau s + 1)^2)
+MUM = WL2 + 1      # NCU: each onset CUSUM's step signature on the bead
+KUPM = MUM + NCU   # this sample's gains on the bead of the pipe and the tank updates, and the a of
+#                    the pipe's reading (for the signatures)
+TINIT = KUPM + 3   # when the filter last started, s
+NSTATE = TINIT + 1
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -255,7 +275,15 @@ PR_RHODB = 77    # the dispersion below this is taken as 1 (its tracker's own sc
 PR_AIR = 78      # the information rate's weight per sample (t_s / its time constant)
 PR_RMIN = 79     # a learnt variance stays within this factor of its prior, both ways
 PR_RHOSET = 80   # the dispersion's windows begin this long after a release, s
-NPARAM = 81
+PR_LAG0 = 81     # the pipe thermocouple's lag to start from (configured), s
+PR_PT0 = 82      # its prior variance, s^2 (0: not learnt)
+PR_ST = 83       # its random walk, s^2/s
+PR_TAUMAX = 84   # the longest lag learnt, s
+PR_BSHIFT = 85
+PR_DBMAX = 86    # the most a reading moves the learnt offset, K, and the lag, s
+PR_DTMAX = 87
+PR_LDELAY = 88   # the slow states learn from this long after the filter's start, s
+NPARAM = 89
 
 
 # step result bits
@@ -333,40 +361,72 @@ def _p_put(st, p):
 
 
 @_inline
-def _update(st, pr, i, y, p, eta):
-    """Scalar measurement of state ``i`` (0: the pipe, 3: the tank) with the learnt variance of
-    its readings; adds its evidence about a change of ``q_i``. ``p``: the covariance
+def _update(st, pr, i, y, p, eta, slow):
+    """Scalar measurement: the pipe's reading (``i`` 0) or the tank's (3), with the learnt variance
+    of its readings; adds its evidence about a change of ``q_i``. ``p``: the covariance
     (:func:`_p_get`), returned updated; the pipe's and the tank's updates of a sample pass it
     from one to the other in registers, and the state takes it once. ``eta``: the weight of
-    this reading in the variance's tracker (0: not learnt).
+    this reading in the variance's tracker (0: not learnt); ``slow``: the slow states learn from
+    it.
 
-    The offset of the tank's readings against the pipe's is the slow state of a two-stage
-    filter (Friedland 1969): the patch filter runs as if the offset were known (``BD``, taken
-    off the tank's readings), ``V`` (:data:`VB`) carries the patch state's sensitivity to an
-    error of it, ``s = C - H V`` the innovation's (``C`` 1 for a tank reading, 0 for a pipe
-    one), and each reading moves the offset by ``k e``, ``k = P_b s / (S + s² P_b)``, and the
-    state by ``-V k e``: the augmented filter's estimate, exactly for a constant offset."""
-    R = st[RW] if i == 0 else st[RP]
-    S = p[_tri(i, i)] + R
-    s = 1.0 - st[VB + 3] if i == 3 else -st[VB]
-    pb = st[PBD]
-    Sf = S + s * s * pb  # the innovation's variance with the offset's uncertainty
-    e = y - st[X + i]
-    kap = st[KAPPA]
-    sS = math.sqrt(Sf)
-    man = i == 3 and abs(e) > pr[PR_CMAN] * kap * sS
-    if man:
-        # the tank manoeuvres (the drive jumped): let its slope go, as a fading-memory filter
-        # does, and take no evidence about q_i from this reading
-        p33 = p[12] + e * e
-        p = (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p33, p[13],
-             p[14] + (e / pr[PR_TMAN]) ** 2)
-        S = p33 + R
-        Sf = S + s * s * pb
+    The pipe's reading is its thermocouple's bead, ``y = (1 - a) T_w + a m`` (:data:`XM`), so
+    its row of the covariance is ``r = (1 - a) P[0, :] + a c`` (``c`` the bead's covariance with
+    the state) and ``S = (1 - a) r_0 + a r_m + R``; without a lag (``a`` 0) that is ``P[0, :]`` and
+    ``P[0, 0] + R`` exactly, the filter as before.
+
+    The offset of the tank's readings against the pipe's (``BD``) and the pipe thermocouple's lag
+    (``LAGT``) are the slow states of a two-stage filter (Friedland 1969; Hsieh and Chen 1999):
+    the patch filter runs as if they were known, ``V`` (:data:`VB`, :data:`VT`) carries the
+    state's sensitivity to an error of each, ``s = C - H V`` the innovation's (``C``: 1 for the
+    offset in a tank reading, the lag's derivative ``-WL2`` in a pipe reading, else 0), and each
+    reading moves them by ``k e``, ``k = P_B s / (S + s' P_B s)``, and the state by ``-V k e``:
+    the augmented filter's estimate, exactly for constant offsets (to first order in the lag)."""
+    a = st[LAGA]
+    b1 = 1.0 - a
+    c0, c1, c2, c3, c4 = st[CM], st[CM + 1], st[CM + 2], st[CM + 3], st[CM + 4]
+    pmm = st[PMM]
+    if i == 0:
+        R = st[RW]
+        yhat = b1 * st[X] + a * st[XM]
+        sb = -(b1 * st[VB] + a * st[VBM])
+        stau = -st[WL2] - (b1 * st[VT] + a * st[VT + 5])
     else:
+        R = st[RP]
+        yhat = st[X + 3]
+        sb = 1.0 - st[VB + 3]
+        stau = -st[VT + 3]
+    pbb, pbt, ptt = st[PBB], st[PBT], st[PTT]
+    sps = sb * sb * pbb + 2.0 * sb * stau * pbt + stau * stau * ptt
+    e = y - yhat
+    kap = st[KAPPA]
+    man = False
+    if i == 3:
+        Sf = p[12] + R + sps
+        man = abs(e) > pr[PR_CMAN] * kap * math.sqrt(Sf)
+        if man:
+            # the tank manoeuvres (the drive jumped): let its slope go, as a fading-memory filter
+            # does, and take no evidence about q_i from this reading
+            p = (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11],
+                 p[12] + e * e, p[13], p[14] + (e / pr[PR_TMAN]) ** 2)
+    # the reading's covariance with the state (its row of P), with the bead's, and its variance
+    if i == 0:
+        r0 = b1 * p[0] + a * c0
+        r1 = b1 * p[1] + a * c1
+        r2 = b1 * p[2] + a * c2
+        r3 = b1 * p[3] + a * c3
+        r4 = b1 * p[4] + a * c4
+        rm = b1 * c0 + a * pmm
+        S = b1 * r0 + a * rm + R
+    else:
+        r0, r1, r2, r3, r4 = p[3], p[7], p[10], p[12], p[13]
+        rm = c3
+        S = r3 + R
+    Sf = S + sps  # the innovation's variance with the slow states' uncertainty
+    sS = math.sqrt(Sf)
+    if not man:
         # evidence: the reading's sensitivity to a lasting change of q_i, g = P[i, q] / P[q, q]
         pqq = p[9]
-        g = p[_tri(i, 2)] / pqq if pqq > 0.0 else 0.0
+        g = r2 / pqq if pqq > 0.0 else 0.0
         gS = g / (kap * kap * Sf)  # one division for both
         st[SGE] += gS * e
         st[SGG] += gS * g
@@ -379,20 +439,24 @@ def _update(st, pr, i, y, p, eta):
             # the reading's variance: its median tracker, e²/S at chi2(1)'s median 0.4549
             # (robust to the few large innovations of a touch not yet seen or a pump switch)
             r = R * (1.0 + eta) if e * e > 0.4549 * Sf else R / (1.0 + eta)
-            lo = pr[PR_RW0 if i == 0 else PR_RP0]
-            q = st[QW if i == 0 else QP]
+            r0p = pr[PR_RW0] if i == 0 else pr[PR_RP0]
+            q = st[QW] if i == 0 else st[QP]
             qq = q * q / 12.0 if q < 1e299 else 0.0
-            lo = lo / pr[PR_RMIN] if lo / pr[PR_RMIN] > qq else qq
-            hi = pr[PR_RW0 if i == 0 else PR_RP0] * pr[PR_RMIN]
-            st[RW if i == 0 else RP] = lo if r < lo else (hi if r > hi else r)
+            lo = r0p / pr[PR_RMIN]
+            lo = lo if lo > qq else qq
+            hi = r0p * pr[PR_RMIN]
+            r = lo if r < lo else (hi if r > hi else r)
+            if i == 0:
+                st[RW] = r
+            else:
+                st[RP] = r
     inv = 1.0 / S
-    # P's row i, which is its column (P is symmetric)
-    r0, r1, r2, r3, r4 = p[_tri(i, 0)], p[_tri(i, 1)], p[_tri(i, 2)], p[_tri(i, 3)], p[_tri(i, 4)]
     k0 = r0 * inv
     k1 = r1 * inv
     k2 = r2 * inv
     k3 = r3 * inv
     k4 = r4 * inv
+    km = rm * inv
     if pr[PR_TRACE] != 0.0:  # the re-dating's detection-free filter keeps the update
         u = UREC if i == 0 else UREC + NUR
         st[u] = 1.0
@@ -404,6 +468,8 @@ def _update(st, pr, i, y, p, eta):
         st[u + 6] = k2
         st[u + 7] = k3
         st[u + 8] = k4
+        st[u + 9] = km
+        st[u + 10] = a if i == 0 else 0.0
     # each onset CUSUM's step signature: what remains in the estimate's error of a step of
     # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu: the gain kept, and
     # applied with the prediction (:func:`_mu_carry`)
@@ -415,33 +481,77 @@ def _update(st, pr, i, y, p, eta):
         st[u + 3] = k2
         st[u + 4] = k3
         st[u + 5] = k4
+        if i == 0:
+            st[KUPM] = km
+            st[KUPM + 2] = a
+        else:
+            st[KUPM + 1] = km
     x0 = st[X] + k0 * e
     x1 = st[X + 1] + k1 * e
     x2 = st[X + 2] + k2 * e
     x3 = st[X + 3] + k3 * e
     x4 = st[X + 4] + k4 * e
-    # the offset's sensitivity through this update: V <- V - K (H V - C) = V + K s
-    v0 = st[VB] + k0 * s
-    v1 = st[VB + 1] + k1 * s
-    v2 = st[VB + 2] + k2 * s
-    v3 = st[VB + 3] + k3 * s
-    v4 = st[VB + 4] + k4 * s
-    st[VB], st[VB + 1], st[VB + 2], st[VB + 3], st[VB + 4] = v0, v1, v2, v3, v4
-    if pb > 0.0 and pr[PR_LEARN] != 0.0 and not man and st[MODE] != INCONTACT:
-        # the offset learnt from this reading (held during a contact), and the state moved
-        # as the filter would stand had its readings been corrected by the new offset all along
-        kb = pb * s / Sf
+    xm = st[XM] + km * e
+    # the slow states' sensitivities through this update: V <- V - K (H V - C) = V + K s
+    vb0 = st[VB] + k0 * sb
+    vb1 = st[VB + 1] + k1 * sb
+    vb2 = st[VB + 2] + k2 * sb
+    vb3 = st[VB + 3] + k3 * sb
+    vb4 = st[VB + 4] + k4 * sb
+    vbm = st[VBM] + km * sb
+    vt0 = st[VT] + k0 * stau
+    vt1 = st[VT + 1] + k1 * stau
+    vt2 = st[VT + 2] + k2 * stau
+    vt3 = st[VT + 3] + k3 * stau
+    vt4 = st[VT + 4] + k4 * stau
+    vtm = st[VT + 5] + km * stau
+    st[VB], st[VB + 1], st[VB + 2], st[VB + 3], st[VB + 4], st[VBM] = vb0, vb1, vb2, vb3, vb4, vbm
+    st[VT], st[VT + 1], st[VT + 2], st[VT + 3], st[VT + 4], st[VT + 5] = vt0, vt1, vt2, vt3, vt4, vtm
+    if slow and sps > 0.0 and not man:
+        # the slow states learnt from this reading (held during a contact), and the state moved
+        # as the filter would stand had its readings been corrected by them all along
+        hb = pbb * sb + pbt * stau
+        ht = pbt * sb + ptt * stau
+        kb = hb / Sf
+        kt = ht / Sf
         db = kb * e
+        dt = kt * e
+        # each reading moves them by at most PR_DBMAX, PR_DTMAX: the lag's effect is linear in
+        # it only for small changes, and the filter's start (its state settling) can ask for
+        # large ones
+        lim = pr[PR_DBMAX]
+        db = -lim if db < -lim else (lim if db > lim else db)
+        lim = pr[PR_DTMAX]
+        dt = -lim if dt < -lim else (lim if dt > lim else dt)
+        st[PBB] = pbb - kb * hb
+        st[PBT] = pbt - kb * ht
+        st[PTT] = ptt - kt * ht
         st[BD] += db
-        st[PBD] = pb - kb * s * pb
-        x0 -= v0 * db
-        x1 -= v1 * db
-        x2 -= v2 * db
-        x3 -= v3 * db
-        x4 -= v4 * db
+        tau = st[LAGT] + dt
+        tau = 0.0 if tau < 0.0 else (pr[PR_TAUMAX] if tau > pr[PR_TAUMAX] else tau)
+        dt = tau - st[LAGT]
+        st[LAGT] = tau
+        st[LAGA] = math.exp(-pr[PR_TS] / tau) if tau > 0.0 else 0.0
+        # the estimate of q_i moves with them (what it had taken of their errors): so does its
+        # no-touch baseline
+        if pr[PR_BSHIFT] != 0.0:
+            st[B] -= vb2 * db + vt2 * dt
+        x0 -= vb0 * db + vt0 * dt
+        x1 -= vb1 * db + vt1 * dt
+        x2 -= vb2 * db + vt2 * dt
+        x3 -= vb3 * db + vt3 * dt
+        x4 -= vb4 * db + vt4 * dt
+        xm -= vbm * db + vtm * dt
     st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4] = x0, x1, x2, x3, x4
-    # P <- P - K P[i, :] with K = P[:, i]/S: P is symmetric, so row i is column i and the gain
-    # k_a = r_a / S; on the upper triangle alone (15 products, not 25)
+    st[XM] = xm
+    # the bead's covariances: c <- c - K r_m, P_mm <- P_mm - k_m r_m
+    st[CM] = c0 - k0 * rm
+    st[CM + 1] = c1 - k1 * rm
+    st[CM + 2] = c2 - k2 * rm
+    st[CM + 3] = c3 - k3 * rm
+    st[CM + 4] = c4 - k4 * rm
+    st[PMM] = pmm - km * rm
+    # P <- P - K r' with K = r/S (P symmetric); on the upper triangle alone (15 products, not 25)
     return (p[0] - k0 * r0, p[1] - k0 * r1, p[2] - k0 * r2, p[3] - k0 * r3, p[4] - k0 * r4,
             p[5] - k1 * r1, p[6] - k1 * r2, p[7] - k1 * r3, p[8] - k1 * r4,
             p[9] - k2 * r2, p[10] - k2 * r3, p[11] - k2 * r4,
@@ -601,7 +711,12 @@ def _learnt_init(st, pr):
     st[RP] = pr[PR_RP0]
     st[RA] = pr[PR_RA0]
     st[BD] = pr[PR_BD0]
-    st[PBD] = pr[PR_PB0]
+    st[PBB] = pr[PR_PB0]
+    st[PBT] = 0.0
+    st[PTT] = pr[PR_PT0]
+    tau = pr[PR_LAG0]
+    st[LAGT] = tau
+    st[LAGA] = math.exp(-pr[PR_TS] / tau) if tau > 0.0 else 0.0
     st[LINIT] = 1.0
 
 
@@ -626,9 +741,18 @@ def _init(st, pr, T_w, T_p, T_a):
     st[P + 12] = pr[PR_P0Q]
     st[P + 18] = st[RP]
     st[P + 24] = 1e-4
+    # the bead at the pipe's reading: its covariances those of T_w
+    st[XM] = T_w
+    for i in range(5):
+        st[CM + i] = st[P + i]
+    st[PMM] = R
     for i in range(5):
         st[VB + i] = 0.0
+        st[VT + i] = 0.0
     st[VB + 3] = 1.0
+    st[VBM] = 0.0
+    st[VT + 5] = 0.0
+    st[WL1] = st[WL2] = 0.0
     Ra = st[RA]
     st[XA] = T_a
     st[XA + 1] = T_a
@@ -738,6 +862,7 @@ def _mu_reset(st, j):
     for a_ in range(NMU):
         st[MU + NCU * a_ + j] = 0.0
     st[MU + NCU * 2 + j] = 1.0
+    st[MUM + j] = 0.0
 
 
 @_inline
@@ -748,9 +873,10 @@ def _mu_reset_all(st):
 
 
 @_inline
-def _mu_reading(u0, u1, u2, u3, u4, k0, k1, k2, k3, k4, rho):
-    """A reading's update of a signature, ``mu - K rho`` (``rho``: its component at the reading)."""
-    return u0 - k0 * rho, u1 - k1 * rho, u2 - k2 * rho, u3 - k3 * rho, u4 - k4 * rho
+def _mu_reading(u0, u1, u2, u3, u4, um, k0, k1, k2, k3, k4, km, rho):
+    """A reading's update of a signature, ``mu - K rho`` (``rho``: its component at the reading;
+    ``um`` and ``km`` the bead's)."""
+    return u0 - k0 * rho, u1 - k1 * rho, u2 - k2 * rho, u3 - k3 * rho, u4 - k4 * rho, um - km * rho
 
 
 @_inline
@@ -761,9 +887,10 @@ def _kup_gains(st):
     uw = st[KUP] != 0.0
     up = st[KUP + 6] != 0.0
     return ((st[KUP + 1] if uw else 0.0, st[KUP + 2] if uw else 0.0, st[KUP + 3] if uw else 0.0,
-             st[KUP + 4] if uw else 0.0, st[KUP + 5] if uw else 0.0),
+             st[KUP + 4] if uw else 0.0, st[KUP + 5] if uw else 0.0, st[KUPM] if uw else 0.0,
+             st[KUPM + 2] if uw else 0.0),
             (st[KUP + 7] if up else 0.0, st[KUP + 8] if up else 0.0, st[KUP + 9] if up else 0.0,
-             st[KUP + 10] if up else 0.0, st[KUP + 11] if up else 0.0))
+             st[KUP + 10] if up else 0.0, st[KUP + 11] if up else 0.0, st[KUPM + 1] if up else 0.0))
 
 
 @_inline
@@ -772,8 +899,11 @@ def _mu_readings(st, j, w, p):
     from :func:`_kup_gains`): ``mu - K_w mu[T_w]``, then ``- K_p mu[T_p]``."""
     u0, u1, u2, u3, u4 = (st[MU + j], st[MU + NCU + j], st[MU + 2 * NCU + j], st[MU + 3 * NCU + j],
                           st[MU + 4 * NCU + j])
-    u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, w[0], w[1], w[2], w[3], w[4], u0)
-    return _mu_reading(u0, u1, u2, u3, u4, p[0], p[1], p[2], p[3], p[4], u3)
+    um = st[MUM + j]
+    aw = w[6]  # the pipe reading's bead weight: it reads (1 - a) mu[T_w] + a mu[bead]
+    u0, u1, u2, u3, u4, um = _mu_reading(u0, u1, u2, u3, u4, um, w[0], w[1], w[2], w[3], w[4], w[5],
+                                         (1.0 - aw) * u0 + aw * um)
+    return _mu_reading(u0, u1, u2, u3, u4, um, p[0], p[1], p[2], p[3], p[4], p[5], u3)
 
 
 @_inline
@@ -804,8 +934,11 @@ def _mu_carry(st, F):
     b0, b1, b2, b3, b4 = F[1, 0], F[1, 1], F[1, 2], F[1, 3], F[1, 4]
     c0, c1, c2, c3, c4 = F[3, 0], F[3, 1], F[3, 2], F[3, 3], F[3, 4]
     w, p = _kup_gains(st)
+    la = st[LAGA]
+    lb = 1.0 - la
     for j in range(NCU):
-        u0, u1, u2, u3, u4 = _mu_readings(st, j, w, p)
+        u0, u1, u2, u3, u4, um = _mu_readings(st, j, w, p)
+        st[MUM + j] = lb * u0 + la * um  # the bead through the sample (before the model's step)
         st[MU + j] = a0 * u0 + a1 * u1 + a2 * u2 + a3 * u3 + a4 * u4
         st[MU + NCU + j] = b0 * u0 + b1 * u1 + b2 * u2 + b3 * u3 + b4 * u4
         st[MU + 2 * NCU + j] = u2
@@ -843,7 +976,7 @@ def _end(st, t_release, ev):
     ev[EV_RP] = st[RP]
     ev[EV_RA] = st[RA]
     ev[EV_BD] = st[BD]
-    ev[EV_PBD] = st[PBD]
+    ev[EV_LAG] = st[LAGT]
     st[MODE] = IDLE
     st[CONTACT] = 0.0
     st[TREL] = t_release
@@ -1101,11 +1234,15 @@ def _detect(st, pr, t, ev):
                 jump = sg * D
             if pr[PR_OSJ] != 0.0:
                 mu = _mu_updated(st, fire)
+                um = jump * mu[5]  # the bead's part
                 for a_ in range(5):
                     ua = jump * mu[a_]
                     st[X + a_] += ua
                     for b_ in range(a_, 5):  # P's upper triangle (_p_get)
                         st[P + 5 * a_ + b_] += 0.25 * ua * jump * mu[b_]
+                    st[CM + a_] += 0.25 * ua * um
+                st[XM] += um
+                st[PMM] += 0.25 * um * um
             else:
                 st[X + 2] += jump
                 st[P + 12] += 0.25 * jump * jump
@@ -1189,6 +1326,7 @@ def _detect(st, pr, t, ev):
             st[MODE] = IDLE
             st[CONTACT] = 0.0
             st[X + 2] = b
+            st[VB + 2] = st[VT + 2] = 0.0  # q_i set: no longer a function of the slow states
             st[P + 12] += 0.25 * lvl * lvl
             st[Q] = b
             st[DQ] = 0.0
@@ -1199,6 +1337,7 @@ def _detect(st, pr, t, ev):
         _end(st, t_rel, ev)
         # the touch has gone: the estimate goes back to its baseline, free to correct itself
         st[X + 2] = b
+        st[VB + 2] = st[VT + 2] = 0.0  # q_i set: no longer a function of the slow states
         st[P + 12] += 0.25 * lvl * lvl
         st[Q] = b
         st[DQ] = 0.0
@@ -1222,6 +1361,7 @@ def _switch_correction(st, pr, Rw, iv_old, iv, slot):
     half = (st[X + 3] - st[X]) * c
     st[X] += half
     st[VB] += (st[VB + 3] - st[VB]) * c
+    st[VT] += (st[VT + 3] - st[VT]) * c
     st[P] += (pr[PR_VSW] * 2.0 * half) ** 2
 
 
@@ -1276,10 +1416,15 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     T_w = T_w - pr[PR_OFW]
     T_a = T_a - pr[PR_OFA]
     learn = pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0 and st[MODE] != INCONTACT
+    # the slow states (offset, lag) learn while no contact is seen and none has just ended, and
+    # not while the filter settles after its start
+    slow = (pr[PR_LEARN] != 0.0 and st[MODE] != INCONTACT and t - st[TREL] >= pr[PR_TSETTLE]
+            and t - st[TINIT] >= pr[PR_LDELAY])
     if st[READY] == 0.0:
         if gap:
             return C_CONTACT if st[MODE] == INCONTACT else 0
         _init(st, pr, T_w, T_p - pr[PR_OFP] - (pr[PR_BD0] if st[LINIT] == 0.0 else st[BD]), T_a)
+        st[TINIT] = t
         st[TLP] = t
         st[TLA] = t
     else:
@@ -1292,6 +1437,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             st[MODE] = IDLE
             st[CONTACT] = 0.0
             st[X + 2] = st[B]
+            st[VB + 2] = st[VT + 2] = 0.0  # q_i set: no longer a function of the slow states
             _cusums_reset(st, t)
         upd_w = (fresh & 1) != 0 and math.isfinite(T_w)
         upd_p = (fresh & 2) != 0 and math.isfinite(T_p)
@@ -1310,7 +1456,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                 if st[MODE] != INCONTACT:
                     st[j] = c + pr[PR_APH] * (T_w - st[X] - c)
                 y = T_w - c
-            p = _update(st, pr, 0, y, p, _eta(pr, t - st[TLW]) if learn else 0.0)
+            p = _update(st, pr, 0, y, p, _eta(pr, t - st[TLW]) if learn else 0.0, slow)
             st[GAPRUN] = 0.0
             dt = t - st[TLW]
             if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is
@@ -1322,7 +1468,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             st[GAPRUN] += 1.0
         if upd_p:
             p = _update(st, pr, 3, T_p - pr[PR_OFP] - st[BD], p,
-                        _eta(pr, t - st[TLP]) if learn else 0.0)
+                        _eta(pr, t - st[TLP]) if learn else 0.0, slow)
             st[TLP] = t
         if upd_w or upd_p:
             _p_put(st, p)
@@ -1350,6 +1496,9 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             st[NIN] += 1.0
             if st[NIN] >= pr[PR_NARM]:
                 st[ARMED] = 1.0
+                # the dispersion's tracker quick again: what it saw while the skin came to its
+                # set-point and the filter learnt its sensors is soon forgotten
+                st[RHON] = st[RHON] if st[RHON] < 3.0 else 3.0
         else:
             st[NIN] = 0.0
     code = 0
@@ -1362,8 +1511,10 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     # predict over the coming interval
     _ambient_predict(st, Phi_a, Q_a)
     Qd = Qc if st[MODE] == INCONTACT else Qi
+    x0 = st[X]
+    _bead_predict(st)
     _predict(st, Phi[iv], Gam[iv], Qd[iv], st[XA], drive if drive == drive else 0.0)
-    _offset_predict(st, pr, Phi[iv])
+    _slow_predict(st, pr, Phi[iv], x0)
     if _keeps_mu(st, pr):  # the step signatures, for the onset's whole-state jump
         _mu_carry(st, Phi[iv])
     if st[GAPRUN] > pr[PR_MAXGAP]:
@@ -1393,15 +1544,51 @@ def _eta(pr, dt):
 
 
 @_inline
-def _offset_predict(st, pr, F):
-    """The two-stage filter's prediction: the offset's sensitivity ``V <- Phi V`` (rows 2 and 4
-    of ``Phi`` are unit rows) and its variance's random walk ``P_b += S_b t_s``."""
-    v0, v1, v2, v3, v4 = st[VB], st[VB + 1], st[VB + 2], st[VB + 3], st[VB + 4]
-    st[VB] = F[0, 0] * v0 + F[0, 1] * v1 + F[0, 2] * v2 + F[0, 3] * v3 + F[0, 4] * v4
-    st[VB + 1] = F[1, 0] * v0 + F[1, 1] * v1 + F[1, 2] * v2 + F[1, 3] * v3 + F[1, 4] * v4
-    st[VB + 3] = F[3, 0] * v0 + F[3, 1] * v1 + F[3, 2] * v2 + F[3, 3] * v3 + F[3, 4] * v4
-    if st[PBD] > 0.0:
-        st[PBD] += pr[PR_SB] * pr[PR_TS]
+def _bead_predict(st):
+    """The pipe thermocouple's bead through the sample, before the model's step (it follows the
+    pipe's temperature at the sample's start): ``m <- (1 - a) T_w + a m``, its covariance with the
+    state ``c <- Phi ((1 - a) P[:, 0] + a c)`` (rows 2 and 4 of ``Phi`` unit rows; ``P`` still the
+    sample's posterior), its variance, and the slow states' sensitivities of it."""
+    a = st[LAGA]
+    b1 = 1.0 - a
+    c0 = st[CM]
+    v0 = b1 * st[P] + a * c0
+    v1 = b1 * st[P + 1] + a * st[CM + 1]
+    v2 = b1 * st[P + 2] + a * st[CM + 2]
+    v3 = b1 * st[P + 3] + a * st[CM + 3]
+    v4 = b1 * st[P + 4] + a * st[CM + 4]
+    st[PMM] = b1 * v0 + a * (b1 * c0 + a * st[PMM])
+    st[XM] = b1 * st[X] + a * st[XM]
+    st[VBM] = b1 * st[VB] + a * st[VBM]
+    st[VT + 5] = b1 * st[VT] + a * st[VT + 5]
+    # c's rows 0, 1, 3 through Phi come in _slow_predict (Phi's rows read there once): v kept
+    st[CM], st[CM + 1], st[CM + 2], st[CM + 3], st[CM + 4] = v0, v1, v2, v3, v4
+
+
+@_inline
+def _slow_predict(st, pr, F, x0):
+    """The two-stage filter's prediction: the sensitivities ``V <- Phi V`` (of the offset and
+    the lag), the bead's covariance ``c <- Phi c``; the slow states' random walks; and the lag's
+    regressor, the model's pipe rate over the sample (``x0`` the pipe's temperature at its start)
+    through the lag once and twice."""
+    a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
+    b0, b1, b2, b3, b4 = F[1, 0], F[1, 1], F[1, 2], F[1, 3], F[1, 4]
+    c0, c1, c2, c3, c4 = F[3, 0], F[3, 1], F[3, 2], F[3, 3], F[3, 4]
+    for o in (VB, VT, CM):
+        v0, v1, v2, v3, v4 = st[o], st[o + 1], st[o + 2], st[o + 3], st[o + 4]
+        st[o] = a0 * v0 + a1 * v1 + a2 * v2 + a3 * v3 + a4 * v4
+        st[o + 1] = b0 * v0 + b1 * v1 + b2 * v2 + b3 * v3 + b4 * v4
+        st[o + 3] = c0 * v0 + c1 * v1 + c2 * v2 + c3 * v3 + c4 * v4
+    ts = pr[PR_TS]
+    if st[PBB] > 0.0:
+        st[PBB] += pr[PR_SB] * ts
+    if st[PTT] > 0.0:
+        st[PTT] += pr[PR_ST] * ts
+    la = st[LAGA]
+    lb = 1.0 - la
+    w1 = la * st[WL1] + lb * (st[X] - x0) / ts
+    st[WL1] = w1
+    st[WL2] = la * st[WL2] + lb * w1
 
 
 @_inline

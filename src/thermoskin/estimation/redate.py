@@ -317,7 +317,8 @@ def held(pr: Array, learnt: Array | None) -> None:
     pr[K.PR_LEARN] = 0.0
     if learnt is not None:
         pr[K.PR_RW0], pr[K.PR_RP0], pr[K.PR_RA0] = learnt[K.EV_RW], learnt[K.EV_RP], learnt[K.EV_RA]
-        pr[K.PR_BD0], pr[K.PR_PB0] = learnt[K.EV_BD], learnt[K.EV_PBD]
+        pr[K.PR_BD0], pr[K.PR_LAG0] = learnt[K.EV_BD], learnt[K.EV_LAG]
+    pr[K.PR_PB0] = pr[K.PR_PT0] = 0.0
 
 
 class _Model(NamedTuple):
