@@ -121,11 +121,9 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_PT0] = sn.lag_sd**2
     pr[K.PR_ST] = es.lag_drift
     pr[K.PR_TAUMAX] = max(es.lag_max, sn.lag_T_w)
-    import os
-    pr[K.PR_BSHIFT] = float(os.environ.get("BSHIFT", "1"))
-    pr[K.PR_DBMAX] = float(os.environ.get("DBMAX", "1e-3"))
-    pr[K.PR_DTMAX] = float(os.environ.get("DTMAX", "1e-4"))
-    pr[K.PR_LDELAY] = float(os.environ.get("LDELAY", "0.5"))
+    pr[K.PR_DBMAX] = 1e-3  # K a reading: 1 K/s at 1 kHz
+    pr[K.PR_DTMAX] = 5e-4  # s a reading: 0.5 s/s at 1 kHz
+    pr[K.PR_LDELAY] = 0.5
     pr[K.PR_AIR] = min(1.0, t_s / 10.0)
     return pr
 

@@ -197,7 +197,12 @@ MUM = WL2 + 1      # NCU: each onset CUSUM's step signature on the bead
 KUPM = MUM + NCU   # this sample's gains on the bead of the pipe and the tank updates, and the a of
 #                    the pipe's reading (for the signatures)
 TINIT = KUPM + 3   # when the filter last started, s
-NSTATE = TINIT + 1
+SWIN = TINIT + 1   # the slow states' window: sums of s e/S and s^2/S for the offset and the lag,
+#                    and where it began (their covariance is let go where a window's evidence
+#                    says they are off by more than it allows)
+LY2P = SWIN + 5    # the fresh T_p and T_a readings before the last (second differences)
+LY2A = SWIN + 6
+NSTATE = SWIN + 7
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -279,11 +284,10 @@ PR_LAG0 = 81     # the pipe thermocouple's lag to start from (configured), s
 PR_PT0 = 82      # its prior variance, s^2 (0: not learnt)
 PR_ST = 83       # its random walk, s^2/s
 PR_TAUMAX = 84   # the longest lag learnt, s
-PR_BSHIFT = 85
-PR_DBMAX = 86    # the most a reading moves the learnt offset, K, and the lag, s
-PR_DTMAX = 87
-PR_LDELAY = 88   # the slow states learn from this long after the filter's start, s
-NPARAM = 89
+PR_DBMAX = 85    # the most a reading moves the learnt offset, K, and the lag, s
+PR_DTMAX = 86
+PR_LDELAY = 87   # the slow states learn from this long after the filter's start, s
+NPARAM = 88
 
 
 # step result bits
@@ -328,6 +332,7 @@ def new_state() -> np.ndarray:
     st[QIH] = np.nan
     st[QW] = st[QP] = st[QA] = 1e300
     st[LYW] = st[LYP] = st[LYA] = np.nan
+    st[LY2P] = st[LY2A] = np.nan
     st[TLP] = st[TLA] = -1e300
     st[RHO] = 1.0
     return st
@@ -435,21 +440,10 @@ def _update(st, pr, i, y, p, eta, slow):
             st[KAPPA] = kap * pr[PR_UP]
         else:
             st[KAPPA] = kap * pr[PR_DOWN]
-        if eta > 0.0:
-            # the reading's variance: its median tracker, e²/S at chi2(1)'s median 0.4549
+        if eta > 0.0 and i == 0:
+            # the pipe reading's variance: its median tracker, e²/S at chi2(1)'s median 0.4549
             # (robust to the few large innovations of a touch not yet seen or a pump switch)
-            r = R * (1.0 + eta) if e * e > 0.4549 * Sf else R / (1.0 + eta)
-            r0p = pr[PR_RW0] if i == 0 else pr[PR_RP0]
-            q = st[QW] if i == 0 else st[QP]
-            qq = q * q / 12.0 if q < 1e299 else 0.0
-            lo = r0p / pr[PR_RMIN]
-            lo = lo if lo > qq else qq
-            hi = r0p * pr[PR_RMIN]
-            r = lo if r < lo else (hi if r > hi else r)
-            if i == 0:
-                st[RW] = r
-            else:
-                st[RP] = r
+            st[RW] = _r_step(st, pr, R, e * e > 0.4549 * Sf, eta, PR_RW0, QW)
     inv = 1.0 / S
     k0 = r0 * inv
     k1 = r1 * inv
@@ -510,6 +504,11 @@ def _update(st, pr, i, y, p, eta, slow):
     if slow and sps > 0.0 and not man:
         # the slow states learnt from this reading (held during a contact), and the state moved
         # as the filter would stand had its readings been corrected by them all along
+        # the window's evidence on each, for the fading of their covariance (_slow_window)
+        st[SWIN] += sb * e / Sf
+        st[SWIN + 1] += sb * sb / Sf
+        st[SWIN + 2] += stau * e / Sf
+        st[SWIN + 3] += stau * stau / Sf
         hb = pbb * sb + pbt * stau
         ht = pbt * sb + ptt * stau
         kb = hb / Sf
@@ -518,14 +517,17 @@ def _update(st, pr, i, y, p, eta, slow):
         dt = kt * e
         # each reading moves them by at most PR_DBMAX, PR_DTMAX: the lag's effect is linear in
         # it only for small changes, and the filter's start (its state settling) can ask for
-        # large ones
-        lim = pr[PR_DBMAX]
-        db = -lim if db < -lim else (lim if db > lim else db)
-        lim = pr[PR_DTMAX]
-        dt = -lim if dt < -lim else (lim if dt > lim else dt)
-        st[PBB] = pbb - kb * hb
-        st[PBT] = pbt - kb * ht
-        st[PTT] = ptt - kt * ht
+        # large ones; a reading so limited is taken as that share of one (its information)
+        f = 1.0
+        if abs(db) > pr[PR_DBMAX]:
+            f = pr[PR_DBMAX] / abs(db)
+        if abs(dt) > pr[PR_DTMAX] and pr[PR_DTMAX] / abs(dt) < f:
+            f = pr[PR_DTMAX] / abs(dt)
+        db *= f
+        dt *= f
+        st[PBB] = pbb - f * kb * hb
+        st[PBT] = pbt - f * kb * ht
+        st[PTT] = ptt - f * kt * ht
         st[BD] += db
         tau = st[LAGT] + dt
         tau = 0.0 if tau < 0.0 else (pr[PR_TAUMAX] if tau > pr[PR_TAUMAX] else tau)
@@ -534,8 +536,7 @@ def _update(st, pr, i, y, p, eta, slow):
         st[LAGA] = math.exp(-pr[PR_TS] / tau) if tau > 0.0 else 0.0
         # the estimate of q_i moves with them (what it had taken of their errors): so does its
         # no-touch baseline
-        if pr[PR_BSHIFT] != 0.0:
-            st[B] -= vb2 * db + vt2 * dt
+        st[B] -= vb2 * db + vt2 * dt
         x0 -= vb0 * db + vt0 * dt
         x1 -= vb1 * db + vt1 * dt
         x2 -= vb2 * db + vt2 * dt
@@ -630,9 +631,8 @@ def _predict(st, F, G, QQ, u, w):
 
 
 @_inline
-def _ambient(st, pr, t, y, fresh, idx, eta):
-    """Update the ambient filter with a fresh air reading (if any), with its learnt variance
-    (``eta``: this reading's weight in its tracker, as :func:`_update`).
+def _ambient(st, pr, t, y, fresh, idx):
+    """Update the ambient filter with a fresh air reading (if any), with its learnt variance.
 
     A sudden change of the air (a door) is found by Page's CUSUM on the standardised
     innovations (drift ``PR_KAIR``, threshold ``PR_HAIR``, either sign): the air's estimate is
@@ -643,14 +643,6 @@ def _ambient(st, pr, t, y, fresh, idx, eta):
         R = st[RA]
         S = st[PA + 3 * idx] + R
         e = y - st[XA + idx]
-        if eta > 0.0:
-            r = R * (1.0 + eta) if e * e > 0.4549 * S else R / (1.0 + eta)
-            q = st[QA]
-            qq = q * q / 12.0 if q < 1e299 else 0.0
-            lo = pr[PR_RA0] / pr[PR_RMIN]
-            lo = lo if lo > qq else qq
-            hi = pr[PR_RA0] * pr[PR_RMIN]
-            st[RA] = lo if r < lo else (hi if r > hi else r)
         z = e / math.sqrt(S)
         k = pr[PR_KAIR]
         ap = st[AGP] + z - k
@@ -1407,9 +1399,17 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     # the readings' converter steps (each channel's smallest change between fresh readings)
     if (fresh & 1) != 0:
         _quantum(st, QW, LYW, T_w)
+    # the tank's and the air's reading variances from their own second differences (both
+    # change smoothly: what a second difference holds is the noise, 6 R); the pipe's, which
+    # the pump kinks at every switch, from its innovations (_update)
+    learn_r = pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0
     if (fresh & 2) != 0:
+        if learn_r:
+            _noise2(st, pr, RP, PR_RP0, QP, LYP, LY2P, T_p, t - st[TLP])
         _quantum(st, QP, LYP, T_p)
     if (fresh & 4) != 0:
+        if learn_r:
+            _noise2(st, pr, RA, PR_RA0, QA, LYA, LY2A, T_a, t - st[TLA])
         _quantum(st, QA, LYA, T_a)
     # the configured offsets off the readings (the learnt one of the tank's at its update)
     T_w_raw = T_w
@@ -1429,7 +1429,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         st[TLA] = t
     else:
         upd_a = (fresh & 4) != 0 and math.isfinite(T_a)
-        _ambient(st, pr, t, T_a, upd_a, int(pr[PR_AMB]), _eta(pr, t - st[TLA]) if learn else 0.0)
+        _ambient(st, pr, t, T_a, upd_a, int(pr[PR_AMB]))
         if upd_a:
             st[TLA] = t
         if st[TAMB] == t and st[MODE] == INCONTACT and t - st[DETECTED] < pr[PR_TRETR]:
@@ -1474,6 +1474,12 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             _p_put(st, p)
     if iv_old >= 0:
         _switch_correction(st, pr, Rw, iv_old, iv, SWA)
+    if slow and t - st[SWIN + 4] >= pr[PR_RHOW]:
+        _slow_window(st, t)
+    elif not slow:
+        for j in range(4):
+            st[SWIN + j] = 0.0
+        st[SWIN + 4] = t
     if pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0:
         _dispersion(st, pr, t, st[SGE], st[SGG], not gap and st[MODE] != INCONTACT
                     and t - st[TAMB] >= pr[PR_TAMBH] and t - st[TREL] >= pr[PR_RHOSET])
@@ -1524,23 +1530,85 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
 
 @_inline
 def _quantum(st, iq, ily, y):
-    """A channel's converter step: the smallest non-zero change between its fresh readings
-    (``st[iq]``; the last reading in ``st[ily]``). A board without one shows changes far below
-    its noise at once."""
+    """A channel's converter step: the greatest common divisor of the changes between its fresh
+    readings (``st[iq]``; the last reading in ``st[ily]``), by Euclid's algorithm to within
+    1e-9 K: a converter's readings are whole multiples of its step, so their changes are too,
+    however far apart; a board without one (or a log's readings rounded to no common step)
+    brings it below 1e-6 K at once."""
     if math.isfinite(y):
         d = abs(y - st[ily])
-        if d > 1e-9 * (1.0 + abs(y)) and d < st[iq]:
-            st[iq] = d
+        if d > 1e-9:
+            g = st[iq]
+            if g >= 1e299:
+                g = d
+            else:
+                a, b = (g, d) if g > d else (d, g)
+                for _ in range(64):
+                    if b <= 1e-9:
+                        break
+                    a, b = b, a % b
+                g = a
+            st[iq] = g
         st[ily] = y
+
+
+@_inline
+def _r_step(st, pr, R, up, eta, ipr0, iq):
+    """A reading variance's median tracker, one step up (``up``) or down by ``1 + eta``, kept
+    within ``PR_RMIN`` of its prior (``pr[ipr0]``) both ways and above its converter's step's
+    ``q²/12`` (``st[iq]``)."""
+    r = R * (1.0 + eta) if up else R / (1.0 + eta)
+    q = st[iq]
+    qq = q * q / 12.0 if q < 1e299 else 0.0
+    lo = pr[ipr0] / pr[PR_RMIN]
+    lo = lo if lo > qq else qq
+    hi = pr[ipr0] * pr[PR_RMIN]
+    return lo if r < lo else (hi if r > hi else r)
+
+
+@_inline
+def _noise2(st, pr, ir, ipr0, iq, iy1, iy2, y, dt):
+    """A smooth channel's reading variance from its second differences: ``y - 2 y1 + y2`` of three
+    fresh readings is ``6 R`` in variance where the temperature's curvature over them is small
+    against the noise; its median tracker (chi2(1)'s median 0.4549), each reading weighed by
+    :func:`_eta` of ``dt`` since the last. ``st[iy1]``, ``st[iy2]``: the last two readings
+    (``iy1`` is the quantum's, moved on by :func:`_quantum`)."""
+    if not math.isfinite(y):
+        return
+    y1, y2 = st[iy1], st[iy2]
+    st[iy2] = y1
+    if y1 == y1 and y2 == y2:
+        d = y - 2.0 * y1 + y2
+        st[ir] = _r_step(st, pr, st[ir], d * d > 6.0 * 0.4549 * st[ir], _eta(pr, dt), ipr0, iq)
 
 
 @_inline
 def _eta(pr, dt):
     """A reading's weight in its variance's tracker: the time since the channel's last reading
-    over the tracker's time constant (at most 0.05: a slow board's readings, each weighed so,
-    still average about 40 of them)."""
+    over the tracker's time constant (at most 0.01: a slow board's readings, each weighed so,
+    still average about a hundred of them)."""
     w = dt / pr[PR_TAUR]
-    return w if w < 0.05 else 0.05
+    return w if w < 0.01 else 0.01
+
+
+@_inline
+def _slow_window(st, t):
+    """The end of a slow-state window: where the readings since its start say an offset or a lag
+    other than the learnt one, by more than three of its standard deviations (``(sum s e/S)²/sum
+    s²/S > 9``), its variance is let go to the square of that difference (``sum s e/S / sum
+    s²/S``, the window's least-squares estimate of the error): the learnt value was believed too
+    well (a first-order filter's covariance shrinks before a lag far from its start is reached),
+    and the next readings move it at once. Its covariance with the other is let go with it."""
+    for j, o in ((0, PBB), (2, PTT)):
+        a, b = st[SWIN + j], st[SWIN + j + 1]
+        if b > 0.0 and a * a > 9.0 * b:
+            d = a / b
+            if d * d > st[o]:
+                st[o] = d * d
+                st[PBT] = 0.0
+    for j in range(4):
+        st[SWIN + j] = 0.0
+    st[SWIN + 4] = t
 
 
 @_inline

@@ -69,8 +69,11 @@ NUISANCE_S = 1.0   #: evidence used before the earliest candidate, to pin the st
 HISTORY_S = 5.0    #: the detection-free filter runs this long before that, s
 LONGEST_S = 30.0   #: a contact longer than this has its release alone dated again, s
 NCOL = 8           #: the input buffer's columns: t, T_w, T_p, T_a, T_w_cmd, pump row, drive, fresh
-NREC = 2 * K.NUR + 4  #: per row of the trace: the two updates, the pump row, ready, switch corrections
-RIV, RREADY, RSWB, RSWA = 2 * K.NUR, 2 * K.NUR + 1, 2 * K.NUR + 2, 2 * K.NUR + 3
+NREC = 2 * K.NUR + 5  #: per row of the trace: the two updates, the pump row, ready, switch corrections,
+#                        the pipe thermocouple's bead weight a
+RIV, RREADY, RSWB, RSWA, RLAGA = (2 * K.NUR, 2 * K.NUR + 1, 2 * K.NUR + 2, 2 * K.NUR + 3,
+                                  2 * K.NUR + 4)
+NS = 6  #: the filter's states the signatures carry: the patch's five and the pipe thermocouple's bead
 
 
 @njit(cache=True, nogil=True)
@@ -89,25 +92,29 @@ def trace(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, i
         rec[k, RREADY] = st[K.READY]
         rec[k, RSWB] = st[K.SWB]
         rec[k, RSWA] = st[K.SWA]
+        rec[k, RLAGA] = st[K.LAGA]
 
 
 @njit(cache=True, nogil=True, forceinline=True)
-def _left_mul(A, B, col, tmp):
-    """``B[:, col] = A @ B[:, col]`` (5 x 5), in place."""
-    for m in range(5):
+def _left_mul(F, la, B, col, tmp):
+    """``B[:, col] = Phi_aug @ B[:, col]`` (``NS`` x ``NS``, in place): the model's step of the
+    patch's five states (``F``, rows 2 and 4 unit rows as any) and the bead's,
+    ``m <- (1 - a) T_w + a m`` (``la`` = a), from the column before the step."""
+    for m in range(NS):
         tmp[m] = B[m, col]
     for m in range(5):
         s = 0.0
         for q in range(5):
-            s += A[m, q] * tmp[q]
+            s += F[m, q] * tmp[q]
         B[m, col] = s
+    B[5, col] = (1.0 - la) * tmp[0] + la * tmp[5]
 
 
 @njit(cache=True, nogil=True, forceinline=True)
 def _switch(M, c):
     """A coarse log's pump-switch correction on the map: ``x_Tw += c (x_Tp - x_Tw)``."""
     if c != 0.0:
-        for q in range(5):
+        for q in range(NS):
             M[0, q] += c * (M[3, q] - M[0, q])
 
 
@@ -121,85 +128,93 @@ def _idle(col, no, nc, p_on, p_off):
 def _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off):
     """Add a stretch's sums to the fit's (``a += v' mu``, ``G += mu' W mu`` for the blocks
     kept) and carry the active columns over it (``mu <- M mu``)."""
-    for col in range(nc + 5):
+    for col in range(nc + NS):
         if _idle(col, no, nc, p_on, p_off):
             continue
         s = 0.0
-        for m in range(5):
+        for m in range(NS):
             s += v[m] * mu[m, col]
         a[col] += s
-        for m in range(5):
+        for m in range(NS):
             s = 0.0
-            for q in range(5):
+            for q in range(NS):
                 s += W[m, q] * mu[q, col]
             WM[m, col] = s
-    for m in range(5):  # the nuisance's block
-        for q in range(5):
+    for m in range(NS):  # the nuisance's block
+        for q in range(NS):
             s = 0.0
-            for l_ in range(5):
+            for l_ in range(NS):
                 s += mu[l_, nc + m] * WM[l_, nc + q]
             nn[m, q] += s
     for col in range(nc):
         if _idle(col, no, nc, p_on, p_off):
             continue
         s = 0.0
-        for l_ in range(5):
+        for l_ in range(NS):
             s += mu[l_, col] * WM[l_, col]
         d[col] += s
-        for m in range(5):
+        for m in range(NS):
             s = 0.0
-            for l_ in range(5):
+            for l_ in range(NS):
                 s += mu[l_, col] * WM[l_, nc + m]
             cn[col, m] += s
     for c in range(p_on):
         for b in range(p_off):
             s = 0.0
-            for l_ in range(5):
+            for l_ in range(NS):
                 s += mu[l_, c] * WM[l_, no + b]
             x[c, b] += s
-    tmp = np.empty(5)
-    for col in range(nc + 5):
+    tmp = np.empty(NS)
+    for col in range(nc + NS):
         if not _idle(col, no, nc, p_on, p_off):
-            _left_mul(M, mu, col, tmp)
+            for m in range(NS):
+                tmp[m] = mu[m, col]
+            for m in range(NS):
+                s = 0.0
+                for q in range(NS):
+                    s += M[m, q] * tmp[q]
+                mu[m, col] = s
 
 
 @njit(cache=True, nogil=True)
 def pulse_sums(rec, Phi, j_first, s_on, s_off):
     """The fit's sums over the trace's rows ``j_first..``: with the candidates' columns (onsets
-    ``s_on``, releases ``s_off``: the rows they start at, ascending) and the five nuisance
-    columns (a unit error of each state at ``j_first``), ``a = R z`` and the blocks of ``R R'``
-    the fit reads: ``d`` (candidates' diagonal), ``cn`` (candidates x nuisance), ``nn``,
-    ``x`` (onsets x releases). ``R``'s column for a reading is ``rho / sqrt(S)``, ``z = e /
-    sqrt(S)``, ``rho`` a column's signature at that reading.
+    ``s_on``, releases ``s_off``: the rows they start at, ascending) and the ``NS`` nuisance
+    columns (a unit error of each state, the pipe thermocouple's bead included, at ``j_first``),
+    ``a = R z`` and the blocks of ``R R'`` the fit reads: ``d`` (candidates' diagonal), ``cn``
+    (candidates x nuisance), ``nn``, ``x`` (onsets x releases). ``R``'s column for a reading is
+    ``rho / sqrt(S)``, ``z = e / sqrt(S)``, ``rho`` a column's signature at that reading (the
+    pipe's reading reads ``(1 - a) T_w + a m``, the bead's weighed in).
 
     Between two candidate starts every column is carried by the same map ``M`` (the filter's
-    ``I - K H``, a coarse log's switch correction and ``Phi``, multiplied together), so a
-    reading's ``rho = h' mu0`` with ``h`` row ``i`` of ``M`` and ``mu0`` the columns where the
-    stretch began: the stretch's readings add ``v = sum w z h`` and ``W = sum w^2 h h'`` (``w =
-    1/sqrt(S)``), and the columns are touched once a stretch, not once a reading (the same
-    sums, in another order)."""
+    ``I - K H``, a coarse log's switch correction and ``Phi`` with the bead's step, multiplied
+    together), so a reading's ``rho = h' mu0`` with ``h`` its row of ``M`` and ``mu0`` the
+    columns where the stretch began: the stretch's readings add ``v = sum w z h`` and ``W = sum
+    w^2 h h'`` (``w = 1/sqrt(S)``), and the columns are touched once a stretch, not once a
+    reading (the same sums, in another order)."""
     no, nc = s_on.shape[0], s_on.shape[0] + s_off.shape[0]
     nf = nc - no
-    mu = np.zeros((5, nc + 5))
-    for m in range(5):
+    mu = np.zeros((NS, nc + NS))
+    for m in range(NS):
         mu[m, nc + m] = 1.0
-    a = np.zeros(nc + 5)
+    a = np.zeros(nc + NS)
     d = np.zeros(nc)
-    cn = np.zeros((nc, 5))
-    nn = np.zeros((5, 5))
+    cn = np.zeros((nc, NS))
+    nn = np.zeros((NS, NS))
     x = np.zeros((no, nf))
-    M = np.eye(5)
-    v = np.zeros(5)
-    W = np.zeros((5, 5))
-    WM = np.zeros((5, nc + 5))
-    tmp = np.zeros(5)
+    M = np.eye(NS)
+    v = np.zeros(NS)
+    W = np.zeros((NS, NS))
+    WM = np.zeros((NS, nc + NS))
+    tmp = np.zeros(NS)
+    h = np.zeros(NS)
     p_on = p_off = 0
     n = rec.shape[0]
     for j in range(j_first, n):
         if (p_on < no and s_on[p_on] <= j) or (p_off < nf and s_off[p_off] <= j):
             _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off)
             M[:, :] = 0.0
-            for m in range(5):
+            for m in range(NS):
                 M[m, m] = 1.0
             v[:] = 0.0
             W[:, :] = 0.0
@@ -214,26 +229,31 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
             o = u * K.NUR
             if rec[j, o] == 0.0:
                 continue
-            i = 0 if u == 0 else 3
+            if u == 0:  # the pipe's reading: its bead, (1 - a) T_w + a m
+                la = rec[j, o + 10]
+                for q in range(NS):
+                    h[q] = (1.0 - la) * M[0, q] + la * M[5, q]
+            else:
+                for q in range(NS):
+                    h[q] = M[3, q]
             if rec[j, o + 3] != 0.0:  # evidence
                 w = 1.0 / math.sqrt(rec[j, o + 2])
                 wz = rec[j, o + 1] * w * w
                 w2 = w * w
-                for m in range(5):
-                    hm = M[i, m]
+                for m in range(NS):
+                    hm = h[m]
                     v[m] += wz * hm
-                    for q in range(5):
-                        W[m, q] += w2 * hm * M[i, q]
-            for q in range(5):  # M <- (I - K H) M
-                tmp[q] = M[i, q]
-            for m in range(5):
-                km = rec[j, o + 4 + m]
-                for q in range(5):
-                    M[m, q] -= km * tmp[q]
+                    for q in range(NS):
+                        W[m, q] += w2 * hm * h[q]
+            for m in range(NS):  # M <- (I - K h') M, the bead's gain last
+                km = rec[j, o + 4 + m] if m < 5 else rec[j, o + 9]
+                for q in range(NS):
+                    M[m, q] -= km * h[q]
         _switch(M, rec[j, RSWA])  # after them
-        F = Phi[int(rec[j, RIV])]  # M <- Phi M
-        for q in range(5):
-            _left_mul(F, M, q, tmp)
+        F = Phi[int(rec[j, RIV])]  # M <- Phi_aug M
+        la = rec[j, RLAGA]
+        for q in range(NS):
+            _left_mul(F, la, M, q, tmp)
     _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off)
     return a, d, cn, nn, x
 
