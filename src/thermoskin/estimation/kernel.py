@@ -501,7 +501,8 @@ def _update(st, pr, i, y, p, eta, slow):
     vtm = st[VT + 5] + km * stau
     st[VB], st[VB + 1], st[VB + 2], st[VB + 3], st[VB + 4], st[VBM] = vb0, vb1, vb2, vb3, vb4, vbm
     st[VT], st[VT + 1], st[VT + 2], st[VT + 3], st[VT + 4], st[VT + 5] = vt0, vt1, vt2, vt3, vt4, vtm
-    if slow and sps > 0.0 and not man:
+    if slow and sps > 0.0 and not man and e * e < 64.0 * Sf:
+        # (an outlier, beyond 8 sd, is no evidence of either)
         # the slow states learnt from this reading (held during a contact), and the state moved
         # as the filter would stand had its readings been corrected by them all along
         # the window's evidence on each, for the fading of their covariance (_slow_window)
@@ -1475,7 +1476,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     if iv_old >= 0:
         _switch_correction(st, pr, Rw, iv_old, iv, SWA)
     if slow and t - st[SWIN + 4] >= pr[PR_RHOW]:
-        _slow_window(st, t)
+        _slow_window(st, pr, t)
     elif not slow:
         for j in range(4):
             st[SWIN + j] = 0.0
@@ -1592,19 +1593,21 @@ def _eta(pr, dt):
 
 
 @_inline
-def _slow_window(st, t):
+def _slow_window(st, pr, t):
     """The end of a slow-state window: where the readings since its start say an offset or a lag
     other than the learnt one, by more than three of its standard deviations (``(sum s e/S)²/sum
     s²/S > 9``), its variance is let go to the square of that difference (``sum s e/S / sum
     s²/S``, the window's least-squares estimate of the error): the learnt value was believed too
     well (a first-order filter's covariance shrinks before a lag far from its start is reached),
-    and the next readings move it at once. Its covariance with the other is let go with it."""
-    for j, o in ((0, PBB), (2, PTT)):
+    and the next readings move it at once. Its covariance with the other is let go with it. At
+    most (1 K)² for the offset and ``PR_TAUMAX``² for the lag (an absurd reading's window)."""
+    for j, o, cap in ((0, PBB, 1.0), (2, PTT, pr[PR_TAUMAX] * pr[PR_TAUMAX])):
         a, b = st[SWIN + j], st[SWIN + j + 1]
         if b > 0.0 and a * a > 9.0 * b:
             d = a / b
-            if d * d > st[o]:
-                st[o] = d * d
+            v = d * d if d * d < cap else cap
+            if v > st[o]:
+                st[o] = v
                 st[PBT] = 0.0
     for j in range(4):
         st[SWIN + j] = 0.0
@@ -1654,7 +1657,9 @@ def _slow_predict(st, pr, F, x0):
         st[PTT] += pr[PR_ST] * ts
     la = st[LAGA]
     lb = 1.0 - la
-    w1 = la * st[WL1] + lb * (st[X] - x0) / ts
+    r = (st[X] - x0) / ts
+    r = -1e3 if r < -1e3 else (1e3 if r > 1e3 else r)  # a pipe moves far slower than 1000 K/s
+    w1 = la * st[WL1] + lb * r
     st[WL1] = w1
     st[WL2] = la * st[WL2] + lb * w1
 

@@ -257,7 +257,7 @@ class ReferenceEstimator:
             c.mu = c.mu - K * (h @ c.mu)
         self.x = self.x + K * e
         self.V = self.V + np.outer(K, s)  # V <- V - K (h' V - C)
-        if slow and sps > 0 and not man:
+        if slow and sps > 0 and not man and e * e < 64 * Sf:  # (an outlier: no evidence)
             self.window += (s[0] * e / Sf, s[0] ** 2 / Sf, s[1] * e / Sf, s[1] ** 2 / Sf)
             hB = self.P_B @ s
             kB = hB / Sf
@@ -297,10 +297,11 @@ class ReferenceEstimator:
     def _slow_window(self) -> None:
         """A window's evidence says a slow state is off by more than 3 sd: let its variance go
         to the square of that difference (kernel: ``_slow_window``)."""
-        for j, k in ((0, 0), (2, 1)):
+        tau_max = max(self.cfg.estimator.lag_max, self.cfg.sensor.lag_T_w)
+        for j, k, cap in ((0, 0, 1.0), (2, 1, tau_max**2)):
             A, Bw = self.window[j], self.window[j + 1]
-            if Bw > 0 and 9 * Bw < A * A and (A / Bw) ** 2 > self.P_B[k, k]:
-                self.P_B[k, k] = (A / Bw) ** 2
+            if Bw > 0 and 9 * Bw < A * A and min((A / Bw) ** 2, cap) > self.P_B[k, k]:
+                self.P_B[k, k] = min((A / Bw) ** 2, cap)
                 self.P_B[0, 1] = self.P_B[1, 0] = 0.0
         self.window[:] = 0.0
 
@@ -457,7 +458,8 @@ class ReferenceEstimator:
             self.P_B[0, 0] += self.cfg.estimator.offset_drift * self.t_s
         if self.P_B[1, 1] > 0:
             self.P_B[1, 1] += self.cfg.estimator.lag_drift * self.t_s
-        self.w1 = a * self.w1 + (1 - a) * (self.x[I_TW] - x0) / self.t_s
+        rate = min(max((self.x[I_TW] - x0) / self.t_s, -1e3), 1e3)  # a pipe moves slower than 1000 K/s
+        self.w1 = a * self.w1 + (1 - a) * rate
         self.w2 = a * self.w2 + (1 - a) * self.w1
         if self.gap_run > self.max_gap:
             self.ready = False
