@@ -124,6 +124,8 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_DBMAX] = 1e-3  # K a reading: 1 K/s at 1 kHz
     pr[K.PR_DTMAX] = 5e-4  # s a reading: 0.5 s/s at 1 kHz
     pr[K.PR_LDELAY] = 0.5
+    pr[K.PR_SWIN] = 0.4
+    pr[K.PR_RSLOT] = 0.5
     pr[K.PR_AIR] = min(1.0, t_s / 10.0)
     return pr
 

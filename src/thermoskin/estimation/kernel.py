@@ -202,7 +202,11 @@ SWIN = TINIT + 1   # the slow states' window: sums of s e/S and s^2/S for the of
 #                    says they are off by more than it allows)
 LY2P = SWIN + 5    # the fresh T_p and T_a readings before the last (second differences)
 LY2A = SWIN + 6
-NSTATE = SWIN + 7
+RSL = SWIN + 7     # NRS slots of the pipe reading variance's steps (the sum of their logarithms),
+NRS = 4            # taken into it NRS - 1 slots late, dropped at a detection
+RSI = RSL + NRS    # the slot being filled
+RST0 = RSI + 1     # when it began, s
+NSTATE = RST0 + 1
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -287,7 +291,9 @@ PR_TAUMAX = 84   # the longest lag learnt, s
 PR_DBMAX = 85    # the most a reading moves the learnt offset, K, and the lag, s
 PR_DTMAX = 86
 PR_LDELAY = 87   # the slow states learn from this long after the filter's start, s
-NPARAM = 88
+PR_SWIN = 88     # the slow states' window, s
+PR_RSLOT = 89    # the pipe reading variance's steps are gathered in slots this long, s
+NPARAM = 90
 
 
 # step result bits
@@ -442,8 +448,9 @@ def _update(st, pr, i, y, p, eta, slow):
             st[KAPPA] = kap * pr[PR_DOWN]
         if eta > 0.0 and i == 0:
             # the pipe reading's variance: its median tracker, e²/S at chi2(1)'s median 0.4549
-            # (robust to the few large innovations of a touch not yet seen or a pump switch)
-            st[RW] = _r_step(st, pr, R, e * e > 0.4549 * Sf, eta, PR_RW0, QW)
+            # (robust to the few large innovations of a pump switch), its steps into this slot
+            l1 = math.log(1.0 + eta)
+            st[RSL + int(st[RSI])] += l1 if e * e > 0.4549 * Sf else -l1
     inv = 1.0 / S
     k0 = r0 * inv
     k1 = r1 * inv
@@ -1264,6 +1271,7 @@ def _detect(st, pr, t, ev):
             st[LVLMAX] = d
             st[SINCE] = 0.0
             _cusums_reset(st, t)
+            _r_drop(st)
             st[DQ] = q - b
             return C_CONTACT | C_STARTED
         if quiet and t - st[TREL] >= pr[PR_TSETTLE]:
@@ -1416,7 +1424,13 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     T_w_raw = T_w
     T_w = T_w - pr[PR_OFW]
     T_a = T_a - pr[PR_OFA]
-    learn = pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0 and st[MODE] != INCONTACT
+    # the pipe reading's variance from its innovations, while no contact is seen and none has
+    # just ended, taken NRS slots late (_r_slots): the innovations of a touch not yet detected
+    # (with slow boards, a second or so) are dropped at its detection, not taken for noise
+    learn = (pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0 and st[MODE] != INCONTACT
+             and t - st[TREL] >= pr[PR_TSETTLE])
+    if pr[PR_LEARN] != 0.0 and t - st[RST0] >= pr[PR_RSLOT]:
+        _r_slots(st, pr, t)
     # the slow states (offset, lag) learn while no contact is seen and none has just ended, and
     # not while the filter settles after its start
     slow = (pr[PR_LEARN] != 0.0 and st[MODE] != INCONTACT and t - st[TREL] >= pr[PR_TSETTLE]
@@ -1475,7 +1489,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             _p_put(st, p)
     if iv_old >= 0:
         _switch_correction(st, pr, Rw, iv_old, iv, SWA)
-    if slow and t - st[SWIN + 4] >= pr[PR_RHOW]:
+    if slow and t - st[SWIN + 4] >= pr[PR_SWIN]:
         _slow_window(st, pr, t)
     elif not slow:
         for j in range(4):
@@ -1551,6 +1565,33 @@ def _quantum(st, iq, ily, y):
                 g = a
             st[iq] = g
         st[ily] = y
+
+
+@_inline
+def _r_slots(st, pr, t):
+    """The next slot of the pipe reading variance's steps: the oldest, ``NRS - 1`` slots of
+    ``PR_RSLOT`` s back (1.5 s), taken into the variance (within its bounds), and begun afresh."""
+    k = int(st[RSI]) + 1
+    k = k if k < NRS else 0
+    v = st[RSL + k]
+    if v != 0.0:
+        r = st[RW] * math.exp(v)
+        q = st[QW]
+        qq = q * q / 12.0 if q < 1e299 else 0.0
+        lo = pr[PR_RW0] / pr[PR_RMIN]
+        lo = lo if lo > qq else qq
+        hi = pr[PR_RW0] * pr[PR_RMIN]
+        st[RW] = lo if r < lo else (hi if r > hi else r)
+    st[RSL + k] = 0.0
+    st[RSI] = k
+    st[RST0] = t
+
+
+@_inline
+def _r_drop(st):
+    """A contact detected: the pipe reading variance's steps not yet taken were its onset's."""
+    for j in range(NRS):
+        st[RSL + j] = 0.0
 
 
 @_inline

@@ -81,6 +81,9 @@ LEARN_DELAY = 0.5    # the slow states learn from this long after the filter's s
 RHO_ETA = 0.03       # the dispersion tracker's least step
 RHO_SETTLE = 0.5     # its windows begin this long after a release, s
 IRATE_TAU = 10.0     # the information rate's time constant, s
+SLOW_WINDOW = 0.4    # the slow states' window, s
+R_SLOT = 0.5         # the pipe reading variance's steps are gathered in slots this long, s
+N_SLOTS = 4          # and taken into it N_SLOTS - 1 slots late (dropped at a detection)
 
 
 def fgcd(g: float, d: float) -> float:
@@ -123,6 +126,7 @@ class ReferenceEstimator:
         # what is learnt of the sensors: priors (the configuration)
         self.R0 = {ch: measurement_variance(self.cfg, ch) for ch in ("T_w", "T_p", "T_a")}
         self.R = dict(self.R0)
+        self.r_slots, self.r_slot, self.t_rslot = [0.0] * N_SLOTS, 0, 0.0
         self.quantum = {ch: 1e300 for ch in self.R0}
         self.last_y = {ch: math.nan for ch in self.R0}
         self.prev_y = {"T_p": math.nan, "T_a": math.nan}
@@ -192,6 +196,16 @@ class ReferenceEstimator:
         lo = max(self.R0[ch] / R_RANGE, q * q / 12 if q < 1e299 else 0.0)
         self.R[ch] = min(max(r, lo), self.R0[ch] * R_RANGE)
 
+    def _r_slots(self, t: float) -> None:
+        """The oldest slot of the pipe reading variance's steps into it; a fresh slot begun."""
+        k = (self.r_slot + 1) % N_SLOTS
+        if self.r_slots[k] != 0:
+            q = self.quantum["T_w"]
+            lo = max(self.R0["T_w"] / R_RANGE, q * q / 12 if q < 1e299 else 0.0)
+            self.R["T_w"] = min(max(self.R["T_w"] * math.exp(self.r_slots[k]), lo), self.R0["T_w"] * R_RANGE)
+        self.r_slots[k] = 0.0
+        self.r_slot, self.t_rslot = k, t
+
     def _eta(self, dt: float) -> float:
         return min(ETA_MAX, dt / self.cfg.estimator.tau_noise)
 
@@ -248,8 +262,8 @@ class ReferenceEstimator:
             g = r[I_Q] / self.P[I_Q, I_Q] if self.P[I_Q, I_Q] > 0 else 0.0
             ge, gg = g * e / (k2 * Sf), g * g / (k2 * Sf)
             self.kappa *= self.up if abs(e) > 0.6745 * self.kappa * math.sqrt(Sf) else self.down
-            if eta > 0 and i == I_TW:
-                self._r_step("T_w", e * e > 0.4549 * Sf, eta)
+            if eta > 0 and i == I_TW:  # a step of its variance's tracker, into this slot
+                self.r_slots[self.r_slot] += (1 if e * e > 0.4549 * Sf else -1) * math.log(1 + eta)
         K = r / S
         if self.updates is not None:
             self.updates.append((i, e, k2 * Sf, K, not man, h))
@@ -362,7 +376,10 @@ class ReferenceEstimator:
             self._sensor("T_a", T_a, t - self.t_last_a)
         T_w_raw = T_w
         T_w, T_p, T_a = T_w - self.offsets[0], T_p - self.offsets[1], T_a - self.offsets[2]
-        learn_r = self.learn and self.cfg.estimator.tau_noise > 0 and self.mode != "contact"
+        learn_r = (self.learn and self.cfg.estimator.tau_noise > 0 and self.mode != "contact"
+                   and t - self.t_rel >= self.cfg.detector.t_settle)
+        if self.learn and t - self.t_rslot >= R_SLOT:
+            self._r_slots(t)
         slow = (self.learn and self.mode != "contact" and t - self.t_rel >= self.cfg.detector.t_settle
                 and t - self.t_init >= LEARN_DELAY)
         if not self.ready:
@@ -404,7 +421,7 @@ class ReferenceEstimator:
                 self.t_last_p = t
         if iv_old is not None:
             self._switch_correction(iv_old, iv)
-        if slow and t - self.t_window >= self.cfg.detector.rho_window:
+        if slow and t - self.t_window >= SLOW_WINDOW:
             self._slow_window()
             self.t_window = t
         elif not slow:
@@ -581,6 +598,7 @@ class ReferenceEstimator:
                 self.run_rel = self.run_lik = 0.0
                 self.t_below = self.t_lik = t
                 self._reset_cusums(t)
+                self.r_slots = [0.0] * N_SLOTS  # the variance's steps not yet taken: the onset's
                 self.dq = q - self.b
                 return 3
             if quiet and t - self.t_rel >= d.t_settle:
