@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.events import ContactEvent
+from thermoskin.estimation.learnt import Learnt, learnt
 from thermoskin.estimation.model import ModelTables, build_tables, measurement_variance
 from thermoskin.estimation.observer import ThermalExchangeObserver
 from thermoskin.estimation.redate import Redater
@@ -174,6 +175,7 @@ class TouchEstimator:
         self._R_w = FlowResistance(cfg.skin)
         self._build((0.0, cfg.pump.v_on, *v_values))
         self._ev = np.zeros(K.NEV)
+        self._b_cfg = cfg.sensor.offset_T_p - cfg.sensor.offset_T_w
         self.reset()
 
     def _build(self, v_values: tuple[float, ...]) -> None:
@@ -243,6 +245,15 @@ class TouchEstimator:
         return float(self.st[K.X + 1])
 
     @property
+    def b_p_hat(self) -> float:
+        """The T_p readings' offset against the T_w readings (configured and learnt), K."""
+        return float(self.st[K.BD]) + self._b_cfg
+
+    def learnt(self) -> Learnt:
+        """What the estimator has learnt of its sensors (:mod:`~thermoskin.estimation.learnt`)."""
+        return learnt(self.st, self.cfg)
+
+    @property
     def gap(self) -> bool:
         """A reading is NaN at this sample (held over)."""
         return bool(self.st[K.GAP])
@@ -304,7 +315,8 @@ class TouchEstimator:
         """The next chunk of a log (continuing from the last sample stepped): per-sample
         columns ``q_i_hat, dq_i_hat, sd, contact, gap`` (and the filter's ``T_g_hat``, the
         sheet's temperature, with ``cov_qg``, the covariance of the ``q_i`` and ``T_g``
-        estimates) and the contacts that ended in it."""
+        estimates; ``b_p_hat`` and ``b_p_sd``, the T_p readings' offset against the T_w
+        readings, configured and learnt, K) and the contacts that ended in it."""
         t, T_w, T_p, v, T_a = (np.ascontiguousarray(x, dtype=float) for x in (t, T_w, T_p, v, T_a))
         n = len(t)
         cmd = np.full(n, math.nan) if T_w_cmd is None else np.ascontiguousarray(T_w_cmd, dtype=float)
@@ -313,7 +325,7 @@ class TouchEstimator:
               else np.ascontiguousarray(fresh, dtype=np.int64))
         iv = self.rows_of(v)
         rd = self._redater
-        out = np.empty((8, n))
+        out = np.empty((K.NOUT, n))
         events = np.empty((max(16, n // 50), K.NEV))
         marks = np.empty((2 * len(events), 3))
         ne, nm = K.run(self.st, self.pr, *self.tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out,
@@ -326,7 +338,7 @@ class TouchEstimator:
         self.contact = int(self.st[K.CONTACT])
         cols = {"q_i_hat": out[0], "dq_i_hat": out[1], "sd": out[3],
                 "contact": out[4].astype(np.int8), "gap": out[5].astype(np.int8),
-                "T_g_hat": out[6], "cov_qg": out[7]}
+                "T_g_hat": out[6], "cov_qg": out[7], "b_p_hat": out[8] + self._b_cfg, "b_p_sd": out[9]}
         return cols, new
 
     def _redate_chunk(self, rd: Redater, ended: list[ContactEvent], block: tuple[Array, ...],

@@ -296,6 +296,9 @@ PR_RSLOT = 89    # the pipe reading variance's steps are gathered in slots this 
 NPARAM = 90
 
 
+#: Rows of the per-sample outputs (:func:`run`, :func:`run_rows`).
+NOUT = 10
+
 # step result bits
 C_CONTACT, C_STARTED, C_ENDED = 1, 2, 4
 
@@ -1716,7 +1719,8 @@ def _keep_event(events, ne, ev):
 def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
         out, events, ev, marks):
     """:func:`step` over arrays; fills ``out`` (rows: q_i_hat, dq_i_hat, q estimate, its sd,
-    contact, gap, the sheet's estimated temperature T_g, their covariance), ``events``
+    contact, gap, the sheet's estimated temperature T_g, their covariance, the learnt offset of
+    the T_p readings beyond the configured one and its sd), ``events``
     (``ev``: a scratch event row) and ``marks`` (the rows where a contact started or ended:
     row, those step-result bits, the contact's onset; the re-dating's clock); returns the
     event count and the mark count. :func:`step` inlined (LLVM's inlining, which adds little to
@@ -1754,6 +1758,9 @@ def _outputs(st, out, k):
     out[5, k] = st[GAP]
     out[6, k] = st[X + 1]
     out[7, k] = st[P + 7]
+    out[8, k] = st[BD]  # the learnt offset of the T_p readings (beyond the configured), K
+    pb = st[PBB]
+    out[9, k] = math.sqrt(pb) if pb > 0.0 else 0.0
 
 
 # ---------------------------------------------------------------- many patches

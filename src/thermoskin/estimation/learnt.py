@@ -140,13 +140,19 @@ def notices(lt: Learnt, cfg: Config) -> dict[str, str]:
 
 
 class Watch:
-    """Says each notice once (:meth:`new`), from ``settle`` s after the detector armed."""
+    """Says each notice once (:meth:`new`): from ``settle`` s after the detector armed, where it
+    holds at ``checks`` checks ``every`` s apart (what is learnt settles over tens of seconds:
+    a half-learnt sensor looks like a misfit, and says its noise is what it will not be)."""
 
-    def __init__(self, cfg: Config, settle: float = 10.0) -> None:
+    def __init__(self, cfg: Config, settle: float = 30.0, every: float = 10.0, checks: int = 3) -> None:
         self.cfg = cfg
         self.settle = settle
+        self.every = every
+        self.checks = checks
         self.said: set[str] = set()
         self.t_armed = math.nan
+        self.t_check = -math.inf
+        self.held: dict[str, int] = {}
 
     def new(self, st: NDArray[np.float64], t: float) -> list[str]:
         """The notices not said before, from state ``st`` at time ``t`` (s)."""
@@ -154,11 +160,11 @@ class Watch:
             return []
         if self.t_armed != self.t_armed:
             self.t_armed = t
-        if t - self.t_armed < self.settle:
+        if t - self.t_armed < self.settle or t - self.t_check < self.every:
             return []
-        out = []
-        for key, line in notices(learnt(st, self.cfg), self.cfg).items():
-            if key not in self.said:
-                self.said.add(key)
-                out.append(line)
+        self.t_check = t
+        now = notices(learnt(st, self.cfg), self.cfg)
+        self.held = {key: self.held.get(key, 0) + 1 for key in now}
+        out = [line for key, line in now.items() if self.held[key] >= self.checks and key not in self.said]
+        self.said.update(key for key in now if self.held[key] >= self.checks)
         return out

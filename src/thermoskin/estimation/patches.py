@@ -147,7 +147,7 @@ class PatchEstimators:
             return np.full(n, fill) if x is None else np.require(x, dtype=float, requirements="CW")
         fr = (np.full(n, 7, dtype=np.int64) if fresh is None
               else np.ascontiguousarray(fresh, dtype=np.int64))
-        out = np.empty((8, n))
+        out = np.empty((K.NOUT, n))
         events = np.empty((max(16, n // 50), K.NEV))
         ev_patch = np.empty(len(events), dtype=np.int64)
         ne = K.run_rows(self.ST, self.PR, self.mid, *self._tabs, p,
