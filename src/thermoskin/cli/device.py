@@ -10,7 +10,7 @@ from pathlib import Path
 import click
 
 from thermoskin.cli.app import main
-from thermoskin.cli.common import CONFIG_OPT, SCENARIO_OPT, _config
+from thermoskin.cli.common import CONFIG_OPT, IDEAL_SENSORS_OPT, SCENARIO_OPT, _config
 from thermoskin.params import ConfigError
 from thermoskin.paths import PathError
 
@@ -31,8 +31,10 @@ from thermoskin.paths import PathError
               help="Write the simulator's truth to this CSV: t,contact_true,q_i,n_fingers,T_g per "
                    "sample, t as in the host's log.")
 @CONFIG_OPT
+@IDEAL_SENSORS_OPT
 def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_period: float | None,
-                    jitter: float | None, truth_path: Path | None, config_path: Path | None) -> None:
+                    jitter: float | None, truth_path: Path | None, config_path: Path | None,
+                    ideal_sensors: bool = False) -> None:
     """Run the simulated skin behind a pseudo-terminal speaking docs/protocol.md.
 
     Makes LINK a symbolic link to the pty, starts its clock when the host first connects,
@@ -52,4 +54,4 @@ def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_perio
         click.echo(f"thermoskin: error: {' '.join(str(e).split())}", err=True)
         sys.exit(2)
     sys.exit(emulator_main(str(link), scenario, list(faults), tc_period, cfg, jitter=jitter,
-                           truth=truth_path))
+                           truth=truth_path, ideal_sensors=ideal_sensors))

@@ -127,6 +127,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_LDELAY] = 0.5
     pr[K.PR_SWIN] = 0.4
     pr[K.PR_RSLOT] = 0.5
+    pr[K.PR_RFAST] = 200.0
     pr[K.PR_AIR] = min(1.0, t_s / 10.0)
     return pr
 

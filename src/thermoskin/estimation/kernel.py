@@ -206,7 +206,8 @@ RSL = SWIN + 7     # NRS slots of the pipe reading variance's steps (the sum of 
 NRS = 4            # taken into it NRS - 1 slots late, dropped at a detection
 RSI = RSL + NRS    # the slot being filled
 RST0 = RSI + 1     # when it began, s
-NSTATE = RST0 + 1
+NRW = RST0 + 1     # the readings each variance's tracker has taken (T_w, T_p, T_a)
+NSTATE = NRW + 3
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -293,7 +294,8 @@ PR_DTMAX = 86
 PR_LDELAY = 87   # the slow states learn from this long after the filter's start, s
 PR_SWIN = 88     # the slow states' window, s
 PR_RSLOT = 89    # the pipe reading variance's steps are gathered in slots this long, s
-NPARAM = 90
+PR_RFAST = 90    # ... from pipe readings this many a second or more
+NPARAM = 91
 
 
 #: Rows of the per-sample outputs (:func:`run`, :func:`run_rows`).
@@ -1430,8 +1432,12 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     # the pipe reading's variance from its innovations, while no contact is seen and none has
     # just ended, taken NRS slots late (_r_slots): the innovations of a touch not yet detected
     # (with slow boards, a second or so) are dropped at its detection, not taken for noise
+    # and only from fast readings (PR_RFAST a second and more): a slow board's innovations
+    # hold the model's prediction over the interval as well, and come out 10-40 % below the
+    # noise learnt so with 10 Hz boards; its variance stays at its prior, the innovations'
+    # scale (KAPPA) carrying the rest into the detector
     learn = (pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0 and st[MODE] != INCONTACT
-             and t - st[TREL] >= pr[PR_TSETTLE])
+             and t - st[TREL] >= pr[PR_TSETTLE] and st[RATE] >= pr[PR_RFAST])
     if pr[PR_LEARN] != 0.0 and t - st[RST0] >= pr[PR_RSLOT]:
         _r_slots(st, pr, t)
     # the slow states (offset, lag) learn while no contact is seen and none has just ended, and
@@ -1474,7 +1480,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                 if st[MODE] != INCONTACT:
                     st[j] = c + pr[PR_APH] * (T_w - st[X] - c)
                 y = T_w - c
-            p = _update(st, pr, 0, y, p, _eta(pr, t - st[TLW]) if learn else 0.0, slow)
+            p = _update(st, pr, 0, y, p, _eta_w(pr, t - st[TLW]) if learn else 0.0, slow)
             st[GAPRUN] = 0.0
             dt = t - st[TLW]
             if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is
@@ -1485,8 +1491,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         else:
             st[GAPRUN] += 1.0
         if upd_p:
-            p = _update(st, pr, 3, T_p - pr[PR_OFP] - st[BD], p,
-                        _eta(pr, t - st[TLP]) if learn else 0.0, slow)
+            p = _update(st, pr, 3, T_p - pr[PR_OFP] - st[BD], p, 0.0, slow)
             st[TLP] = t
         if upd_w or upd_p:
             _p_put(st, p)
@@ -1624,16 +1629,31 @@ def _noise2(st, pr, ir, ipr0, iq, iy1, iy2, y, dt):
     st[iy2] = y1
     if y1 == y1 and y2 == y2:
         d = y - 2.0 * y1 + y2
-        st[ir] = _r_step(st, pr, st[ir], d * d > 6.0 * 0.4549 * st[ir], _eta(pr, dt), ipr0, iq)
+        st[ir] = _r_step(st, pr, st[ir], d * d > 6.0 * 0.4549 * st[ir], _eta(st, pr, ir - RW + NRW, dt),
+                         ipr0, iq)
 
 
 @_inline
-def _eta(pr, dt):
-    """A reading's weight in its variance's tracker: the time since the channel's last reading
-    over the tracker's time constant (at most 0.01: a slow board's readings, each weighed so,
-    still average about a hundred of them)."""
+def _eta_w(pr, dt):
+    """A pipe reading's weight in its variance's tracker: the time since the last over the
+    tracker's time constant, at most 0.01 (fast readings only: no start of its own)."""
     w = dt / pr[PR_TAUR]
     return w if w < 0.01 else 0.01
+
+
+@_inline
+def _eta(st, pr, icount, dt):
+    """A reading's weight in its variance's tracker: the time since the channel's last reading
+    over the tracker's time constant, at most 0.01 (a slow board's readings, each weighed so,
+    still average about a hundred), and at first ``1/(n + 4)`` at its ``n``-th reading
+    (``st[icount]``, counted here): a running median, learnt in a hundred readings, ten seconds
+    of a 10 Hz board's, rather than the tracker's time constants."""
+    n = st[icount]
+    st[icount] = n + 1.0
+    w = dt / pr[PR_TAUR]
+    w = w if w < 0.01 else 0.01
+    f = 1.0 / (n + 4.0)
+    return f if f > w else w
 
 
 @_inline

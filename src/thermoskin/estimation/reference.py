@@ -83,6 +83,7 @@ RHO_SETTLE = 0.5     # its windows begin this long after a release, s
 IRATE_TAU = 10.0     # the information rate's time constant, s
 SLOW_WINDOW = 0.4    # the slow states' window, s
 R_SLOT = 0.5         # the pipe reading variance's steps are gathered in slots this long, s
+FAST_READINGS = 200.0  # ... learnt from pipe readings this many a second or more
 N_SLOTS = 4          # and taken into it N_SLOTS - 1 slots late (dropped at a detection)
 
 
@@ -127,6 +128,7 @@ class ReferenceEstimator:
         self.R0 = {ch: measurement_variance(self.cfg, ch) for ch in ("T_w", "T_p", "T_a")}
         self.R = dict(self.R0)
         self.r_slots, self.r_slot, self.t_rslot = [0.0] * N_SLOTS, 0, 0.0
+        self.r_count = dict.fromkeys(self.R0, 0)
         self.quantum = {ch: 1e300 for ch in self.R0}
         self.last_y = {ch: math.nan for ch in self.R0}
         self.prev_y = {"T_p": math.nan, "T_a": math.nan}
@@ -206,8 +208,12 @@ class ReferenceEstimator:
         self.r_slots[k] = 0.0
         self.r_slot, self.t_rslot = k, t
 
-    def _eta(self, dt: float) -> float:
-        return min(ETA_MAX, dt / self.cfg.estimator.tau_noise)
+    def _eta(self, ch: str, dt: float) -> float:
+        """A reading's weight in ``ch``'s variance tracker: at first ``1/(n + 4)`` (a running
+        median), then ``min(0.01, dt/tau_noise)`` (kernel: ``_eta``)."""
+        n = self.r_count[ch]
+        self.r_count[ch] = n + 1
+        return max(min(ETA_MAX, dt / self.cfg.estimator.tau_noise), 1.0 / (n + 4.0))
 
     def _sensor(self, ch: str, y: float, dt: float) -> None:
         """A fresh reading of ``ch``: its second difference (the tank's, the air's variance)
@@ -220,7 +226,7 @@ class ReferenceEstimator:
             self.prev_y[ch] = y1
             if learn_r and y1 == y1 and y2 == y2:
                 d2 = y - 2 * y1 + y2
-                self._r_step(ch, d2 * d2 > 6 * 0.4549 * self.R[ch], self._eta(dt))
+                self._r_step(ch, d2 * d2 > 6 * 0.4549 * self.R[ch], self._eta(ch, dt))
         d = abs(y - self.last_y[ch])
         if d > 1e-9:
             g = self.quantum[ch]
@@ -377,7 +383,7 @@ class ReferenceEstimator:
         T_w_raw = T_w
         T_w, T_p, T_a = T_w - self.offsets[0], T_p - self.offsets[1], T_a - self.offsets[2]
         learn_r = (self.learn and self.cfg.estimator.tau_noise > 0 and self.mode != "contact"
-                   and t - self.t_rel >= self.cfg.detector.t_settle)
+                   and t - self.t_rel >= self.cfg.detector.t_settle and self.rate >= FAST_READINGS)
         if self.learn and t - self.t_rslot >= R_SLOT:
             self._r_slots(t)
         slow = (self.learn and self.mode != "contact" and t - self.t_rel >= self.cfg.detector.t_settle
@@ -405,7 +411,8 @@ class ReferenceEstimator:
                     if self.mode != "contact":
                         self.tpl[j] = corr + self.cfg.estimator.switch_learn * (T_w - self.x[I_TW] - corr)
                     y = T_w - corr
-                a, c = self._update(I_TW, y, slow, self._eta(t - self.t_last_w) if learn_r else 0.0)
+                eta = min(ETA_MAX, (t - self.t_last_w) / self.cfg.estimator.tau_noise) if learn_r else 0.0
+                a, c = self._update(I_TW, y, slow, eta)
                 ge, gg = ge + a, gg + c
                 self.gap_run = 0
                 dt = t - self.t_last_w
