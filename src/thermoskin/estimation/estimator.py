@@ -128,6 +128,12 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_SWIN] = 0.4
     pr[K.PR_RSLOT] = 0.5
     pr[K.PR_RFAST] = 200.0
+    pr[K.PR_RHOPB] = 0.03**2
+    pr[K.PR_RHOPT] = 0.01**2
+    pr[K.PR_RHODB_] = 0.02
+    pr[K.PR_RHODT] = 0.005
+    pr[K.PR_RHOEARLY] = 10.0
+    pr[K.PR_RHO0] = 2.0
     pr[K.PR_AIR] = min(1.0, t_s / 10.0)
     return pr
 

@@ -207,7 +207,11 @@ NRS = 4            # taken into it NRS - 1 slots late, dropped at a detection
 RSI = RSL + NRS    # the slot being filled
 RST0 = RSI + 1     # when it began, s
 NRW = RST0 + 1     # the readings each variance's tracker has taken (T_w, T_p, T_a)
-NSTATE = NRW + 3
+RHOB = NRW + 3     # the first NRB windows' z^2 over chi2(1)'s median, and a copy to sort
+NRB = 16
+WBD = RHOB + 2 * NRB  # the learnt offset and lag where the dispersion's window began
+WLT = WBD + 1
+NSTATE = WLT + 1
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -295,7 +299,13 @@ PR_LDELAY = 87   # the slow states learn from this long after the filter's start
 PR_SWIN = 88     # the slow states' window, s
 PR_RSLOT = 89    # the pipe reading variance's steps are gathered in slots this long, s
 PR_RFAST = 90    # ... from pipe readings this many a second or more
-NPARAM = 91
+PR_RHOPB = 91    # the dispersion is learnt once the offset's variance is below this, K^2,
+PR_RHOPT = 92    # and the lag's below this, s^2
+PR_RHODB_ = 93   # a dispersion window over which the offset moved more than this, K,
+PR_RHODT = 94    # or the lag more than this, s, is not taken, in the filter's first PR_RHOEARLY s
+PR_RHOEARLY = 95
+PR_RHO0 = 96     # the dispersion before its third window
+NPARAM = 97
 
 
 #: Rows of the per-sample outputs (:func:`run`, :func:`run_rows`).
@@ -717,6 +727,7 @@ def _learnt_init(st, pr):
     st[RA] = pr[PR_RA0]
     st[BD] = pr[PR_BD0]
     st[PBB] = pr[PR_PB0]
+    st[RHO] = pr[PR_RHO0]
     st[PBT] = 0.0
     st[PTT] = pr[PR_PT0]
     tau = pr[PR_LAG0]
@@ -1118,28 +1129,43 @@ def _dispersion(st, pr, t, sge, sgg, on):
     seen (``on``). Where the model fits the readings (the innovations white, their variances
     right) the evidence a window of ``PR_RHOW`` s gathers, ``z² = (sum g e/S)² / sum g²/S``, is
     chi2(1); where it does not (an unmodelled lag, a skin unlike its configuration, coarse
-    converters) the innovations are coloured and ``z²`` is ``rho`` chi2(1). ``rho`` tracks the
-    median of ``z²`` over chi2(1)'s (0.4549) in steps of ``max(PR_RHOETA, 1/(n+1))`` in its
-    logarithm at the ``n``-th window (a running median at first, then a tracker): a few
-    seconds to learn it. The information rate, ``sum g²/S`` a second over ``rho``, is what the
-    one-finger SNR is figured from."""
+    converters) the innovations are coloured and ``z²`` is ``rho`` chi2(1). ``rho`` is the
+    median of ``z²`` over chi2(1)'s (0.4549) over the first :data:`NRB` windows (6 s), then
+    tracks it in steps of ``max(PR_RHOETA, 1/(n+1))`` in its logarithm at the ``n``-th window.
+    The information rate, ``sum g²/S`` a second over ``rho``, is what the one-finger SNR is
+    figured from."""
     if not on:
         st[WGE] = st[WGG] = 0.0
         st[WT0] = t
+        st[WBD] = st[BD]
+        st[WLT] = st[LAGT]
         return
     st[IRATE] += pr[PR_AIR] * (sgg * _irho(st, pr) / pr[PR_TS] - st[IRATE])
     st[WGE] += sge
     st[WGG] += sgg
     if t - st[WT0] >= pr[PR_RHOW]:
         a, b = st[WGE], st[WGG]
-        if b > 0.0:
-            n = st[RHON] + 1.0
-            st[RHON] = n
-            eta = 1.0 / n if 1.0 / n > pr[PR_RHOETA] else pr[PR_RHOETA]
-            r = st[RHO] * math.exp(eta if a * a > 0.4549 * st[RHO] * b else -eta)
+        # a window over which the slow states moved in the filter's first seconds (learning
+        # them: its own transient, not the model's misfit) is not taken
+        moved = t - st[TINIT] < pr[PR_RHOEARLY] and (abs(st[BD] - st[WBD]) > pr[PR_RHODB_]
+                                                    or abs(st[LAGT] - st[WLT]) > pr[PR_RHODT])
+        if b > 0.0 and not moved:
+            n = int(st[RHON])
+            st[RHON] = n + 1.0
+            if n < NRB:  # the first NRB windows: their median (a few seconds, robust), from
+                # the third on (before: its prior, PR_RHO0, a little wary)
+                st[RHOB + n] = a * a / (0.4549 * b)
+                for j in range(n + 1):
+                    st[RHOB + NRB + j] = st[RHOB + j]
+                r = _median_in_place(st, RHOB + NRB, n + 1) if n >= 2 else st[RHO]
+            else:  # then a tracker of it
+                eta = 1.0 / (n + 1.0) if 1.0 / (n + 1.0) > pr[PR_RHOETA] else pr[PR_RHOETA]
+                r = st[RHO] * math.exp(eta if a * a > 0.4549 * st[RHO] * b else -eta)
             st[RHO] = r if r > 1e-3 else 1e-3
         st[WGE] = st[WGG] = 0.0
         st[WT0] = t
+        st[WBD] = st[BD]
+        st[WLT] = st[LAGT]
 
 
 @_inline
@@ -1504,8 +1530,11 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             st[SWIN + j] = 0.0
         st[SWIN + 4] = t
     if pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0:
+        # (not while the slow states are still far from learnt: the filter's own transient at
+        # its start)
         _dispersion(st, pr, t, st[SGE], st[SGG], not gap and st[MODE] != INCONTACT
-                    and t - st[TAMB] >= pr[PR_TAMBH] and t - st[TREL] >= pr[PR_RHOSET])
+                    and t - st[TAMB] >= pr[PR_TAMBH] and t - st[TREL] >= pr[PR_RHOSET]
+                    and st[PBB] <= pr[PR_RHOPB] and st[PTT] <= pr[PR_RHOPT])
     st[Q] = st[X + 2]
     pq = st[P + 12]
     st[SQ] = math.sqrt(pq) if pq > 0.0 else 1e-12
@@ -1525,9 +1554,6 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             st[NIN] += 1.0
             if st[NIN] >= pr[PR_NARM]:
                 st[ARMED] = 1.0
-                # the dispersion's tracker quick again: what it saw while the skin came to its
-                # set-point and the filter learnt its sensors is soon forgotten
-                st[RHON] = st[RHON] if st[RHON] < 3.0 else 3.0
         else:
             st[NIN] = 0.0
     code = 0

@@ -79,6 +79,12 @@ DB_MAX = 1e-3        # the most a reading moves the learnt offset, K
 DT_MAX = 5e-4        # ... and the lag, s
 LEARN_DELAY = 0.5    # the slow states learn from this long after the filter's start, s
 RHO_ETA = 0.03       # the dispersion tracker's least step
+RHO_FIRST = 16       # the dispersion is the median of the first windows' first
+RHO_PRIOR = 2.0      # (before the third: this, a little wary)
+RHO_PB = 0.03**2     # ... once the offset's variance is below this, K^2,
+RHO_PT = 0.01**2     # and the lag's below this, s^2
+RHO_MOVED = (0.02, 0.005)  # a window over which the offset (K) or the lag (s) moved this much,
+RHO_EARLY = 10.0             # in the filter's first seconds: not taken
 RHO_SETTLE = 0.5     # its windows begin this long after a release, s
 IRATE_TAU = 10.0     # the information rate's time constant, s
 SLOW_WINDOW = 0.4    # the slow states' window, s
@@ -140,7 +146,8 @@ class ReferenceEstimator:
         self.window = np.zeros(4)  # the slow states' window: sum s e/S, s^2/S (offset, lag)
         self.t_window = 0.0
         self.t_init = -1e300
-        self.rho, self.rho_n = 1.0, 0
+        self.rho, self.rho_n, self.rho_first = RHO_PRIOR, 0, []
+        self.rho_from = (0.0, 0.0)  # the slow states where the window began
         self.rho_win, self.t_rho = np.zeros(2), 0.0
         self.info_rate = 0.0
         self.w1 = self.w2 = 0.0  # the model's pipe rate through the lag once and twice
@@ -331,17 +338,26 @@ class ReferenceEstimator:
         if not on:
             self.rho_win[:] = 0.0
             self.t_rho = t
+            self.rho_from = (self.b_hat, self.tau)
             return
         self.info_rate += min(1.0, self.t_s / IRATE_TAU) * (gg * self._irho() / self.t_s - self.info_rate)
         self.rho_win += (ge, gg)
         if t - self.t_rho >= rw:
             A, Bw = self.rho_win
-            if Bw > 0:
+            moved = t - self.t_init < RHO_EARLY and (abs(self.b_hat - self.rho_from[0]) > RHO_MOVED[0]
+                                                     or abs(self.tau - self.rho_from[1]) > RHO_MOVED[1])
+            if Bw > 0 and not moved:  # (a window over which the slow states moved: not taken)
                 self.rho_n += 1
-                eta = max(RHO_ETA, 1.0 / self.rho_n)
-                self.rho = max(1e-3, self.rho * math.exp(eta if 0.4549 * self.rho * Bw < A * A else -eta))
+                if self.rho_n <= RHO_FIRST:  # the first windows: their median (from the third)
+                    self.rho_first.append(A * A / (0.4549 * Bw))
+                    if self.rho_n >= 3:
+                        self.rho = max(1e-3, float(np.median(self.rho_first)))
+                else:  # then a tracker of it
+                    eta = max(RHO_ETA, 1.0 / self.rho_n)
+                    self.rho = max(1e-3, self.rho * math.exp(eta if 0.4549 * self.rho * Bw < A * A else -eta))
             self.rho_win[:] = 0.0
             self.t_rho = t
+            self.rho_from = (self.b_hat, self.tau)
 
     def _irho(self) -> float:
         return 1.0 / max(1.0, self.rho / self.cfg.detector.rho_deadband)
@@ -436,7 +452,8 @@ class ReferenceEstimator:
             self.t_window = t
         if self.cfg.detector.rho_window > 0 and self.learn:
             self._dispersion(t, ge, gg, not self.gap and self.mode != "contact"
-                             and t - self.t_air >= self.t_amb_hold and t - self.t_rel >= RHO_SETTLE)
+                             and t - self.t_air >= self.t_amb_hold and t - self.t_rel >= RHO_SETTLE
+                             and self.P_B[0, 0] <= RHO_PB and self.P_B[1, 1] <= RHO_PT)
         self.sd = math.sqrt(self.P[I_Q, I_Q]) if self.ready else math.nan
         if T_w_cmd == T_w_cmd:
             if self.cmd == self.cmd and abs(T_w_cmd - self.cmd) > 1e-9:
@@ -449,8 +466,6 @@ class ReferenceEstimator:
             elif math.isfinite(T_w_raw) and abs(T_w_raw - T_w_cmd) <= self.cfg.detector.arm_band:
                 self.n_in += 1
                 self.armed = self.n_in >= self.n_arm
-                if self.armed:  # the dispersion's tracker quick again
-                    self.rho_n = min(self.rho_n, 3)
             else:
                 self.n_in = 0
         code = 0
