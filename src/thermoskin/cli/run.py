@@ -169,6 +169,9 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                if sc.setpoints else f"{sc.T_w_cmd:g} degC")
     where = (f"the device at {device[len('serial://'):]}" if serial else
              "the simulated skin" + (" at wall-clock speed" if realtime else ""))
+    # what the configured sensors should give (a short simulation: before the first line, which
+    # a caller may take for the loop's start)
+    watch = _SensorWatch(cfg, sc)
     console.print(f"[bold]thermoskin run[/]: closed loop on {where}, scenario '{sc.name}'"
                   + (", " if serial else f" ({len(sc.touches)} touches), ")
                   + f"T_w_cmd {cmd_txt}, {sc.duration:g} s at {1 / cfg.sampling.t_s:.0f} Hz")
@@ -176,7 +179,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     if not serial and not realtime:  # the simulated boards (--realtime: its device's own, configured)
         boards, said = _boards(cfg, ideal_sensors)
         console.print(said, markup=False)
-    watch = _SensorWatch(cfg, sc)
+    if watch.start_line:
+        console.print(watch.start_line, markup=False)
     names = [k for k in COLUMNS if not serial or k not in TRUTH]
     from thermoskin.logio import has_rows
     from thermoskin.paths import Replaced
@@ -343,9 +347,10 @@ class _SensorWatch:
         self.t_next = 0.0
         self.rows = 0
         lt = expected(cfg, T_w_cmd=sc.T_w_cmd_at(0.0))
+        self.start_line = ""
         if lt.snr == lt.snr and lt.snr < SNR_MIN:
             self.watch.said.add("snr")
-            console.print(f"thermoskin: note: {snr_line(lt.snr, 'the configured sensors')}", markup=False)
+            self.start_line = f"thermoskin: note: {snr_line(lt.snr, 'the configured sensors')}"
 
     def feed(self, block: dict[str, Any]) -> list[str]:
         """A block of the log's rows; the notices to say now."""

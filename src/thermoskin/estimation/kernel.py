@@ -211,7 +211,9 @@ RHOB = NRW + 3     # the first NRB windows' z^2 over chi2(1)'s median, and a cop
 NRB = 16
 WBD = RHOB + 2 * NRB  # the learnt offset and lag where the dispersion's window began
 WLT = WBD + 1
-NSTATE = WLT + 1
+IRN = WLT + 1      # the weight the information rate's mean has given its samples (1 - (1 - w)^n:
+#                    its start's bias, taken off where it is read)
+NSTATE = IRN + 1
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -305,7 +307,8 @@ PR_RHODB_ = 93   # a dispersion window over which the offset moved more than thi
 PR_RHODT = 94    # or the lag more than this, s, is not taken, in the filter's first PR_RHOEARLY s
 PR_RHOEARLY = 95
 PR_RHO0 = 96     # the dispersion before its third window
-NPARAM = 97
+PR_RHOCAP = 97   # ... and at most this over its first windows (a touch among them)
+NPARAM = 98
 
 
 #: Rows of the per-sample outputs (:func:`run`, :func:`run_rows`).
@@ -727,7 +730,7 @@ def _learnt_init(st, pr):
     st[RA] = pr[PR_RA0]
     st[BD] = pr[PR_BD0]
     st[PBB] = pr[PR_PB0]
-    st[RHO] = pr[PR_RHO0]
+    st[RHO] = pr[PR_RHO0] if pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0 else 1.0
     st[PBT] = 0.0
     st[PTT] = pr[PR_PT0]
     tau = pr[PR_LAG0]
@@ -1141,6 +1144,7 @@ def _dispersion(st, pr, t, sge, sgg, on):
         st[WLT] = st[LAGT]
         return
     st[IRATE] += pr[PR_AIR] * (sgg * _irho(st, pr) / pr[PR_TS] - st[IRATE])
+    st[IRN] += pr[PR_AIR] * (1.0 - st[IRN])
     st[WGE] += sge
     st[WGG] += sgg
     if t - st[WT0] >= pr[PR_RHOW]:
@@ -1158,6 +1162,7 @@ def _dispersion(st, pr, t, sge, sgg, on):
                 for j in range(n + 1):
                     st[RHOB + NRB + j] = st[RHOB + j]
                 r = _median_in_place(st, RHOB + NRB, n + 1) if n >= 2 else st[RHO]
+                r = r if r < pr[PR_RHOCAP] else pr[PR_RHOCAP]  # (a touch in the first windows)
             else:  # then a tracker of it
                 eta = 1.0 / (n + 1.0) if 1.0 / (n + 1.0) > pr[PR_RHOETA] else pr[PR_RHOETA]
                 r = st[RHO] * math.exp(eta if a * a > 0.4549 * st[RHO] * b else -eta)

@@ -90,7 +90,9 @@ def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
     pbb = float(st[K.PBB]) if started else sn.offset_sd**2
     lag = float(st[K.LAGT]) if started else sn.lag_T_w
     ptt = float(st[K.PTT]) if started else sn.lag_sd**2
-    rate = float(st[K.IRATE])
+    # the information rate's exponential mean, its start's bias taken off (the weight it has
+    # given its samples: 1 - (1 - w)^n after n)
+    rate = float(st[K.IRATE]) / float(st[K.IRN]) if st[K.IRN] > 0 else 0.0
     T_g = float(st[K.X + 1]) if started else math.nan
     return Learnt(noise=noise, quantum=quantum, offset_p=sn.offset_T_p - sn.offset_T_w + bd,
                   offset_p_sd=math.sqrt(max(pbb, 0.0)), lag_w=lag, lag_w_sd=math.sqrt(max(ptt, 0.0)),

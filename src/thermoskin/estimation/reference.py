@@ -80,7 +80,8 @@ DT_MAX = 5e-4        # ... and the lag, s
 LEARN_DELAY = 0.5    # the slow states learn from this long after the filter's start, s
 RHO_ETA = 0.03       # the dispersion tracker's least step
 RHO_FIRST = 16       # the dispersion is the median of the first windows' first
-RHO_PRIOR = 2.0      # (before the third: this, a little wary)
+RHO_PRIOR = 2.0      # (before the third: this, a little wary; at most RHO_CAP: a touch among them)
+RHO_CAP = 1e6
 RHO_PB = 0.03**2     # ... once the offset's variance is below this, K^2,
 RHO_PT = 0.01**2     # and the lag's below this, s^2
 RHO_MOVED = (0.02, 0.005)  # a window over which the offset (K) or the lag (s) moved this much,
@@ -146,7 +147,8 @@ class ReferenceEstimator:
         self.window = np.zeros(4)  # the slow states' window: sum s e/S, s^2/S (offset, lag)
         self.t_window = 0.0
         self.t_init = -1e300
-        self.rho, self.rho_n, self.rho_first = RHO_PRIOR, 0, []
+        self.rho = RHO_PRIOR if self.cfg.detector.rho_window > 0 else 1.0
+        self.rho_n, self.rho_first = 0, []
         self.rho_from = (0.0, 0.0)  # the slow states where the window began
         self.rho_win, self.t_rho = np.zeros(2), 0.0
         self.info_rate = 0.0
@@ -193,6 +195,7 @@ class ReferenceEstimator:
     def hold(self, R: dict[str, float], b_hat: float, tau: float) -> None:
         """Hold what is learnt of the sensors at these values (the re-dating's filter)."""
         self.learn = False
+        self.rho = 1.0
         self.R0 = dict(R)
         self.b_hat, self.tau = b_hat, tau
         self.P_B = np.zeros((2, 2))
@@ -351,7 +354,7 @@ class ReferenceEstimator:
                 if self.rho_n <= RHO_FIRST:  # the first windows: their median (from the third)
                     self.rho_first.append(A * A / (0.4549 * Bw))
                     if self.rho_n >= 3:
-                        self.rho = max(1e-3, float(np.median(self.rho_first)))
+                        self.rho = min(max(1e-3, float(np.median(self.rho_first))), RHO_CAP)
                 else:  # then a tracker of it
                     eta = max(RHO_ETA, 1.0 / self.rho_n)
                     self.rho = max(1e-3, self.rho * math.exp(eta if 0.4549 * self.rho * Bw < A * A else -eta))

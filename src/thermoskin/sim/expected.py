@@ -19,7 +19,7 @@ from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS
 
 
-def expected(cfg: Config, T_w_cmd: float | None = None, seconds: float = 20.0,
+def expected(cfg: Config, T_w_cmd: float | None = None, seconds: float = 8.0,
              boards: SensorParams | None = None) -> Learnt:
     """What the estimator learns of ``boards`` (default: the configured ``[sensor]``, as the lab
     believes them) in ``seconds`` of no touch at ``T_w_cmd`` (default: the preset scenario's)
