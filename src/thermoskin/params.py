@@ -223,7 +223,7 @@ class DetectorParams(_Validated):
                            doc="window of the onset evidence's dispersion, learnt while idle: where "
                                "the model does not fit the readings the detector needs that much more "
                                "evidence (0: none)")
-    rho_deadband: float = _p(1.2, "", 1.0, 100.0,
+    rho_deadband: float = _p(1.5, "", 1.0, 100.0,
                              doc="a dispersion up to this is taken as none (its tracker's own scatter)")
     h_min: float = _p(11.9, "", 0.0, 1000.0,
                       doc="... and never below this: a CUSUM alarms on noise about once in e^h "
