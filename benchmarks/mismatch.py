@@ -73,10 +73,9 @@ def _skin(f: float) -> dict[str, float]:
             "R_ag": sk.R_ag * (1 - f)}
 
 
-def _door(lag: float) -> Callable[[int, float], Scenario]:
-    def make(seed: int, duration: float) -> Scenario:
-        return ambient_step(seed, duration).scenario
-    return make
+def _door(seed: int, duration: float) -> Scenario:
+    """Doors: the air steps by 1 K within 1 s, 3-4 times (``sim.conditions.ambient_step``)."""
+    return ambient_step(seed, duration).scenario
 
 
 def _ramp(seed: int, duration: float) -> Scenario:
@@ -96,8 +95,8 @@ GRID: tuple[Mismatch, ...] = (
     Mismatch("offset 0.5 K on T_p", {"offset_T_p": 0.5}),
     Mismatch("T_w lag 0.1 s", {"lag_T_w": 0.1}),
     Mismatch("T_w lag 0.3 s", {"lag_T_w": 0.3}),
-    Mismatch("T_a lag 1 s, doors", {"lag_T_a": 1.0}, scenario=_door(1.0)),
-    Mismatch("T_a lag 3 s, doors", {"lag_T_a": 3.0}, scenario=_door(3.0)),
+    Mismatch("T_a lag 1 s, doors", {"lag_T_a": 1.0}, scenario=_door),
+    Mismatch("T_a lag 3 s, doors", {"lag_T_a": 3.0}, scenario=_door),
     Mismatch("T_a lag 3 s, ramps", {"lag_T_a": 3.0}, scenario=_ramp),
     Mismatch("skin +30 %", skin=_skin(0.3)),
     Mismatch("skin -30 %", skin=_skin(-0.3)),
@@ -165,10 +164,9 @@ def condition(m: Mismatch, seeds: list[int], duration: float, quiet_min: float) 
     snr = float(np.median([r["snr"] for r in logs if math.isfinite(r["snr"])] or [math.nan]))
     med = float(np.median(lat)) if lat else math.nan
     lat_max = 0.4 if m.slow_boards else 0.3
-    if snr >= SNR_MIN:
-        bar = hits == touches and fa == 0 and med <= lat_max
-    else:
-        bar = fa / hours <= 1.0
+    # the bar: a fingertip above the noise, every touch, no false alarm, a quick median; below
+    # it, at most one false alarm an hour
+    bar = (hits == touches and fa == 0 and med <= lat_max) if snr >= SNR_MIN else fa / hours <= 1.0
     off = np.array([r["offset_err"] for r in logs])
     lag = np.array([r["lag"] for r in logs])
     lag_err = np.array([r["lag_err"] for r in logs])
@@ -176,7 +174,8 @@ def condition(m: Mismatch, seeds: list[int], duration: float, quiet_min: float) 
             "false_alarms": fa, "false_alarms_per_h": fa / hours, "hours": hours,
             "latency_median_s": med, "latency_p90_s": float(np.percentile(lat, 90)) if lat else math.nan,
             "snr_one_finger": snr, "snr_line": bool(snr < SNR_MIN),
-            "offset_err_median_K": float(np.median(np.abs(off))), "offset_err_max_K": float(np.abs(off).max()),
+            "offset_err_median_K": float(np.median(np.abs(off))),
+            "offset_err_max_K": float(np.abs(off).max()),
             "lag_learnt_median_s": float(np.median(lag)), "lag_err_max_s": float(np.abs(lag_err).max()),
             "bar_met": bool(bar)}
 
@@ -201,7 +200,8 @@ def main() -> None:
             print(f"{r['condition']:34s} {r['detected']:4d}/{r['touches']:<4d} FA {r['false_alarms']:3d} "
                   f"({r['false_alarms_per_h']:.2f}/h) latency {r['latency_median_s']:.2f}/"
                   f"{r['latency_p90_s']:.2f} s SNR {r['snr_one_finger']:.1f} "
-                  f"offset err {r['offset_err_max_K'] * 1e3:.1f} mK lag {r['lag_learnt_median_s'] * 1e3:.0f} ms "
+                  f"offset err {r['offset_err_max_K'] * 1e3:.1f} mK "
+                  f"lag {r['lag_learnt_median_s'] * 1e3:.0f} ms "
                   f"bar {'met' if r['bar_met'] else 'NOT met'}", file=sys.stderr, flush=True)
     print(json.dumps({"seeds": seeds, "duration_s": a.duration, "quiet_min": a.quiet_min,
                       "wall_s": time.perf_counter() - t0, "conditions": rows}))

@@ -41,6 +41,7 @@ import numpy as np
 from _proc import check_package_dir
 
 from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation.model import fixed_sensors
 from thermoskin.estimation.patches import PatchEstimators
 from thermoskin.estimation.reference import ReferenceEstimator
 from thermoskin.params import load_config
@@ -70,7 +71,8 @@ def main() -> None:
     cfgs = {"single": cfg}
     if a.skin_detector:
         de = dataclasses.replace(cfg.detector, onset_state_jump=SKIN_ONSET_STATE_JUMP)
-        cfgs["skin"] = dataclasses.replace(cfg, detector=de)
+        # a skin's patch keeps its sensors as configured (skin.observe.patch_config)
+        cfgs["skin"] = fixed_sensors(dataclasses.replace(cfg, detector=de))
     warm = 2000
     n_s = warm + a.ticks
     log = simulate(SCENARIOS["one-finger"].with_duration(n_s * cfg.sampling.t_s + 1.0), cfg)

@@ -308,7 +308,9 @@ PR_RHODT = 94    # or the lag more than this, s, is not taken, in the filter's f
 PR_RHOEARLY = 95
 PR_RHO0 = 96     # the dispersion before its third window
 PR_RHOCAP = 97   # ... and at most this over its first windows (a touch among them)
-NPARAM = 98
+PR_SLOWON = 98   # 1: the pipe thermocouple's bead and the slow states are carried (0: neither is:
+                 # no lag, nothing learnt of them; the filter alone, as fast as before them)
+NPARAM = 99
 
 
 #: Rows of the per-sample outputs (:func:`run`, :func:`run_rows`).
@@ -511,6 +513,13 @@ def _update(st, pr, i, y, p, eta, slow):
     x3 = st[X + 3] + k3 * e
     x4 = st[X + 4] + k4 * e
     xm = st[XM] + km * e
+    if pr[PR_SLOWON] == 0.0:  # no bead nor slow state: the filter alone (a skin's patch)
+        st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4] = x0, x1, x2, x3, x4
+        return (p[0] - k0 * r0, p[1] - k0 * r1, p[2] - k0 * r2, p[3] - k0 * r3, p[4] - k0 * r4,
+                p[5] - k1 * r1, p[6] - k1 * r2, p[7] - k1 * r3, p[8] - k1 * r4,
+                p[9] - k2 * r2, p[10] - k2 * r3, p[11] - k2 * r4,
+                p[12] - k3 * r3, p[13] - k3 * r4,
+                p[14] - k4 * r4)
     # the slow states' sensitivities through this update: V <- V - K (H V - C) = V + K s
     vb0 = st[VB] + k0 * sb
     vb1 = st[VB + 1] + k1 * sb
@@ -1572,9 +1581,12 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     _ambient_predict(st, Phi_a, Q_a)
     Qd = Qc if st[MODE] == INCONTACT else Qi
     x0 = st[X]
-    _bead_predict(st)
+    slow_on = pr[PR_SLOWON] != 0.0
+    if slow_on:
+        _bead_predict(st)
     _predict(st, Phi[iv], Gam[iv], Qd[iv], st[XA], drive if drive == drive else 0.0)
-    _slow_predict(st, pr, Phi[iv], x0)
+    if slow_on:
+        _slow_predict(st, pr, Phi[iv], x0)
     if _keeps_mu(st, pr):  # the step signatures, for the onset's whole-state jump
         _mu_carry(st, Phi[iv])
     if st[GAPRUN] > pr[PR_MAXGAP]:
