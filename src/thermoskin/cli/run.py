@@ -195,7 +195,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg))
             if recorder is not None:
                 recorder.event(0.0, "run-start", device=device, scenario=sc.name,
-                               realtime=bool(realtime or serial))
+                               realtime=bool(realtime or serial),
+                               estimator_inputs="device" if serial else "commands")
             try:
                 runlog = RunLog(log_path, names)
             except OSError as e:
