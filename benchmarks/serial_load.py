@@ -141,7 +141,8 @@ def main() -> None:
     result: dict[str, Any] = {"cores": os.cpu_count(), "load_processes": a.load, "seconds": a.seconds,
                               "device": "firmware" if a.firmware else "emulator",
                               "scenario": a.scenario, "delay_s": a.delay,
-                              "priority": "normal" if a.normal_priority else "as shipped (SCHED_FIFO if allowed)",
+                              "priority": ("normal" if a.normal_priority else
+                                           "as shipped (SCHED_FIFO where allowed)"),
                               "config": a.config,
                               "note": "shared development machine: other jobs may run too"}
     try:

@@ -30,15 +30,24 @@ from thermoskin.paths import PathError
 @click.option("--truth", "truth_path", type=click.Path(path_type=Path), default=None,
               help="Write the simulator's truth to this CSV: t,contact_true,q_i,n_fingers,T_g per "
                    "sample, t as in the host's log.")
+@click.option("--firmware", is_flag=True,
+              help="Run the reference firmware (firmware/, MicroPython) under CPython in place of "
+                   "the emulator's device core, on register-level models of its MAX31856 converters "
+                   "and PWM outputs fed by the simulated skin (docs/hardware.md).")
+@click.option("--watchdog", type=float, default=None,
+              help="The device's command watchdog, s [default: 0.5; the firmware's 0.05].")
 @CONFIG_OPT
 def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_period: float | None,
-                    jitter: float | None, truth_path: Path | None, config_path: Path | None) -> None:
+                    jitter: float | None, truth_path: Path | None, firmware: bool, watchdog: float | None,
+                    config_path: Path | None) -> None:
     """Run the simulated skin behind a pseudo-terminal speaking docs/protocol.md.
 
-    Makes LINK a symbolic link to the pty, starts its clock when the host first connects,
-    and runs until stopped (Ctrl-C, SIGTERM); the link is removed on exit. Connect with
-    `thermoskin run --device serial://LINK`. With --truth, the truth file holds every
-    sample sent up to the stop.
+    Makes LINK a symbolic link to the pty and runs until stopped (Ctrl-C, SIGTERM); the link
+    is removed on exit. Each host's HELLO starts a fresh session (the scenario, the device
+    clock and the truth file from zero); a second host is refused while one is connected.
+    Connect with `thermoskin run --device serial://LINK`. With --truth, the truth file holds
+    every sample of the session sent up to the stop. --firmware: the same with the reference
+    firmware's own code as the device.
     """
     from thermoskin.devices.emulator import main as emulator_main
     from thermoskin.paths import check_output
@@ -51,5 +60,15 @@ def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_perio
     except (ConfigError, PathError) as e:
         click.echo(f"thermoskin: error: {' '.join(str(e).split())}", err=True)
         sys.exit(2)
+    if firmware:
+        from thermoskin.devices.emulator import check_options
+        from thermoskin.devices.firmware_host import main as firmware_main
+
+        try:
+            sc, specs = check_options(scenario, faults, tc_period, jitter, watchdog)
+        except (KeyError, ValueError) as e:
+            click.echo(f"thermoskin: error: {e.args[0] if isinstance(e, KeyError) else e}", err=True)
+            sys.exit(2)
+        sys.exit(firmware_main(str(link), cfg, sc, specs, tc_period, jitter, truth_path, watchdog))
     sys.exit(emulator_main(str(link), scenario, list(faults), tc_period, cfg, jitter=jitter,
-                           truth=truth_path))
+                           truth=truth_path, watchdog=watchdog))

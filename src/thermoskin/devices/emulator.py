@@ -632,10 +632,25 @@ class PtyEmulator:
                 "dropped_frames": float(self.dropped_frames)}
 
 
+def check_options(scenario: str, faults: Sequence[str], tc_period: float | None, jitter: float | None,
+                  watchdog: float | None = None) -> tuple[Scenario, list[FaultSpec]]:
+    """The scenario and the faults of the emulator's options; ValueError (KeyError for the
+    scenario) naming the option and the problem."""
+    sc = get_scenario(scenario)
+    specs = [FaultSpec.parse(f) for f in faults]
+    if tc_period is not None and not (tc_period > 0 and math.isfinite(tc_period)):
+        raise ValueError(f"--tc-period {tc_period} s must be > 0")
+    if jitter is not None and not (jitter >= 0 and math.isfinite(jitter)):
+        raise ValueError(f"--jitter {jitter} s must be >= 0")
+    if watchdog is not None and not (0.002 <= watchdog <= 60.0):
+        raise ValueError(f"--watchdog {watchdog} s must be within [0.002, 60] s")
+    return sc, specs
+
+
 def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = (),
          tc_period: float | None = None, cfg: Config | None = None, verbose: bool = True,
          jitter: float | None = None, truth: str | os.PathLike[str] | None = None,
-         rt_priority: int = 40) -> int:
+         rt_priority: int = 40, watchdog: float | None = None) -> int:
     """Run the emulator until SIGINT/SIGTERM; 0 on a clean stop, 2 on bad arguments or link.
 
     ``rt_priority``: the ``SCHED_FIFO`` priority asked for once the host connects (0: none;
@@ -644,20 +659,17 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
     ``tc_period`` (s) sets the three boards' conversion periods; ``None``: the config's
     ``[sensor]`` periods if any is set, else 0.1 s. ``jitter`` (s): their jitter (``None``:
     the config's). ``truth``: a CSV file for the truth (:class:`TruthWriter`), complete up
-    to the last sample sent when the emulator stops.
+    to the last sample sent when the emulator stops. ``watchdog`` (s): the command watchdog
+    (default 0.5 s).
     """
     cfg = cfg or Config()
     s = cfg.sensor
     if tc_period is None and not (s.period_T_w or s.period_T_p or s.period_T_a):
         tc_period = 0.1
     try:
-        sc = get_scenario(scenario)
-        specs = [FaultSpec.parse(f) for f in faults]
-        if tc_period is not None and not (tc_period > 0 and math.isfinite(tc_period)):
-            raise ValueError(f"--tc-period {tc_period} s must be > 0")
-        if jitter is not None and not (jitter >= 0 and math.isfinite(jitter)):
-            raise ValueError(f"--jitter {jitter} s must be >= 0")
-        core = DeviceCore(cfg, sc, specs, tc_period=tc_period, jitter=jitter)
+        sc, specs = check_options(scenario, faults, tc_period, jitter, watchdog)
+        core = DeviceCore(cfg, sc, specs, tc_period=tc_period, jitter=jitter,
+                          command_timeout=0.5 if watchdog is None else watchdog)
     except (KeyError, ValueError) as e:
         print(f"device-emulator: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
         return 2
