@@ -396,4 +396,53 @@ def test_a_loaded_host_never_turns_late_frames_into_contacts(tmp_path: Path) -> 
     link_line = next(ln for ln in r.stdout.splitlines() if ln.startswith("link"))
     pat = r"(\d+) frames late from the device, (\d+) samples handled"
     counts = [int(x) for x in re.findall(pat, link_line)[0]]
-    assert fell_behind == (counts[0] + counts[1] > 0 or " 0 lost" not in link_line)
+    assert fell_behind == (counts[1] > 0 or " 0 lost" not in link_line)
+
+
+def test_device_hello_answers_with_outputs_off(tmp_path: Path) -> None:
+    """`device-hello`: the device's HELLO_ACK and its channels, no COMMAND sent (the device's
+    outputs stay off); an open thermocouple is exit 3; no device is exit 2 in one line."""
+    link, bad = tmp_path / "skin", tmp_path / "bad"
+    emu = _start(["device-emulator", "--link", str(link), "--scenario", "none"], link)
+    emu2 = _start(["device-emulator", "--firmware", "--link", str(bad), "--scenario", "none", "--fault",
+                   "tc-open@0.5"], bad)
+    try:
+        r = thermoskin("device-hello", "--device", f"serial://{link}", "--seconds", "1.5")
+        r2 = thermoskin("device-hello", "--device", f"serial://{bad}", "--seconds", "1")
+    finally:
+        _stop(emu)
+        _stop(emu2)
+    assert r.returncode == 0, r.stderr
+    assert "id 0x7E570001" in r.stdout and "every 1000 µs; 0 frames corrupted" in r.stdout
+    assert len(re.findall(r"T_[wpa]: 1[56] conversions \(10\.0/s\)", r.stdout)) == 3, r.stdout
+    assert "no command yet: outputs off" in r.stdout
+    assert r2.returncode == 3 and "T_w: open thermocouple" in r2.stdout and "tc-open" in r2.stdout
+    r3 = thermoskin("device-hello", "--device", f"serial://{tmp_path / 'none'}")
+    assert r3.returncode == 2 and len(r3.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("fault,name", [("tc-open@1.5", "tc-open"), ("overtemp@1.5", "overtemp"),
+                                        ("serial-drop@1.5", "link")])
+def test_firmware_faults_reach_the_safe_state_and_the_host_says_so(tmp_path: Path, fault: str,
+                                                                   name: str) -> None:
+    """Against the firmware: the fault trips the host (exit 3, one line naming it), and the
+    firmware was in its own safe state within the fault's delay (the emulator's stop line: its
+    first sample in the safe state, device time): at the conversion that showed the fault for
+    tc-open and overtemp (at most 98 ms after its onset, plus a sample), its watchdog (50 ms)
+    for a cut cable."""
+    link = tmp_path / "skin"
+    emu = _start(["device-emulator", "--firmware", "--link", str(link), "--scenario", "none", "--fault",
+                  fault], link)
+    try:
+        r = thermoskin("run", "--device", f"serial://{link}", "--duration", "4", "--log",
+                       str(tmp_path / "f.csv"), "--plot", str(tmp_path / "f.png"))
+    finally:
+        err = _stop(emu)
+    assert r.returncode == 3, r.stdout + r.stderr
+    line = [ln for ln in r.stderr.splitlines() if ln.startswith("thermoskin: fault:")]
+    assert len(line) == 1 and f"fault: {name} at t = " in line[0]
+    pat = r"safe state from t = ([\d.]+) s \(fault at t = ([\d.]+) s"
+    t_safe, t_fault = (float(x) for x in re.findall(pat, err)[0])
+    assert t_fault == 1.5
+    limit = 0.050 + 0.002 if name == "link" else 0.098 + 0.002
+    assert 0.0 <= t_safe - t_fault <= limit, err

@@ -207,6 +207,11 @@ class SerialDevice:
         self._seq = (self._seq + 1) % proto.SEQ_MOD
         self._send(proto.Command(self._seq, d, vv))
 
+    def keepalive(self) -> None:
+        """This session's HELLO again: a host that sends no COMMAND (it only listens) keeps its
+        session on this way (the device ends a session whose host is silent for a second)."""
+        self._send(proto.Hello(self.session_id, proto.PROTOCOL_VERSION, round(self.t_s * 1e6)))
+
     def safe(self) -> None:
         """Send SAFE (drive 0, pump off, latched in the device until the next HELLO)."""
         self._seq = (self._seq + 1) % proto.SEQ_MOD
