@@ -24,11 +24,15 @@ from skinfw import config as C  # noqa: N812
 class Board:
     def __init__(self):
         micropython.alloc_emergency_exception_buf(128)
+        micropython.kbd_intr(-1)  # no KeyboardInterrupt from a byte on the REPL's port
         # outputs first: off, whatever happens next
         self.peltier_pwm = PWM(Pin(C.PIN_PELTIER_PWM), freq=C.PWM_HZ, duty_u16=0)
         self.peltier_dir = Pin(C.PIN_PELTIER_DIR, Pin.OUT, value=0)
         self.pump = PWM(Pin(C.PIN_PUMP), freq=C.PWM_HZ, duty_u16=0)
         self.led = Pin(C.PIN_LED, Pin.OUT, value=0)
+        machine.freq(C.CPU_HZ)  # then the PWM frequencies again, the bus after it
+        self.peltier_pwm.freq(C.PWM_HZ)
+        self.pump.freq(C.PWM_HZ)
         self.spi = SPI(C.SPI_ID, baudrate=C.SPI_HZ, polarity=0, phase=1, bits=8, firstbit=SPI.MSB,
                        sck=Pin(C.PIN_SCK), mosi=Pin(C.PIN_MOSI), miso=Pin(C.PIN_MISO))
         self.cs = [Pin(p, Pin.OUT, value=1) for p in C.PIN_CS]

@@ -55,5 +55,10 @@ PIN_PELTIER_DIR = const(3)
 PIN_PUMP = const(6)
 PIN_LED = const(25)
 """On while a host's session is on."""
+PIN_MAINT = const(22)
+"""Held to GND at power-up (a jumper): the firmware does not start, the REPL is free for mpremote."""
+CPU_HZ = 200_000_000
+"""The RP2040's clock (its datasheet qualifies 200 MHz; MicroPython's default is 125 MHz): the
+headroom the 1 kHz loop wants (docs/hardware.md, Timing on the board)."""
 SPI_ID = const(0)
 SPI_HZ = const(5_000_000)
