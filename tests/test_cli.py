@@ -492,3 +492,17 @@ def test_exit_freeze_only_for_the_command_line() -> None:
              "print('main', '_freeze_at_exit' in seen, file=sys.stderr)\n")
     r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
     assert "import False" in r.stdout and "main True" in r.stderr
+
+
+def test_scenarios_lists_every_scenario_a_command_takes() -> None:
+    """`scenarios` lists the patch's scenarios, `excitation` and the skin's (`multi`, which the
+    README's `simulate --skin ... --scenario multi` uses): every name `run` or `simulate` takes."""
+    from thermoskin.sim.scenarios import SCENARIOS
+    from thermoskin.sim.skin_scenarios import SKIN_SCENARIOS
+
+    code, out, _ = invoke("scenarios")
+    assert code == 0
+    names = {line.split("│")[1].strip() for line in out.splitlines() if line.count("│") > 2}
+    assert {*SCENARIOS, "excitation", "multi"} <= names
+    assert set(SKIN_SCENARIOS) == {"multi"}
+    assert "--skin only" in " ".join(out.split())
