@@ -859,5 +859,6 @@ def test_a_skins_patch_column_is_an_integer_in_parquet(tmp_path: Path) -> None:
     assert str(schema.field("patch").type) == "int64" and str(schema.field("T_w").type) == "double"
     assert pq.read_table(path)["patch"].to_pylist() == [0, 1, 2, 0, 1, 2]
     assert pq.read_table(path)["T_w"].to_pylist() == np.linspace(20, 21, 6).tolist()
-    with pytest.raises(ValueError, match="whole number"), LogWriter(tmp_path / "bad.parquet", ["t", "patch"]) as w:
+    bad = tmp_path / "bad.parquet"
+    with pytest.raises(ValueError, match="whole number"), LogWriter(bad, ["t", "patch"]) as w:
         w.write({"t": np.array([0.0]), "patch": np.array([0.5])})
