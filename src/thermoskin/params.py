@@ -583,6 +583,37 @@ def read_toml(path: str | Path, what: str, error: type[ConfigError] | None = Non
         raise err(f"{p} is not valid TOML: {' '.join(str(e).split())}") from None
 
 
+#: The three kinds of TOML file the commands take, by what each is given with.
+FILE_KINDS = {
+    "parameters": "a parameter file (tables such as [skin], [sensor], [detector]: the model and the "
+                  "boards as the lab knows them; give it with --config)",
+    "layout": "a skin's layout file (links, loops, patches: where the patches lie; give it with --skin)",
+    "sweep": "a sweep file ([sweep], [keys]: designs to simulate; give it to `thermoskin sweep`)",
+}
+
+
+def file_kind(data: dict[str, Any]) -> str | None:
+    """Which of :data:`FILE_KINDS` a parsed TOML file is, by its top-level tables; None if it
+    has none of their marks (an empty file, or a file of none of these kinds)."""
+    if "sweep" in data or "keys" in data:
+        return "sweep"
+    if {"links", "loops", "patches"} & set(data):
+        return "layout"
+    if set(data) & set(_SECTION_TYPES):
+        return "parameters"
+    return None
+
+
+def check_kind(path: str | Path, data: dict[str, Any], want: str,
+               error: type[ConfigError] | None = None) -> None:
+    """One line when the file at ``path`` is another kind than ``want`` (a layout given where a
+    parameter file goes said "unknown table [name]"; the two were both called SKIN.toml)."""
+    kind = file_kind(data)
+    if kind is not None and kind != want:
+        err = ConfigError if error is None else error
+        raise err(f"{path} is {FILE_KINDS[kind]}, not {FILE_KINDS[want].split(' (')[0]} as this option takes")
+
+
 def load_config(path: str | Path | None = None, preset: str = "paper") -> Config:
     """The preset, overridden by the TOML file at ``path`` if given."""
     if preset not in PRESETS:
@@ -591,7 +622,8 @@ def load_config(path: str | Path | None = None, preset: str = "paper") -> Config
     if path is None:
         return cfg
     p = Path(path)
-    data = read_toml(p, "config file")
+    data = read_toml(p, "parameter file")
+    check_kind(p, data, "parameters")
     return _merge(cfg, data, source=str(p))
 
 

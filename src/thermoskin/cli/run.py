@@ -80,7 +80,8 @@ SETTLE_S = 10.0
                    "that the toucher's conductance and temperature separate (docs/characterise.md).")
 @_live_options
 @click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
-              help="Run a whole skin of many patches (TOML) in closed loop on the simulated device "
+              help="Run a whole skin of many patches (LAYOUT.toml, its layout file: examples/forearm.toml) "
+                   "in closed loop on the simulated device "
                    "(scenario default: multi): every patch estimated and its contacts printed as the run "
                    "goes; --live and --record serve / record per-patch topics and a scene (docs/live.md); "
                    "the long-format log, events with patch,position,position_sd, the body contacts "

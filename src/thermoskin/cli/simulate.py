@@ -55,7 +55,8 @@ def scenarios() -> None:
 @click.option("-o", "--output", "output_csv", type=click.Path(path_type=Path), required=True,
               help="Log CSV (measured columns and the simulator's truth q_i, T_g).")
 @click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
-              help="A skin of many patches (TOML, see examples/forearm.toml): simulated in closed loop, "
+              help="LAYOUT.toml, a skin of many patches' layout file (examples/forearm.toml): simulated "
+                   "in closed loop, "
                    "one controller per water loop; the log has one row per sample and patch: "
                    "t,patch,T_w,T_p,v,T_a[,T_w2..],q_i,contact_true,position_true,fresh.")
 @_user_errors
