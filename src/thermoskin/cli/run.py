@@ -281,7 +281,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 console.print("what: the scenario's fingers are the paper's simple finger (a body held "
                               "at its temperature), which the characteriser, made for people and "
                               "objects as they are, may call an object; --scenario touchers has both "
-                              "(README: What touched the skin)")
+                              "(docs/characterise.md)")
         stopped = bool(summary.get("interrupted"))
         if n > 1 and not res.fault:
             if serial:

@@ -193,6 +193,6 @@ def write_report(path: Path, figs: Sequence[str], paths: dict[str, Path], summar
               "`C_w`); the observer's model accounts for that, but at the restart the lumped model and the "
               "cooled pipe profile differ for ~0.1 s (the clipped dip in (b)). The detector, tuned on the "
               "running pump, misses most stopped-pump and off-thermocouple contacts: the detection figures "
-              "of the README are for touches at the thermocouple.", ""]
+              "of docs/detection.md are for touches at the thermocouple.", ""]
     path.write_text("\n".join(L), encoding="utf-8")
     return path
