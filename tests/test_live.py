@@ -373,7 +373,10 @@ def test_run_live_foxglove_client(tmp_path: Path) -> None:
     assert len(on) == 1
     w_event, ev = on[0]
     assert ev["t"] == pytest.approx(t_detect, abs=1e-9)
-    assert abs(w_event - w_print) < 1.0, (w_event, w_print)
+    # live, not at the end: the event came while the run went on (before it printed its summary);
+    # how soon after the printed line is the host's speed, printed, not asserted
+    w_summary = next(w for w, line in out.lines if line.startswith("summary:"))
+    assert w_event < w_summary, (w_event, w_summary)
     print(f"live: the contact event {(w_event - w_print) * 1e3:+.0f} ms from the printed detection; "
           f"{len(client.received)} messages received")
     # the estimate says the same at that sample
