@@ -5,7 +5,6 @@ GP22 held to GND at power-up (a jumper): the firmware does not start (no watchdo
 left off), so that ``mpremote`` has the REPL for an update."""
 
 from machine import Pin
-
 from skinfw import config
 
 if Pin(config.PIN_MAINT, Pin.IN, Pin.PULL_UP).value() == 0:

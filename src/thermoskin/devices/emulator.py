@@ -548,12 +548,21 @@ class PtyEmulator:
         ``t_s`` against absolute deadlines from the HELLO; a new session (another HELLO, once
         the one before has ended) restarts the clock and the truth; a session whose host fell
         silent for ``core.session_timeout`` ends, and the emulator idles again."""
+        gc.collect()
+        gc.freeze()  # the start-up heap is never traversed again
+        # and no collection pauses a session: what a sample allocates (messages, frames, rows)
+        # holds no reference cycle, so reference counting frees it
+        gc.disable()
+        try:
+            self._serve()
+        finally:
+            gc.enable()
+
+    def _serve(self) -> None:
         core = self.core
         t_s = core.t_s
         master = self._master
         stop = self._stop
-        gc.collect()
-        gc.freeze()  # the start-up heap is never traversed again: collections stay short
         truth = self.truth
         lat = self.lateness
         n_lat = lat.size

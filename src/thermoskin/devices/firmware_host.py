@@ -629,14 +629,19 @@ class FirmwarePty(PtyEmulator):
         dev.begin()
         gc.collect()
         gc.freeze()
+        gc.disable()  # as the emulator's: no collection pauses a session
         stop = self._stop
         w = self.world
-        while not stop.is_set():
-            d = dev.step()
-            if dev.safe and self.t_safe != self.t_safe and w.t_fault == w.t_fault and w.origin is not None:
-                self.t_safe = w.w * w.t_s
-            if d > 0:
-                usb.wait(d)
+        try:
+            while not stop.is_set():
+                d = dev.step()
+                if (dev.safe and self.t_safe != self.t_safe and w.t_fault == w.t_fault
+                        and w.origin is not None):
+                    self.t_safe = w.w * w.t_s
+                if d > 0:
+                    usb.wait(d)
+        finally:
+            gc.enable()
         self.ready.clear()
 
     def timing(self) -> dict[str, float]:
