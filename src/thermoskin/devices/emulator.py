@@ -5,8 +5,11 @@
 thermoskin.devices.emulator``) opens a pty pair, makes ``PATH`` a symbolic link to the
 slave side (a stale link is replaced, the link is removed on exit; a link another emulator
 serves, known by the lock it holds on the file ``.LINK.lock`` beside it, is refused) and waits
-for a HELLO. Its clock starts at the first HELLO; from then on, every ``t_s`` (1 ms, paced
-by the wall clock with absolute deadlines) it
+for a HELLO. Each host's HELLO (a new session id in its ``seq``) starts a fresh session: the
+scenario, the device clock and the truth file from zero; the session's own HELLO repeated
+restarts nothing; another host's is refused (``STATUS_BUSY``) while a session is on, until its
+host's SAFE or a second of its silence (``SESSION_TIMEOUT``). In a session, every ``t_s``
+(1 ms, paced by the wall clock with absolute deadlines from the HELLO) it
 
 1. measures: the thermocouple boards of the simulated plant read ``T_w, T_p, T_a``
    (``sim.sensors``: each converts every ``tc_period``, default 0.1 s, a MAX31856-class
@@ -30,7 +33,7 @@ Until the first COMMAND after a HELLO, and while no COMMAND came for ``command_t
 s (the watchdog), the device holds drive 0 and the pump off. SAFE latches the same
 until the next HELLO.
 
-Faults, ``KIND@SECONDS`` since the host connected:
+Faults, ``KIND@SECONDS`` since the session's start (again in each session):
 
 - ``tc-open``: ``T_w`` reads NaN with ``ST_OPEN_W`` set; one FAULT(F_TC_OPEN) is sent.
 - ``nan-burst``: every channel reads NaN from then on (no flag: the host must notice).

@@ -20,12 +20,14 @@ it every ~20 ms into the log columns, the recorder and the console. The loop nev
 for the parent: if the parent falls more than the ring behind, rows are lost and counted.
 
 Pacing. With the simulated skin the deadlines are ``t0 + k t_s``. With a serial device
-the device's own clock paces the samples: the deadline of a sample is ``t0 + t`` with
-``t`` its device time since the first sample and ``t0`` the host time the first sample
-arrived, so the
-lateness is the time from a sample's nominal arrival to the start of its processing
-(the device's own jitter, transport and host scheduling); the *lag* is the host's part,
-from the later of deadline and arrival to the start of processing. Samples already
+the device's own clock paces the samples: the loop sleeps to ``t0 + t`` with ``t`` the
+sample's device time since the first sample and ``t0`` the host time the first sample
+arrived; the lateness is the time from a sample's nominal arrival, ``t0_min + t`` with
+``t0_min`` the earliest arrival less its device time so far (so never negative), to the
+start of its processing (the device's own jitter, transport and host scheduling); the
+*lag* is the host's part, from its arrival to the start of processing. The estimator
+models each period with the pump velocity and drive the device reports applied over it
+(the SAMPLE's ``v``, ``drive``), which are then the log's ``v`` and ``drive``. Samples already
 queued (after a late step) are taken at once, so the loop catches up instead of running
 behind. (A device clock that drifts against the host's shows as a slow trend of the
 lateness; the emulator shares the host's clock.) An *overrun* is a step that ended more
