@@ -316,12 +316,11 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
                     est = ctrl.estimator
                     q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, 0, 1
                     T_p_cmd = ctrl.T_p_cmd
-                elif is_sim:
-                    ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh)
-                    drive, v = sup.gate(ctrl.drive, ctrl.v)
-                    est = ctrl.estimator
-                else:  # the estimator models the interval to come with what the device applies
-                    ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh, s.v, s.drive)
+                else:
+                    if is_sim:
+                        ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh)
+                    else:  # the estimator models the interval to come with what the device applies
+                        ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh, s.v, s.drive)
                     drive, v = sup.gate(ctrl.drive, ctrl.v)
                     est = ctrl.estimator
                     if est.written and on_event is not None:
