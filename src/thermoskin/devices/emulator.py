@@ -341,10 +341,15 @@ class TruthWriter:
     ``t`` is the sample's device time (``t_us`` of its SAMPLE, s since the HELLO), which the
     host logs as its ``t``; ``contact_true`` 0/1, ``q_i`` W (the touch's heat into the
     sheet, contact applied from ``t`` on), ``n_fingers``, ``T_g`` °C. Rows are formatted as
-    they come and written and flushed every ``flush_s`` (wall clock) and on :meth:`close`.
+    they come and handed every ``flush_s`` (wall clock, :meth:`maybe_flush`) to a thread of
+    their own, which writes and flushes them: a write the disk holds up (a machine writing
+    much else) never holds up the device's samples. :meth:`flush`, :meth:`restart` and
+    :meth:`close` wait for what was handed over; ``rows`` counts the rows written.
     """
 
     def __init__(self, path: str | os.PathLike[str], flush_s: float = 0.5) -> None:
+        import queue
+
         self.path = Path(path)
         self._f = self.path.open("w", encoding="ascii", newline="\n")
         self._f.write(",".join(TRUTH_COLUMNS) + "\n")
@@ -353,11 +358,41 @@ class TruthWriter:
         self.flush_s = float(flush_s)
         self._t_flush = time.monotonic()
         self.rows = 0
+        self._q: queue.SimpleQueue[tuple[str, int] | None] = queue.SimpleQueue()
+        self._done = threading.Condition()
+        self._handed = 0
+        self._written = 0
+        self._thread: threading.Thread | None = None
+
+    def _write_loop(self) -> None:
+        while (item := self._q.get()) is not None:
+            text, n = item
+            self._f.write(text)
+            self._f.flush()
+            with self._done:
+                self.rows += n
+                self._written += 1
+                self._done.notify_all()
+
+    def _hand_off(self, now: float | None) -> None:
+        if self._rows:
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._write_loop, name="truth-writer", daemon=True)
+                self._thread.start()
+            self._handed += 1
+            self._q.put(("".join(self._rows), len(self._rows)))
+            self._rows.clear()
+        self._t_flush = time.monotonic() if now is None else now
+
+    def _wait(self) -> None:
+        with self._done:
+            self._done.wait_for(lambda: self._written >= self._handed)
 
     def restart(self) -> None:
         """A new session: the file holds its header alone again (the rows of the session before
         are dropped, as its host's log is another file)."""
         self._rows.clear()
+        self._wait()
         self._f.seek(0)
         self._f.truncate()
         self._f.write(",".join(TRUTH_COLUMNS) + "\n")
@@ -369,22 +404,25 @@ class TruthWriter:
         self._rows.append(f"{t:.6f},{contact},{q_i:.9g},{n_fingers},{T_g:.9g}\n")
 
     def maybe_flush(self, now: float) -> None:
-        """Write and flush if ``flush_s`` passed since the last flush (``now``: monotonic, s)."""
+        """Hand the rows to the writer if ``flush_s`` passed since the last time (``now``:
+        monotonic, s)."""
         if now - self._t_flush >= self.flush_s:
-            self.flush(now)
+            self._hand_off(now)
 
     def flush(self, now: float | None = None) -> None:
-        if self._rows:
-            self._f.write("".join(self._rows))
-            self.rows += len(self._rows)
-            self._rows.clear()
+        """Every row so far written and flushed (waits for the writer)."""
+        self._hand_off(now)
+        self._wait()
         self._f.flush()
-        self._t_flush = time.monotonic() if now is None else now
 
     def close(self) -> None:
         """Every row so far to the file, then close it."""
         if not self._f.closed:
             self.flush()
+            if self._thread is not None:
+                self._q.put(None)
+                self._thread.join()
+                self._thread = None
             self._f.close()
 
 
