@@ -543,7 +543,7 @@ def _loop_figures(res: Any, n: int) -> None:
                       f"{ln['lost']} lost, {ln['repeated']} repeated; {late.get('device', 0)} frames "
                       f"late from the device, {late.get('host', 0)} samples handled more than "
                       f"{LATE_S * 1e3:g} ms late")
-        if late.get("host", 0) or ln["lost"]:
+        if (late.get("host", 0) or ln["lost"]) and not res.fault:  # a fault: its own line says
             click.echo(f"thermoskin: warning: the link fell behind: {late.get('device', 0)} frames the "
                        f"device sent late, {late.get('host', 0)} samples this host handled more than "
                        f"{LATE_S * 1e3:g} ms late (longest {g['late_max_us'] / 1e3:.0f} ms), "
