@@ -83,13 +83,17 @@ def one_session(folder: Path, link: Path, truth: Path, i: int, seconds: float, p
         if mm:
             out[key] = int(mm.group(1))
     out["loop_line"] = next((ln for ln in host.stdout.splitlines() if ln.startswith("loop")), "")
+    out["link_line"] = next((ln for ln in host.stdout.splitlines() if ln.startswith("link")), "")
     if log.exists() and log.stat().st_size > 0:
         from thermoskin.logio import read_log
 
-        d = read_log(log, required=("t",))
+        d = read_log(log, required=("t",), uniform=False)
         t = d["t"]
         out["t_first"] = float(t[0]) if len(t) else None
         out["rows"] = len(t)
+        steps = np.diff(t)
+        out["gaps"] = int(np.count_nonzero(steps > 1.5e-3))  # samples missing in the log
+        out["longest_gap_s"] = round(float(steps.max()), 4) if len(steps) else None
         # the host's truth file: rows up to the end the emulator wrote (flushed every 0.5 s)
         time.sleep(1.2)
         out.update(score(truth, ev, float(t[-1]) if len(t) else 0.0))
