@@ -139,7 +139,7 @@ def test_the_heat_scale_is_not_in_the_temperatures():
     a, b = simulate(sc, base)["T_w"], simulate(sc, scaled)["T_w"]
     assert np.max(np.abs(a - b)) < 1e-9
     with pytest.raises(cal.CalibrationError, match="common scale of heat"):
-        cal.calibrate(simulate(sc, base), PRIOR, cal.PARAMS)
+        cal.calibrate(simulate(sc, base), PRIOR, cal.SKIN_PARAMS)
 
 
 def test_a_wrong_heat_scale_scales_every_fitted_resistance(log60):
