@@ -176,7 +176,7 @@ UNITS = {"C_w": "J/K", "C_g": "J/K", "R_g": "K/W", "R_aw": "K/W", "R_ag": "K/W",
 NETWORK = ("C_w", "C_g", "R_g", "R_aw", "R_ag")
 COLUMNS = ("t", "T_w", "T_p", "v", "T_a")
 
-T_FIT = 0.02
+T_FIT = 0.01
 """Longest block, s; 0: every sample its own (the default; see the module doc)."""
 N_START = 5
 """Samples averaged for the measured ``T_w`` a stretch starts from."""
@@ -215,6 +215,9 @@ DEP_MIN = 0.001
 """A fitted parameter depends on a held one if the held one off by ×/÷ ``DEP_FACTOR`` would
 move it by more than its standard deviation (and the elasticity is at least ``DEP_MIN``)."""
 Z95 = 1.959963984540054
+TRIM = 3.5
+"""Differences beyond this many robust standard deviations are the signal's, not noise
+(:func:`noise_of_differences`)."""
 CHI2_95 = 3.841458820694124
 """95 % point of the chi-square distribution with one degree of freedom."""
 N_DRAWS = 100
@@ -308,6 +311,18 @@ def fresh_rows(log: Mapping[str, ArrayLike], bit: int = 1) -> NDArray[np.bool_] 
     return None if seen.all() else seen
 
 
+def between_readings(x: ArrayLike, fresh: NDArray[np.bool_]) -> Array:
+    """A reading held between its board's conversions (``fresh``) as straight lines from one
+    new reading to the next (held before the first and after the last; NaN readings left out).
+    An input held for 100 ms lags a tank ramping at 0.3 K/s by 15 mK on average, which the
+    network passes to ``T_w`` almost whole; a line between the readings is exact for a ramp."""
+    xx = np.asarray(x, dtype=float)
+    k = np.flatnonzero(fresh & np.isfinite(xx))
+    if k.size == 0:
+        return xx.copy()
+    return np.interp(np.arange(xx.size, dtype=float), k.astype(float), xx[k])
+
+
 def centred_mean(x: ArrayLike, runs: Sequence[tuple[int, int]], half: int) -> Array:
     """Centred moving mean over ``2 h + 1`` samples, ``h = min(half, distance to the run's ends)``,
     within each run ``[a, b)``; rows outside the runs are left as they are.
@@ -327,14 +342,15 @@ def centred_mean(x: ArrayLike, runs: Sequence[tuple[int, int]], half: int) -> Ar
 
 def make_blocks(log: Mapping[str, ArrayLike], t_s: float, usable: NDArray[np.bool_],
                 t_fit: float = T_FIT, smooth: tuple[float, float] = (SMOOTH_T_P, SMOOTH_T_A),
-                fresh: NDArray[np.bool_] | None = None) -> Blocks:
+                fresh: NDArray[np.bool_] | None = None, isolate_switch: bool = True) -> Blocks:
     """Cut the usable rows into blocks of at most ``t_fit`` s that never straddle a pump switch.
 
-    A block is compared with the model by its mean (a *mean* block) or by its first reading (a
-    *point* block, whose other rows only carry the model on). Point blocks are: the first row
-    after each pump switch (the reading the pump switched on, module doc), and, where
-    ``fresh`` is given (rows with a new ``T_w`` reading, :func:`fresh_rows`), every block: one
-    from each new reading to the next (an old, held reading says nothing new). The inputs
+    A block is compared with the model by its mean (a *mean* block) or is a single reading (a
+    *point* block). Point blocks are: the first row after each pump switch (the reading the
+    pump switched on, module doc), and, where ``fresh`` is given (rows with a new ``T_w``
+    reading, :func:`fresh_rows`), each new reading; the rows that hold it (an old reading says
+    nothing new) are blocks of at most ``t_fit`` s that weigh nothing and only carry the model on.
+    ``isolate_switch=False`` leaves the switching reading in its block's mean (biased; tests). The inputs
     ``T_p`` and ``T_a`` are first smoothed by centred moving means of ``smooth`` s (tank and air
     are slow; their sensor noise, fed into the model, would bias the fit), then held at their
     block means.
@@ -375,10 +391,12 @@ def make_blocks(log: Mapping[str, ArrayLike], t_s: float, usable: NDArray[np.boo
             if fresh is not None:
                 cuts = [c0, *(c0 + np.flatnonzero(fresh[c0:c1])).tolist(), c1]
                 for x, y in itertools.pairwise(dict.fromkeys(cuts)):
-                    add(x, y - x, sid, True)
+                    add(x, 1, sid, True)  # the reading; then the rows it holds, in steps of m
+                    for x1 in range(x + 1, y, m):
+                        add(x1, min(m, y - x1), sid, False)
                 continue
             s = c0
-            if c0 > a and m > 1:  # the reading the pump switched on: a block of its own
+            if c0 > a and m > 1 and isolate_switch:  # the reading the pump switched on: its own block
                 add(c0, 1, sid, True)
                 s = c0 + 1
             for x in range(s, c1, m):
@@ -835,27 +853,41 @@ def weak_text(names: Sequence[str], v: Array, sd: float) -> str:
     return f"{combination(names, v)} is known only to ×/÷ {math.exp(min(Z95 * sd, 700.0)):.3g} (95 %)"
 
 
-def reading_noise(x: Array, blocks: Blocks, fresh: NDArray[np.bool_] | None = None) -> float:
-    """Standard deviation of a reading's noise from its second differences in the stretches:
-    ``sd(x_{k+1} - 2 x_k + x_{k-1}) / sqrt(6)`` over consecutive (``fresh``: new) readings, beyond
-    six robust standard deviations left out. Second differences leave a straight line out, so
-    the pipe's moves after a pump switch (tens of mK a sample) barely count."""
-    xx = np.asarray(x, dtype=float)
-    last = blocks.first + blocks.nlen
-    ends = np.flatnonzero(np.r_[blocks.start[1:], True])
-    parts = []
-    for i, j in zip(np.flatnonzero(blocks.start), ends, strict=True):
-        seg = xx[blocks.first[i]:last[j]]
-        if fresh is not None:
-            seg = seg[fresh[blocks.first[i]:last[j]]]
-        parts.append(np.diff(seg, 2))
-    d = np.concatenate(parts or [np.zeros(0)])
-    if d.size < 10:
-        return 0.0
-    s0 = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+def noise_of_differences(d: ArrayLike, order: int) -> float:
+    """``sd`` of white noise from its differences ``d`` of ``order`` (1-3): ``sd(d) / sqrt(C(2k, k))``,
+    those beyond :data:`TRIM` robust standard deviations (``1.4826 MAD``) left out (the signal's
+    own moves). NaN with fewer than 10 differences."""
+    dd = np.asarray(d, dtype=float)
+    dd = dd[np.isfinite(dd)]
+    if dd.size < 10:
+        return math.nan
+    s0 = 1.4826 * float(np.median(np.abs(dd - np.median(dd))))
     if s0 > 0.0:
-        d = d[np.abs(d - np.median(d)) <= 6.0 * s0]
-    return float(np.std(d) / math.sqrt(6.0))
+        dd = dd[np.abs(dd - np.median(dd)) <= TRIM * s0]
+    return float(np.std(dd) / math.sqrt(math.comb(2 * order, order)))
+
+
+def reading_noise(x: ArrayLike, blocks: Blocks | None = None,
+                  fresh: NDArray[np.bool_] | None = None) -> float:
+    """Standard deviation of a reading's noise, model-free: the least of
+    :func:`noise_of_differences` of orders 1, 2 and 3 over consecutive (``fresh``: new) readings
+    of each stretch (of ``blocks``; else the whole of ``x``). Each order reads high where the
+    signal moves between readings in a way it does not cancel (a ramp for the first, the
+    pipe's zigzag under a pump switching at every 10 Hz reading for the second), so the least
+    is the nearest; on white noise all three agree (tests). 0 if there are too few readings."""
+    xx = np.asarray(x, dtype=float)
+    if blocks is None:
+        spans = [(0, xx.size)]
+    else:
+        last = blocks.first + blocks.nlen
+        ends = np.flatnonzero(np.r_[blocks.start[1:], True])
+        spans = [(int(blocks.first[i]), int(last[j]))
+                 for i, j in zip(np.flatnonzero(blocks.start), ends, strict=True)]
+    segs = [xx[a:b] if fresh is None else xx[a:b][fresh[a:b]] for a, b in spans]
+    sds = [noise_of_differences(np.concatenate([np.diff(sg, k) for sg in segs if sg.size > k] or [[]]), k)
+           for k in (1, 2, 3)]
+    sds = [x for x in sds if math.isfinite(x)]
+    return min(sds) if sds else 0.0
 
 
 def combination(names: Sequence[str], v: Array, keep: float = 0.05) -> str:
@@ -993,8 +1025,10 @@ def prepare(log: Mapping[str, ArrayLike], *, t_fit: float = T_FIT, contact: Arra
     if contact is not None and np.size(contact) != cols["t"].size:
         raise CalibrationError(f"the contact column has {np.size(contact)} rows, t has {cols['t'].size}")
     fresh = fresh_rows(log, 1)
-    if fresh is not None:
-        cols["fresh"] = np.asarray(log["fresh"], dtype=float)
+    for ch, bit in (("T_p", 2), ("T_a", 4)):  # an input held between conversions: lines between them
+        seen = fresh_rows(log, bit)
+        if seen is not None:
+            cols[ch] = between_readings(cols[ch], seen)
     blocks = make_blocks(cols, t_s, usable_rows(cols, t_s, contact, pad), t_fit, smooth, fresh)
     usable_s = blocks.n_samples * t_s
     if usable_s < MIN_USABLE_S:
@@ -1143,14 +1177,39 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
         free.remove(p)
         estimate[p] = prior[p] if value is None else value
 
+    n_res = int(np.count_nonzero(blocks.weight))
+
+    def weak_holds(J: Array, names: Sequence[str], sigma: float) -> list[tuple[str, str]]:
+        """The parameters (not the lags: how well a lag is seen depends on its size, and its
+        prior is often 0) to hold, one by one, while the weakest direction of ``J`` over the
+        rest is known to worse than ``SD_MAX`` for noise ``sigma``; with why."""
+        rest = [p for p in names if kind(p) != "lag"]
+        out: list[tuple[str, str]] = []
+        while rest and sigma > 0.0:
+            S, Vt = _svd(J[:, [names.index(p) for p in rest]])
+            sd_weak = sigma / float(S[-1])
+            if sd_weak <= SD_MAX:
+                break
+            worst = rest[int(np.argmax(np.abs(Vt[-1])))]
+            out.append((worst, f"not determined by this log: {weak_text(rest, Vt[-1], sd_weak)} (for "
+                               f"{sigma * 1e3:.3g} mK of noise)"))
+            rest.remove(worst)
+        return out
+
     # directions the log does not see at all (an exact trade-off, e.g. R_aw at a constant ambient),
-    # then those it sees too weakly for the sensor's noise (linearised at the prior, the offsets
-    # solved for there): held before the fit, which would otherwise wander along them to a bound
-    sigma_w = reading_noise(cols["T_w"], blocks, fresh_rows(log, 1))
+    # then those it sees too weakly for the noise (linearised at the prior, the offsets solved for
+    # there; the noise from the readings' differences or, if less, the residual there): held
+    # before the fit, which would otherwise wander along them to a bound. Provisional: after
+    # the fit, with its residual's noise, those it would not hold are released and fitted.
+    provisional: list[str] = []
+    sigma_pre = 0.0
     if free:
         free0 = list(free)
         start = {p: (max(prior[p], 0.01) if kind(p) == "lag" else prior[p]) for p in free0}
-        start.update(evaluate(blocks, start, cfg, [p for p in free0 if kind(p) == "offset"]).offsets)
+        ev0 = evaluate(blocks, start, cfg, [p for p in free0 if kind(p) == "offset"])
+        start.update(ev0.offsets)
+        sigma_pre = min(reading_noise(cols["T_w"], blocks, fresh_rows(log, 1)),
+                        math.sqrt(float(ev0.e @ ev0.e) / max(n_res - len(free0), 1)))
         J0 = jacobian(fun_full(free0), phi_of(free0, start))
         while free:
             S, Vt = _svd(J0[:, [free0.index(p) for p in free]])
@@ -1158,14 +1217,9 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
                 break
             hold(free[int(np.argmax(np.abs(Vt[-1])))],
                  f"not determined by this log: the fit does not change along {combination(free, Vt[-1])}")
-        while free and sigma_w > 0.0:
-            S, Vt = _svd(J0[:, [free0.index(p) for p in free]])
-            sd_weak = sigma_w / float(S[-1])
-            if sd_weak <= SD_MAX:
-                break
-            hold(free[int(np.argmax(np.abs(Vt[-1])))],
-                 f"not determined by this log: {weak_text(free, Vt[-1], sd_weak)} (at the prior, "
-                 f"for {sigma_w * 1e3:.3g} mK of noise)")
+        for p, why in weak_holds(J0[:, [free0.index(q) for q in free]], list(free), sigma_pre):
+            hold(p, why + " at the prior")
+            provisional.append(p)
 
     # a parameter that ran to a bound is held at its prior and the rest fitted again; then, if the
     # fit is about as good without it (chi-square of the difference, for the residuals' colour,
@@ -1192,75 +1246,93 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
     tau = colour = 1.0
     ev = evaluate(blocks, {}, cfg)
     J = np.zeros((blocks.mode.size, 0))
-    while free:
-        nl = [p for p in free if kind(p) != "offset"]
-        off = [p for p in free if kind(p) == "offset"]
-        theta = np.zeros(0)
-        if nl:
-            lo = np.array([bounds(p)[0] for p in nl])
-            hi = np.array([bounds(p)[1] for p in nl])
-            # from the prior: not from where a weak direction drifted (a lag from 10 ms: at 0 the
-            # fit would start on its bound)
-            th0 = np.clip([to_theta(p, max(prior[p], 0.01) if kind(p) == "lag" else prior[p]) for p in nl],
-                          lo, hi)
-            res = least_squares(fun_vp(nl, off), th0, bounds=(lo, hi), x_scale="jac", method="trf",
-                                xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=100 * (len(nl) + 1))
-            theta = res.x
-            settle(2.0 * float(res.cost))
-            # a bound is a finding: hold the parameter (a lag at zero: none seen) and fit the rest again
-            at = [(p, "upper" if theta[i] >= hi[i] - AT_BOUND else "lower") for i, p in enumerate(nl)
-                  if theta[i] >= hi[i] - AT_BOUND or theta[i] <= lo[i] + AT_BOUND]
-            if at:
-                e_at = fun_vp(nl, off)(theta)
-                for p, side in at:
-                    x = from_theta(p, theta[nl.index(p)])
-                    if kind(p) == "lag" and side == "lower":
-                        hold(p, "no lag seen: the fit ran to 0", 0.0)
-                    else:
-                        hold(p, f"ran to its {side} bound {x:.4g} {UNITS[p]}")
-                        pending.append((p, float(e_at @ e_at), len(free) + 1,
-                                        autocorrelation_time(e_at[blocks.weight > 0])))
+    for attempt in range(2):
+        while free:
+            nl = [p for p in free if kind(p) != "offset"]
+            off = [p for p in free if kind(p) == "offset"]
+            theta = np.zeros(0)
+            if nl:
+                lo = np.array([bounds(p)[0] for p in nl])
+                hi = np.array([bounds(p)[1] for p in nl])
+                # from the prior: not from where a weak direction drifted (a lag from 10 ms: at 0 the
+                # fit would start on its bound)
+                th0 = np.clip([to_theta(p, max(prior[p], 0.01) if kind(p) == "lag" else prior[p])
+                               for p in nl], lo, hi)
+                res = least_squares(fun_vp(nl, off), th0, bounds=(lo, hi), x_scale="jac", method="trf",
+                                    xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=100 * (len(nl) + 1))
+                theta = res.x
+                settle(2.0 * float(res.cost))
+                # a bound is a finding: hold the parameter (a lag at zero: none seen) and fit the rest again
+                at = [(p, "upper" if theta[i] >= hi[i] - AT_BOUND else "lower") for i, p in enumerate(nl)
+                      if theta[i] >= hi[i] - AT_BOUND or theta[i] <= lo[i] + AT_BOUND]
+                if at:
+                    e_at = fun_vp(nl, off)(theta)
+                    for p, side in at:
+                        x = from_theta(p, theta[nl.index(p)])
+                        if kind(p) == "lag" and side == "lower":
+                            hold(p, "no lag seen: the fit ran to 0", 0.0)
+                        else:
+                            hold(p, f"ran to its {side} bound {x:.4g} {UNITS[p]}")
+                            pending.append((p, float(e_at @ e_at), len(free) + 1,
+                                            autocorrelation_time(e_at[blocks.weight > 0])))
+                    continue
+            vals_nl = {p: from_theta(p, float(theta[i])) for i, p in enumerate(nl)}
+            ev = evaluate(blocks, {**fixed(), **vals_nl}, cfg, off)
+            if not nl:
+                settle(float(ev.e @ ev.e))
+            beyond = [p for p in off if abs(ev.offsets[p]) > OFFSET_LIMIT]
+            if beyond:
+                for p in beyond:
+                    hold(p, f"beyond ±{OFFSET_LIMIT:g} K ({ev.offsets[p]:+.3g} K): a channel swapped or "
+                            "not a thermocouple?; kept at its prior")
                 continue
-        vals_nl = {p: from_theta(p, float(theta[i])) for i, p in enumerate(nl)}
-        ev = evaluate(blocks, {**fixed(), **vals_nl}, cfg, off)
-        if not nl:
-            settle(float(ev.e @ ev.e))
-        beyond = [p for p in off if abs(ev.offsets[p]) > OFFSET_LIMIT]
-        if beyond:
-            for p in beyond:
-                hold(p, f"beyond ±{OFFSET_LIMIT:g} K ({ev.offsets[p]:+.3g} K): a channel swapped or "
-                        "not a thermocouple?; kept at its prior")
-            continue
-        vals = {**vals_nl, **ev.offsets}
-        names = [*nl, *off]
-        phi = phi_of(names, vals)
-        base = fixed()
-        J = jacobian(fun_full(names, base), phi)
-        S, Vt = _svd(J)
-        cov, tau, colour = covariance(blocks, {**base, **vals}, cfg, J, ev.e, (S, Vt), sigma_p)
-        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        for i, p in enumerate(names):
-            estimate[p] = vals[p]
-            if kind(p) == "offset":
-                sd_log[p] = float(sd[i]) * off_unit
-                low[p] = vals[p] - z * sd_log[p]
-                high[p] = vals[p] + z * sd_log[p]
-            else:
-                half = min(z * float(sd[i]), 700.0)  # beyond: a factor above 1e300, as good as none
-                sd_log[p] = float(sd[i])
-                low[p] = from_theta(p, phi[i] - half)
-                high[p] = from_theta(p, phi[i] + half)
-        sd_weak = math.sqrt(max(float(Vt[-1] @ cov @ Vt[-1]), 0.0))
-        if sd_weak <= SD_MAX:
-            free = names  # the order of the fit's vector
+            vals = {**vals_nl, **ev.offsets}
+            names = [*nl, *off]
+            phi = phi_of(names, vals)
+            base = fixed()
+            J = jacobian(fun_full(names, base), phi)
+            S, Vt = _svd(J)
+            cov, tau, colour = covariance(blocks, {**base, **vals}, cfg, J, ev.e, (S, Vt), sigma_p)
+            sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+            for i, p in enumerate(names):
+                estimate[p] = vals[p]
+                if kind(p) == "offset":
+                    sd_log[p] = float(sd[i]) * off_unit
+                    low[p] = vals[p] - z * sd_log[p]
+                    high[p] = vals[p] + z * sd_log[p]
+                else:
+                    half = min(z * float(sd[i]), 700.0)  # beyond: a factor above 1e300, as good as none
+                    sd_log[p] = float(sd[i])
+                    low[p] = from_theta(p, phi[i] - half)
+                    high[p] = from_theta(p, phi[i] + half)
+            sd_weak = math.sqrt(max(float(Vt[-1] @ cov @ Vt[-1]), 0.0))
+            if sd_weak <= SD_MAX:
+                free = names  # the order of the fit's vector
+                break
+            worst = names[int(np.argmax(np.abs(Vt[-1])))]
+            why = weak_text(names, Vt[-1], sd_weak)
+            hold(worst, f"not determined by this log: {why}")
+            cov = np.zeros((0, 0))
+        if not free:
+            ev = evaluate(blocks, fixed(), cfg)
+            J = np.zeros((ev.e.size, 0))
+
+        if attempt or not provisional or not free:
             break
-        worst = names[int(np.argmax(np.abs(Vt[-1])))]
-        why = weak_text(names, Vt[-1], sd_weak)
-        hold(worst, f"not determined by this log: {why}")
-        cov = np.zeros((0, 0))
-    if not free:
-        ev = evaluate(blocks, fixed(), cfg)
-        J = np.zeros((ev.e.size, 0))
+        # release what the fit's residual noise shows is determined after all
+        sigma_post = math.sqrt(float(ev.e @ ev.e) / max(n_res - len(free), 1))
+        cand = [*free, *provisional]
+        vals_all = {**fixed(), **{p: estimate[p] for p in cand}}
+        J_all = jacobian(fun_full(cand, fixed()), phi_of(cand, vals_all))
+        keep = {p for p, _ in weak_holds(J_all, cand, sigma_post)}
+        release = [p for p in provisional if p not in keep]
+        if not release:
+            break
+        for p in release:
+            held.pop(p)
+            undetermined.remove(p)
+            free.append(p)
+        provisional = [p for p in provisional if p in keep]
 
     # elasticities of the fitted parameters on the held ones: d theta_f = -pinv(J_f) J_h d theta_h
     dependence: dict[str, dict[str, float]] = {}
