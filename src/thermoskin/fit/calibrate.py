@@ -184,9 +184,16 @@ PAD_BEFORE = 0.5
 """Seconds left out before a flagged contact (the detector's latency)."""
 PAD_AFTER = 1.0
 """Seconds left out after a flagged contact (the sheet's and the pipe's recovery)."""
-SMOOTH_T_P = 0.0
-"""Width of the centred moving mean on ``T_p``, s (0: none; the noise of ``T_p`` enters the
-covariance instead: a mean over 0.1 s biases the fit more, at the kinks of a ramping tank)."""
+SMOOTH_T_P: float | None = None
+"""Width of the centred moving mean on ``T_p``, s; ``None``: the one of :data:`SMOOTH_WIDTHS`
+that passes the test of errors in the variables (module doc, *Inputs*); 0: none."""
+SMOOTH_WIDTHS: tuple[float, ...] = (0.0, 0.05, 0.2, 0.5, 1.0)
+"""The widths of the mean on ``T_p`` the fit chooses from, s (the narrowest that passes)."""
+EIV_DRAWS = 4
+"""Draws of twice the tank's noise for the test of errors in the variables."""
+EIV_FLOOR = {"skin": 0.01, "lag": 0.02, "offset": 0.005}
+"""A shift below this (``ln p``; ``ln(tau + t_s)``; K) passes the test of errors in the variables
+whatever the parameter's sd (a long log's sd shrinks below any bias that matters)."""
 SMOOTH_T_A = 1.0
 """Width of the centred moving mean on ``T_a``, s."""
 MIN_USABLE_S = 5.0
@@ -254,6 +261,9 @@ class Blocks:
     start: NDArray[np.bool_]
     w0: Array               # measured T_w each stretch starts from
     Ta0: Array              # (smoothed) T_a reading there
+    smooth_T_p: float = 0.0  # width of the mean the tank's readings were smoothed by, s
+    tank: dict[float, Array] = field(default_factory=dict)  # Tp under each width to choose from
+    usable: NDArray[np.bool_] | None = None  # the log's rows the blocks cover
     point: NDArray[np.bool_] | None = None  # compared by the first reading, not the mean (None: no)
     seen: NDArray[np.bool_] | None = None  # the block starts with a fresh T_w reading (None: all do)
 
@@ -417,7 +427,14 @@ def make_blocks(log: Mapping[str, ArrayLike], t_s: float, usable: NDArray[np.boo
                   v_modes=v_modes, mode=np.searchsorted(v_modes, v[first]).astype(np.int64), nlen=nlen,
                   first=first, stretch=np.asarray(sids, dtype=np.int64), Tp=means("T_p"), Ta=means("T_a"),
                   Tw=Tw, start=np.asarray(starts, dtype=np.bool_), w0=np.asarray(w0), Ta0=np.asarray(Ta0),
-                  point=point, seen=None if fresh is None else fresh[first])
+                  smooth_T_p=smooth[0], point=point, seen=None if fresh is None else fresh[first])
+
+
+def _block_means(x: Array, usable: NDArray[np.bool_], blocks: Blocks) -> Array:
+    """Means of ``x`` over each block's rows."""
+    csum = np.concatenate([[0.0], np.cumsum(np.where(usable, x, 0.0))])
+    return (csum[blocks.first + blocks.nlen] - csum[blocks.first]) / blocks.nlen if blocks.first.size \
+        else np.zeros(0)
 
 
 # ---------------------------------------------------------------------------- the model
@@ -766,6 +783,31 @@ def jacobian(fun: Callable[[Array], Array], theta: Array, h: float = 1e-5) -> Ar
     return np.column_stack(cols) if cols else np.zeros((fun(theta).size, 0))
 
 
+def quantum_of(x: ArrayLike, rtol: float = 0.02, share: float = 0.99) -> float:
+    """The converter's step: the greatest ``q`` of which the steps between the distinct readings
+    are whole multiples (within ``rtol`` of ``q``, for ``share`` of them); 0 where the readings
+    show none (as many distinct values as readings, or steps of no common measure).
+
+    The smallest step between distinct readings is the candidate (a converter's readings
+    fill every level their noise reaches), refined as the sum of the steps over the sum of
+    their multiples."""
+    xx = np.asarray(x, dtype=float)
+    xx = xx[np.isfinite(xx)]
+    u = np.unique(xx)
+    if u.size < 3 or u.size > 0.5 * xx.size:
+        return 0.0
+    d = np.diff(u)
+    scale = max(1.0, float(np.max(np.abs(u))))
+    d = d[d > 1e-9 * scale]
+    if d.size == 0:
+        return 0.0
+    q0 = float(np.min(d))
+    n = np.round(d / q0)
+    if np.mean(np.abs(d / q0 - n) <= rtol) < share:
+        return 0.0
+    return float(np.sum(d) / np.sum(n))
+
+
 def input_noise(x: Array, blocks: Blocks, fresh: NDArray[np.bool_] | None = None) -> float:
     """Standard deviation of an input's sensor noise from its first differences in the stretches.
 
@@ -793,8 +835,9 @@ def input_noise(x: Array, blocks: Blocks, fresh: NDArray[np.bool_] | None = None
 
 
 def covariance(blocks: Blocks, values: Mapping[str, float], cfg: Config, J: Array, e: Array,
-               svd: tuple[Array, Array], sigma_p: float, draws: int = N_DRAWS,
-               seed: int = 0) -> tuple[Array, float, float]:
+               svd: tuple[Array, Array], sigma_p: float, draws: int = N_DRAWS, seed: int = 0,
+               tank_noise: Callable[[np.random.Generator], Array] | None = None
+               ) -> tuple[Array, float, float]:
     """Covariance of ``ln p`` at the optimum, the residuals' ``tau`` and the colour factor.
 
     The residual is ``e = w - G n_p + (model error)``: white sensor noise on ``T_w`` (variance
@@ -807,6 +850,8 @@ def covariance(blocks: Blocks, values: Mapping[str, float], cfg: Config, J: Arra
     in its inputs), ``s_w^2 = s^2 - mean (G n_p)^2``. ``f = max(1, tau / tau_model)`` inflates
     for colour the noise model does not explain (model error): ``tau`` of the residuals over
     ``tau`` of a residual drawn from the noise model (:func:`autocorrelation_time`).
+    ``tank_noise(rng)``: one draw of ``n_p`` on the blocks (default: white, ``sigma_p`` per
+    sample; the fit gives it the readings' own timing and smoothing).
     """
     S, Vt = svd
     H_inv = (Vt.T / S**2) @ Vt
@@ -822,7 +867,8 @@ def covariance(blocks: Blocks, values: Mapping[str, float], cfg: Config, J: Arra
     if sigma_p > 0.0:
         sd_block = sigma_p / np.sqrt(blocks.nlen.astype(float))
         for _ in range(draws):
-            b = dataclasses.replace(blocks, Tp=blocks.Tp + sd_block * rng.standard_normal(n))
+            n_p = sd_block * rng.standard_normal(n) if tank_noise is None else tank_noise(rng)
+            b = dataclasses.replace(blocks, Tp=blocks.Tp + n_p)
             e_p = residuals(b, values, cfg) - e0
             g = J.T @ e_p
             C_p += np.outer(g, g) / draws
@@ -971,8 +1017,10 @@ class Calibration:
         """``fitted``, ``fitted given R_ag, ...`` (its dependences) or ``held (why, short)``."""
         if name in self.held:
             why = self.held[name]
-            if "bound" in why or "beyond" in why:
-                return "no lag seen: 0" if why.startswith("no lag") else "at a bound: " + why.split(":")[0]
+            if why.startswith("no lag"):
+                return "no lag seen: 0"
+            if ("bound" in why or "beyond" in why) and not why.startswith("not determined"):
+                return "at a bound: " + why.split(":")[0]
             return ("held: pump never " + ("stops" if "stops" in why else "runs") if "pump" in why
                     else "held: not determined")
         dep = self.dependence.get(name, {})
@@ -1015,7 +1063,7 @@ def _check_log(log: Mapping[str, ArrayLike]) -> tuple[dict[str, Array], float]:
 
 def prepare(log: Mapping[str, ArrayLike], *, t_fit: float = T_FIT, contact: ArrayLike | None = None,
             pad: tuple[float, float] = (PAD_BEFORE, PAD_AFTER),
-            smooth: tuple[float, float] = (SMOOTH_T_P, SMOOTH_T_A)) -> tuple[dict[str, Array], Blocks]:
+            smooth: tuple[float | None, float] = (SMOOTH_T_P, SMOOTH_T_A)) -> tuple[dict[str, Array], Blocks]:
     """The log's columns and its blocks (one-line :class:`CalibrationError` for a bad log)."""
     if not (math.isfinite(t_fit) and t_fit >= 0):
         raise CalibrationError(f"t_fit = {t_fit} s must be >= 0")
@@ -1029,7 +1077,13 @@ def prepare(log: Mapping[str, ArrayLike], *, t_fit: float = T_FIT, contact: Arra
         seen = fresh_rows(log, bit)
         if seen is not None:
             cols[ch] = between_readings(cols[ch], seen)
-    blocks = make_blocks(cols, t_s, usable_rows(cols, t_s, contact, pad), t_fit, smooth, fresh)
+    usable = usable_rows(cols, t_s, contact, pad)
+    widths = SMOOTH_WIDTHS if smooth[0] is None else (smooth[0],)
+    blocks = make_blocks(cols, t_s, usable, t_fit, (widths[0], smooth[1]), fresh)
+    runs = _runs(usable)
+    tp = {w: _block_means(centred_mean(cols["T_p"], runs, round(0.5 * w / t_s)), usable, blocks)
+          for w in widths}
+    blocks = dataclasses.replace(blocks, tank=tp, usable=usable)
     usable_s = blocks.n_samples * t_s
     if usable_s < MIN_USABLE_S:
         raise CalibrationError(f"too short: {usable_s:.2f} s of usable samples (finite, away from "
@@ -1043,7 +1097,7 @@ def prepare(log: Mapping[str, ArrayLike], *, t_fit: float = T_FIT, contact: Arra
 def calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str] = DEFAULT_PARAMS, *,
               t_fit: float = T_FIT, contact: ArrayLike | None = None,
               pad: tuple[float, float] = (PAD_BEFORE, PAD_AFTER),
-              smooth: tuple[float, float] = (SMOOTH_T_P, SMOOTH_T_A), reference: str = REFERENCE,
+              smooth: tuple[float | None, float] = (SMOOTH_T_P, SMOOTH_T_A), reference: str = REFERENCE,
               progress: Callable[[int, float], None] | None = None) -> Calibration:
     """Fit ``params`` (of :data:`PARAMS`) to the log (module doc).
 
@@ -1085,7 +1139,7 @@ def _requested(params: Sequence[str], reference: str) -> tuple[str, ...]:
 
 
 def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str], *, t_fit: float,
-               contact: ArrayLike | None, pad: tuple[float, float], smooth: tuple[float, float],
+               contact: ArrayLike | None, pad: tuple[float, float], smooth: tuple[float | None, float],
                reference: str, progress: Callable[[int, float], None] | None) -> Calibration:
     t_start = time.perf_counter()
     requested = _requested(params, reference)
@@ -1201,6 +1255,52 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
     # there; the noise from the readings' differences or, if less, the residual there): held
     # before the fit, which would otherwise wander along them to a bound. Provisional: after
     # the fit, with its residual's noise, those it would not hold are released and fitted.
+    def with_width(w: float) -> Blocks:
+        return dataclasses.replace(blocks, Tp=blocks.tank[w], smooth_T_p=w)
+
+    fresh_p = fresh_rows(log, 2)
+    conv_p = np.flatnonzero(fresh_p) if fresh_p is not None else None
+    rows = np.arange(cols["t"].size, dtype=float)
+
+    def tank_noise(rng: np.random.Generator) -> Array:
+        """One draw of the tank sensor's noise as the blocks take it: white per reading, lines
+        between the readings, smoothed as the fit's input is."""
+        assert blocks.usable is not None
+        if conv_p is None:
+            x = sigma_p * rng.standard_normal(rows.size)
+        else:
+            x = np.interp(rows, conv_p.astype(float), sigma_p * rng.standard_normal(conv_p.size))
+        x = centred_mean(x, _runs(blocks.usable), round(0.5 * blocks.smooth_T_p / t_s))
+        return _block_means(x, blocks.usable, blocks)
+
+    eiv: dict[float, dict[str, float]] = {}
+
+    def eiv_shift(nl: Sequence[str], off: Sequence[str]) -> tuple[dict[str, float], dict[str, float]]:
+        """How far twice the tank's noise would move each fitted parameter (``theta``; offsets in
+        K), and the standard error of that: over :data:`EIV_DRAWS` draws of more noise, the
+        Gauss-Newton step from the optimum on the noisier input (a Jacobian of its own)."""
+        rng = np.random.default_rng(1)
+        theta = np.array([to_theta(p, estimate[p]) for p in nl])
+        steps = []
+        for _ in range(EIV_DRAWS):
+            b = dataclasses.replace(blocks, Tp=blocks.Tp + tank_noise(rng))
+
+            def fun(th: Array, b: Blocks = b) -> Array:
+                return residuals(b, {**fixed(), **values_of(nl, th)}, cfg, off)
+
+            e = fun(theta)
+            th1 = theta
+            if nl:
+                J1 = np.column_stack([(fun(theta + h) - e) / 1e-5 for h in np.eye(theta.size) * 1e-5])
+                th1 = theta + np.linalg.lstsq(J1, -e, rcond=None)[0]
+            o1 = evaluate(b, {**fixed(), **values_of(nl, th1)}, cfg, off).offsets
+            steps.append([*(th1 - theta), *(o1[p] - estimate[p] for p in off)])
+        st = np.asarray(steps)
+        names = [*nl, *off]
+        mean = dict(zip(names, st.mean(axis=0).tolist(), strict=True))
+        se = dict(zip(names, (st.std(axis=0, ddof=1) / math.sqrt(len(st))).tolist(), strict=True))
+        return mean, se
+
     provisional: list[str] = []
     sigma_pre = 0.0
     if free:
@@ -1241,12 +1341,15 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
         pending.clear()
 
     z = Z95
-    sigma_p = input_noise(cols["T_p"], blocks, fresh_rows(log, 2))
+    # the tank's noise; a converter's step coarser than it rounds like noise of q / sqrt(12)
+    fr_p = fresh_rows(log, 2)
+    sigma_p = max(input_noise(cols["T_p"], blocks, fr_p),
+                  quantum_of(cols["T_p"][fr_p] if fr_p is not None else cols["T_p"]) / math.sqrt(12.0))
     cov = np.zeros((0, 0))
     tau = colour = 1.0
     ev = evaluate(blocks, {}, cfg)
     J = np.zeros((blocks.mode.size, 0))
-    for attempt in range(2):
+    for attempt in range(3 + len(blocks.tank)):
         while free:
             nl = [p for p in free if kind(p) != "offset"]
             off = [p for p in free if kind(p) == "offset"]
@@ -1292,7 +1395,8 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
             base = fixed()
             J = jacobian(fun_full(names, base), phi)
             S, Vt = _svd(J)
-            cov, tau, colour = covariance(blocks, {**base, **vals}, cfg, J, ev.e, (S, Vt), sigma_p)
+            cov, tau, colour = covariance(blocks, {**base, **vals}, cfg, J, ev.e, (S, Vt), sigma_p,
+                                          tank_noise=tank_noise if blocks.usable is not None else None)
             sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
             for i, p in enumerate(names):
                 estimate[p] = vals[p]
@@ -1317,22 +1421,38 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
             ev = evaluate(blocks, fixed(), cfg)
             J = np.zeros((ev.e.size, 0))
 
-        if attempt or not provisional or not free:
+        if pending:  # the fit ended with what ran to a bound held: settle it against the end
+            settle(float(ev.e @ ev.e))
+        if not free:
             break
-        # release what the fit's residual noise shows is determined after all
-        sigma_post = math.sqrt(float(ev.e @ ev.e) / max(n_res - len(free), 1))
-        cand = [*free, *provisional]
-        vals_all = {**fixed(), **{p: estimate[p] for p in cand}}
-        J_all = jacobian(fun_full(cand, fixed()), phi_of(cand, vals_all))
-        keep = {p for p, _ in weak_holds(J_all, cand, sigma_post)}
-        release = [p for p in provisional if p not in keep]
-        if not release:
+        changed = False
+        # the tank's noise, fed into the network, biases the fit (errors in the variables): where
+        # twice as much would move a parameter by more than half its sd (and EIV_FLOOR), the
+        # tank's readings are smoothed over the next width of SMOOTH_WIDTHS and the fit made again
+        wider = [w for w in sorted(blocks.tank) if w > blocks.smooth_T_p]
+        if wider and sigma_p > 0.0:
+            shift, se = eiv_shift([p for p in free if kind(p) != "offset"],
+                                  [p for p in free if kind(p) == "offset"])
+            eiv[blocks.smooth_T_p] = shift
+            if any(abs(shift[p]) - 2.0 * se[p] > max(0.5 * sd_log[p], EIV_FLOOR[kind(p)]) for p in shift):
+                blocks = with_width(wider[0])
+                changed = True
+        if attempt == 0 and provisional:
+            # release what the fit's residual noise shows is determined after all
+            sigma_post = math.sqrt(float(ev.e @ ev.e) / max(n_res - len(free), 1))
+            cand = [*free, *provisional]
+            vals_all = {**fixed(), **{p: estimate[p] for p in cand}}
+            J_all = jacobian(fun_full(cand, fixed()), phi_of(cand, vals_all))
+            keep = {p for p, _ in weak_holds(J_all, cand, sigma_post)}
+            for p in provisional:
+                if p not in keep:
+                    held.pop(p)
+                    undetermined.remove(p)
+                    free.append(p)
+                    changed = True
+            provisional = [p for p in provisional if p in keep]
+        if not changed:
             break
-        for p in release:
-            held.pop(p)
-            undetermined.remove(p)
-            free.append(p)
-        provisional = [p for p in provisional if p in keep]
 
     # elasticities of the fitted parameters on the held ones: d theta_f = -pinv(J_f) J_h d theta_h
     dependence: dict[str, dict[str, float]] = {}
@@ -1388,7 +1508,8 @@ def summary_lines(cal: Calibration) -> list[str]:
         f"{cal.nfev} model runs, {cal.wall_s:.1f} s",
         (f"residual rms {cal.rms * 1e3:.2f} mK per block, {cal.sigma * 1e3:.1f} mK per sample; "
          if cal.blocks.m > 1 else f"residual rms {cal.sigma * 1e3:.1f} mK; ")
-        + f"T_p noise {cal.sigma_p * 1e3:.1f} mK; residual autocorrelation time {cal.tau:.2f} "
+        + f"T_p noise {cal.sigma_p * 1e3:.1f} mK (its readings smoothed over {cal.blocks.smooth_T_p:.3g} s); "
+        f"residual autocorrelation time {cal.tau:.2f} "
         + ("blocks" if cal.blocks.m > 1 else "samples"),
         "95 % intervals exp(ln p ± 1.96 sd) (offsets ± 1.96 sd): Gauss-Newton covariance at the "
         "optimum with the T_w noise white and the T_p noise carried through the network; colour "
