@@ -213,6 +213,14 @@ bias (the tank's noise, the pump deciding on the readings) throws off by several
 OFFSET_SD_MAX = 0.05
 """An offset known to a standard deviation above this (K) is not determined (its share of a
 weak direction is measured in units of ``OFFSET_SD_MAX / SD_MAX`` K)."""
+SKIN_DOUBT = 0.3
+"""How far a lab's prior of a skin parameter may be off (before calibrating: 15-30 %)."""
+OFFSET_DEP_TOL = 0.02
+"""K: an offset that held parameters' priors ``SKIN_DOUBT`` off would move by more is not
+determined by the log (it rests on those priors): not written."""
+HOLD_SHARE = 0.3
+"""Of a weak direction, a parameter with at least this share of its largest component may be
+the one held (:func:`to_hold`)."""
 OFFSET_LIMIT = 5.0
 """An offset found beyond ``± OFFSET_LIMIT`` K (the config's range) is a finding, not an estimate."""
 NULL_RTOL = 1e-6
@@ -351,7 +359,7 @@ def centred_mean(x: ArrayLike, runs: Sequence[tuple[int, int]], half: int) -> Ar
 
 
 def make_blocks(log: Mapping[str, ArrayLike], t_s: float, usable: NDArray[np.bool_],
-                t_fit: float = T_FIT, smooth: tuple[float, float] = (SMOOTH_T_P, SMOOTH_T_A),
+                t_fit: float = T_FIT, smooth: tuple[float | None, float] = (SMOOTH_T_P, SMOOTH_T_A),
                 fresh: NDArray[np.bool_] | None = None, isolate_switch: bool = True) -> Blocks:
     """Cut the usable rows into blocks of at most ``t_fit`` s that never straddle a pump switch.
 
@@ -360,11 +368,12 @@ def make_blocks(log: Mapping[str, ArrayLike], t_s: float, usable: NDArray[np.boo
     pump switched on, module doc), and, where ``fresh`` is given (rows with a new ``T_w``
     reading, :func:`fresh_rows`), each new reading; the rows that hold it (an old reading says
     nothing new) are blocks of at most ``t_fit`` s that weigh nothing and only carry the model on.
-    ``isolate_switch=False`` leaves the switching reading in its block's mean (biased; tests). The inputs
-    ``T_p`` and ``T_a`` are first smoothed by centred moving means of ``smooth`` s (tank and air
-    are slow; their sensor noise, fed into the model, would bias the fit), then held at their
-    block means.
+    ``isolate_switch=False`` leaves the switching reading in its block's mean (biased; tests).
+    The inputs ``T_p`` and ``T_a`` are first smoothed by centred moving means of ``smooth`` s
+    (``None``: 0; tank and air are slow; their sensor noise, fed into the model, would bias
+    the fit), then held at their block means.
     """
+    smooth = (smooth[0] or 0.0, smooth[1] or 0.0)
     v = np.asarray(log["v"], dtype=float)
     m = max(1, min(round(t_fit / t_s), len(v)))  # a block is at most the whole log
     v_modes = np.unique(v[usable])
@@ -891,6 +900,17 @@ def _svd(J: Array) -> tuple[Array, Array]:
     return np.maximum(S, max(S[0], 1e-300) * 1e-12), V.T
 
 
+def to_hold(names: Sequence[str], v: Array, share: float = HOLD_SHARE) -> str:
+    """Which parameter of a weak direction ``v`` to hold: of those with at least ``share`` of its
+    largest component, a skin parameter before a lag before an offset (an offset's prior, 0, is
+    typically tenths of a kelvin off, a skin's tens of percent: held wrong, an offset drove the
+    rest to their bounds on a noisy log), the largest component first."""
+    a = np.abs(np.asarray(v, dtype=float))
+    rank = {"skin": 0, "lag": 1, "offset": 2}
+    cand = [i for i in range(len(names)) if a[i] >= share * a.max()]
+    return names[min(cand, key=lambda i: (rank[kind(names[i])], -a[i]))]
+
+
 def weak_text(names: Sequence[str], v: Array, sd: float) -> str:
     """How well a weak direction ``v`` (of the fit's vector: ``theta``, offsets in units of
     ``OFFSET_SD_MAX / SD_MAX`` K) is known: ``0.99 ln C_g - 0.1 ln R_ag is known only to ×/÷ 3.2``."""
@@ -1188,9 +1208,12 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
             out[p] = x * off_unit if kind(p) == "offset" else from_theta(p, x)
         return out
 
+    kept: dict[str, float] = {}
+
     def fixed() -> dict[str, float]:
-        """Held values the config does not have (a lag found to be zero)."""
-        return {q: estimate[q] for q in held if kind(q) == "lag"}
+        """Held values the config does not have: a lag found to be zero, an undetermined offset
+        kept in the model at its least-squares value (``kept``)."""
+        return {**{q: estimate[q] for q in held if kind(q) == "lag"}, **kept}
 
     def fun_vp(names: Sequence[str], solve: Sequence[str]) -> Callable[[Array], Array]:
         base = fixed()
@@ -1234,17 +1257,19 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
     n_res = int(np.count_nonzero(blocks.weight))
 
     def weak_holds(J: Array, names: Sequence[str], sigma: float) -> list[tuple[str, str]]:
-        """The parameters (not the lags: how well a lag is seen depends on its size, and its
-        prior is often 0) to hold, one by one, while the weakest direction of ``J`` over the
-        rest is known to worse than ``SD_MAX`` for noise ``sigma``; with why."""
-        rest = [p for p in names if kind(p) != "lag"]
+        """The skin's parameters to hold, one by one, while the weakest direction of ``J`` over
+        them is known to worse than ``SD_MAX`` for noise ``sigma``; with why. (Not the lags: how
+        well a lag is seen depends on its size, and its prior is often 0; not the offsets: their
+        prior, 0, is typically tenths of a kelvin off, and held there before the fit they drove
+        the rest to their bounds on a noisy log. The fit's own check weighs them.)"""
+        rest = [p for p in names if kind(p) == "skin"]
         out: list[tuple[str, str]] = []
         while rest and sigma > 0.0:
             S, Vt = _svd(J[:, [names.index(p) for p in rest]])
             sd_weak = sigma / float(S[-1])
             if sd_weak <= SD_MAX:
                 break
-            worst = rest[int(np.argmax(np.abs(Vt[-1])))]
+            worst = to_hold(rest, Vt[-1])
             out.append((worst, f"not determined by this log: {weak_text(rest, Vt[-1], sd_weak)} (for "
                                f"{sigma * 1e3:.3g} mK of noise)"))
             rest.remove(worst)
@@ -1368,6 +1393,13 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
                 # a bound is a finding: hold the parameter (a lag at zero: none seen) and fit the rest again
                 at = [(p, "upper" if theta[i] >= hi[i] - AT_BOUND else "lower") for i, p in enumerate(nl)
                       if theta[i] >= hi[i] - AT_BOUND or theta[i] <= lo[i] + AT_BOUND]
+                wider = [w for w in sorted(blocks.tank) if w > blocks.smooth_T_p]
+                if any(not (kind(p) == "lag" and side == "lower") for p, side in at) and wider \
+                        and sigma_p > 0.0:
+                    # the tank's noise fed into the network drives parameters to bounds (errors in
+                    # the variables): smooth its readings more before calling it a finding
+                    blocks = with_width(wider[0])
+                    continue
                 if at:
                     e_at = fun_vp(nl, off)(theta)
                     for p, side in at:
@@ -1413,8 +1445,11 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
             if sd_weak <= SD_MAX:
                 free = names  # the order of the fit's vector
                 break
-            worst = names[int(np.argmax(np.abs(Vt[-1])))]
+            worst = to_hold(names, Vt[-1])
             why = weak_text(names, Vt[-1], sd_weak)
+            if kind(worst) == "offset":  # the model keeps its value (module doc), the config its own
+                kept[worst] = estimate[worst]
+                why += f"; the fit keeps its least-squares value {kept[worst]:+.3g} K, the config its own"
             hold(worst, f"not determined by this log: {why}")
             cov = np.zeros((0, 0))
         if not free:
@@ -1467,13 +1502,33 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
 
         J_h = jacobian(fun_h, np.array([to_theta(q, vals[q]) for q in und]))
         D = -np.linalg.lstsq(J, J_h, rcond=None)[0]
+        doubtful: dict[str, str] = {}
         for i, p in enumerate(free):
             if kind(p) == "offset":
+                # an offset resting on a held parameter's prior: a lab's prior being tens of
+                # percent off (SKIN_DOUBT) would move it by more than OFFSET_DEP_TOL: not written
+                dep_k = {q: float(D[i, k]) * off_unit for k, q in enumerate(und)}
+                moved = sum(abs(d) for d in dep_k.values()) * math.log(1.0 + SKIN_DOUBT)
+                if moved > OFFSET_DEP_TOL:
+                    txt = ", ".join(f"{q} ({d:+.2g} K per unit of ln {q})" for q, d in dep_k.items()
+                                    if abs(d) * math.log(1.0 + SKIN_DOUBT) > 0.1 * OFFSET_DEP_TOL)
+                    doubtful[p] = (f"not determined by this log: it trades with the held {txt}: their "
+                                   f"priors {SKIN_DOUBT:.0%} off would move it by {moved:.2g} K; the fit "
+                                   f"keeps {estimate[p]:+.3g} K, the config its own")
                 continue
             dep = {q: float(D[i, k]) for k, q in enumerate(und)
                    if abs(D[i, k]) >= DEP_MIN and abs(D[i, k]) * math.log(DEP_FACTOR) > sd_log[p]}
             if dep:
                 dependence[p] = dep
+        if doubtful:
+            keep_idx = [i for i, p in enumerate(free) if p not in doubtful]
+            cov = cov[np.ix_(keep_idx, keep_idx)]
+            for p, why in doubtful.items():
+                kept[p] = estimate[p]
+                held[p] = why
+                undetermined.append(p)
+                estimate[p] = prior[p]
+            free = [p for p in free if p not in doubtful]
 
     w = blocks.weight
     seen = w > 0
