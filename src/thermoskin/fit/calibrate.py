@@ -218,9 +218,6 @@ SKIN_DOUBT = 0.3
 OFFSET_DEP_TOL = 0.02
 """K: an offset that held parameters' priors ``SKIN_DOUBT`` off would move by more is not
 determined by the log (it rests on those priors): not written."""
-HOLD_SHARE = 0.3
-"""Of a weak direction, a parameter with at least this share of its largest component may be
-the one held (:func:`to_hold`)."""
 OFFSET_LIMIT = 5.0
 """An offset found beyond ``± OFFSET_LIMIT`` K (the config's range) is a finding, not an estimate."""
 NULL_RTOL = 1e-6
@@ -900,15 +897,27 @@ def _svd(J: Array) -> tuple[Array, Array]:
     return np.maximum(S, max(S[0], 1e-300) * 1e-12), V.T
 
 
-def to_hold(names: Sequence[str], v: Array, share: float = HOLD_SHARE) -> str:
-    """Which parameter of a weak direction ``v`` to hold: of those with at least ``share`` of its
-    largest component, a skin parameter before a lag before an offset (an offset's prior, 0, is
-    typically tenths of a kelvin off, a skin's tens of percent: held wrong, an offset drove the
-    rest to their bounds on a noisy log), the largest component first."""
-    a = np.abs(np.asarray(v, dtype=float))
+def to_hold(names: Sequence[str], C: Array) -> str:
+    """Which parameter to hold when the worst-known direction of the covariance ``C`` (the fit's
+    vector: ``theta``, offsets in units of ``OFFSET_SD_MAX / SD_MAX`` K) is known to worse than
+    ``SD_MAX``: of those whose holding leaves the rest known to ``SD_MAX`` (the conditional
+    covariance given it), a skin parameter before a lag before an offset, then the one leaving
+    the rest best known; if none does, the one leaving the rest best known. An offset's prior,
+    0, is typically tenths of a kelvin off, a skin's tens of percent: held wrong, an offset
+    drove the rest to their bounds on a noisy log, and held at its fitted value it let the skin
+    it traded with look determined."""
     rank = {"skin": 0, "lag": 1, "offset": 2}
-    cand = [i for i in range(len(names)) if a[i] >= share * a.max()]
-    return names[min(cand, key=lambda i: (rank[kind(names[i])], -a[i]))]
+    worst: list[tuple[float, str]] = []
+    for i, p in enumerate(names):
+        keep = [k for k in range(len(names)) if k != i]
+        if not keep:
+            return p
+        Cc = C[np.ix_(keep, keep)] - np.outer(C[keep, i], C[i, keep]) / max(C[i, i], 1e-300)
+        worst.append((math.sqrt(max(float(np.linalg.eigvalsh(Cc)[-1]), 0.0)), p))
+    fixes = [(sd, p) for sd, p in worst if sd <= SD_MAX]
+    if fixes:
+        return min(fixes, key=lambda t: (rank[kind(t[1])], t[0]))[1]
+    return min(worst, key=lambda t: (t[0], rank[kind(t[1])]))[1]
 
 
 def weak_text(names: Sequence[str], v: Array, sd: float) -> str:
@@ -1269,7 +1278,7 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
             sd_weak = sigma / float(S[-1])
             if sd_weak <= SD_MAX:
                 break
-            worst = to_hold(rest, Vt[-1])
+            worst = to_hold(rest, sigma**2 * ((Vt.T / S**2) @ Vt))
             out.append((worst, f"not determined by this log: {weak_text(rest, Vt[-1], sd_weak)} (for "
                                f"{sigma * 1e3:.3g} mK of noise)"))
             rest.remove(worst)
@@ -1441,12 +1450,13 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
                     sd_log[p] = float(sd[i])
                     low[p] = from_theta(p, phi[i] - half)
                     high[p] = from_theta(p, phi[i] + half)
-            sd_weak = math.sqrt(max(float(Vt[-1] @ cov @ Vt[-1]), 0.0))
+            lam, U = np.linalg.eigh(cov)  # the worst-known direction: the largest variance
+            sd_weak = math.sqrt(max(float(lam[-1]), 0.0))
             if sd_weak <= SD_MAX:
                 free = names  # the order of the fit's vector
                 break
-            worst = to_hold(names, Vt[-1])
-            why = weak_text(names, Vt[-1], sd_weak)
+            worst = to_hold(names, cov)
+            why = weak_text(names, U[:, -1], sd_weak)
             if kind(worst) == "offset":  # the model keeps its value (module doc), the config its own
                 kept[worst] = estimate[worst]
                 why += f"; the fit keeps its least-squares value {kept[worst]:+.3g} K, the config its own"
