@@ -110,7 +110,7 @@ class Channel:
 
 @dataclass(frozen=True)
 class Fit:
-    """A residual of the ``T_w`` prediction: rms (K, per reading), autocorrelation time."""
+    """A residual of the ``T_w`` prediction: rms per reading (K), autocorrelation time (blocks)."""
 
     what: str
     rms: float
@@ -260,8 +260,10 @@ def check(log: Mapping[str, ArrayLike], cfg: Config, *, contact: ArrayLike | Non
     seen = w > 0
 
     def fit_of(what: str, r: Array) -> Fit:
-        """``r``: measured minus predicted (block means), K."""
-        return Fit(what, float(np.sqrt(np.mean(r[seen] ** 2))), cal.autocorrelation_time((r * w)[seen]))
+        """``r``: measured minus predicted (block means), K; the rms per reading (a block's mean
+        weighed by its readings: white noise of ``sigma`` gives ``sigma``)."""
+        e = (r * w)[seen]
+        return Fit(what, float(np.sqrt(np.mean(e**2))), cal.autocorrelation_time(e))
 
     fits = [fit_of("as configured", as_is.e / np.where(seen, w, 1.0)),
             fit_of("configured skin, sensors as found", sens.residuals),
