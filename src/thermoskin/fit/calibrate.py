@@ -234,6 +234,8 @@ CHI2_95 = 3.841458820694124
 """95 % point of the chi-square distribution with one degree of freedom."""
 N_DRAWS = 100
 """Monte Carlo draws of the tank sensor's noise for the covariance."""
+N_DRAWS_CHECK = 20
+"""... for the covariance that only decides whether a direction is determined."""
 TINY = 1e-30
 """The start's response below this is zero (module doc, *Speed*)."""
 
@@ -641,6 +643,24 @@ def _final(E0, H, RP, RA, w, beta, d, stretch, e):  # pragma: no cover - compile
         if ba != 0.0:
             v -= ba * RA[j]
         e[j] = v
+
+
+@njit(cache=True)
+def _smoothed_means(x, h, first, nlen, out):  # pragma: no cover - compiled
+    """Block means (``first``, ``nlen``) of ``x`` smoothed by a centred moving mean over ``2 h + 1``
+    rows (fewer at the ends of ``x``)."""
+    n = x.shape[0]
+    cs = np.empty(n + 1)
+    cs[0] = 0.0
+    for i in range(n):
+        cs[i + 1] = cs[i] + x[i]
+    for j in range(first.shape[0]):
+        acc = 0.0
+        for i in range(first[j], first[j] + nlen[j]):
+            lo = max(i - h, 0)
+            hi = min(i + h + 1, n)
+            acc += (cs[hi] - cs[lo]) / (hi - lo)
+        out[j] = acc / nlen[j]
 
 
 @dataclass(frozen=True)
@@ -1298,14 +1318,18 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
 
     def tank_noise(rng: np.random.Generator) -> Array:
         """One draw of the tank sensor's noise as the blocks take it: white per reading, lines
-        between the readings, smoothed as the fit's input is."""
+        between the readings, smoothed as the fit's input is (one pass over the whole log: a
+        draw of noise need not stop at a gap)."""
         assert blocks.usable is not None
+        if conv_p is None and blocks.smooth_T_p == 0.0:  # white per row: a block's mean is white too
+            return sigma_p / np.sqrt(blocks.nlen.astype(float)) * rng.standard_normal(blocks.nlen.size)
         if conv_p is None:
             x = sigma_p * rng.standard_normal(rows.size)
         else:
             x = np.interp(rows, conv_p.astype(float), sigma_p * rng.standard_normal(conv_p.size))
-        x = centred_mean(x, _runs(blocks.usable), round(0.5 * blocks.smooth_T_p / t_s))
-        return _block_means(x, blocks.usable, blocks)
+        out = np.empty(blocks.nlen.size)
+        _smoothed_means(x, round(0.5 * blocks.smooth_T_p / t_s), blocks.first, blocks.nlen, out)
+        return out
 
     eiv: dict[float, dict[str, float]] = {}
 
@@ -1436,8 +1460,15 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
             base = fixed()
             J = jacobian(fun_full(names, base), phi)
             S, Vt = _svd(J)
+            tn = tank_noise if blocks.usable is not None else None
+            # the weak direction's test from a few draws of the tank's noise; the intervals from all
             cov, tau, colour = covariance(blocks, {**base, **vals}, cfg, J, ev.e, (S, Vt), sigma_p,
-                                          tank_noise=tank_noise if blocks.usable is not None else None)
+                                          draws=N_DRAWS_CHECK, tank_noise=tn)
+            lam, U = np.linalg.eigh(cov)  # the worst-known direction: the largest variance
+            sd_weak = math.sqrt(max(float(lam[-1]), 0.0))
+            if sd_weak <= SD_MAX:
+                cov, tau, colour = covariance(blocks, {**base, **vals}, cfg, J, ev.e, (S, Vt), sigma_p,
+                                              tank_noise=tn)
             sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
             for i, p in enumerate(names):
                 estimate[p] = vals[p]
@@ -1450,8 +1481,6 @@ def _calibrate(log: Mapping[str, ArrayLike], cfg: Config, params: Sequence[str],
                     sd_log[p] = float(sd[i])
                     low[p] = from_theta(p, phi[i] - half)
                     high[p] = from_theta(p, phi[i] + half)
-            lam, U = np.linalg.eigh(cov)  # the worst-known direction: the largest variance
-            sd_weak = math.sqrt(max(float(lam[-1]), 0.0))
             if sd_weak <= SD_MAX:
                 free = names  # the order of the fit's vector
                 break
