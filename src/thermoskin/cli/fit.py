@@ -65,11 +65,13 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
 
 @main.command()
 @click.argument("log_path", type=click.Path(path_type=Path))
-@click.option("--config", "--skin", "config_path", type=click.Path(path_type=Path), default=None,
-              help="The skin's config (TOML): the starting values and those held. --skin: a "
-                   "single patch's skin file.")
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
+              help="PARAMS.toml, a parameter file: its [skin] values start the fit and hold what is "
+                   "not fitted (default: the paper's Table I).")
+@click.option("--skin", "layout_path", type=click.Path(path_type=Path), default=None, hidden=True)
 @click.option("-o", "--output", "output_toml", type=click.Path(path_type=Path), required=True,
-              help="FITTED.toml: the config with the fitted [skin] values (intervals as comments); "
+              help="FITTED.toml: the config with the fitted [skin] and [sensor] values (intervals as "
+                   "comments); "
                    "the fit figure goes beside it as FITTED.png.")
 @click.option("--params", default=None,
               help="Comma-separated parameters to fit (default: C_g,R_g,R_aw,R_ag,R_w_flowing,"
@@ -86,12 +88,12 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
 @click.option("--contact-column", default="contact", show_default=True,
               help="Column flagging touches; its rows (padded) are left out if the log has it.")
 @click.option("--t-fit", "t_fit", type=float, default=None,
-              help="Fit block means of up to this many seconds (faster; biased where the pump "
-                   "chatters) instead of every sample (default).")
+              help="Fit block means of up to this many seconds (default 0.01; the reading the pump "
+                   "switched on a block of its own); 0: every sample.")
 @_user_errors
 def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, params: str | None,
               lags: str | None, reference: str, truth_path: Path | None, contact_column: str,
-              t_fit: float | None) -> None:
+              t_fit: float | None, layout_path: Path | None = None) -> None:
     """Fit the skin's network parameters, R_w and the sensors' offsets (and lags, --lags) to a
     recorded log (docs/calibration.md).
 
@@ -104,6 +106,10 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
     from thermoskin.fit import calibrate as cal_mod
     from thermoskin.logio import read_log
     from thermoskin.plots.calibration import plot_fit
+
+    if layout_path is not None:  # --skin was once another name of --config here
+        raise UserError("calibrate fits one patch's parameters: give its parameter file with --config "
+                        "(--skin names a skin's layout file, which calibrate does not take)")
 
     _outputs(("-o", output_toml, (".toml",), "fitted config"),
              ("-o", output_toml.with_suffix(".png"), (".png",), "fit figure"), inputs=(log_path,))
@@ -142,7 +148,7 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
             status.stop()
     v_on = res.blocks.v_modes[res.blocks.v_modes > 0]
     true = cal_mod.prior_values(truth, float(np.median(v_on)) if v_on.size else None) if truth else None
-    table = Table(title=f"Skin parameters fitted to {log_path}")
+    table = Table(title=f"Skin and sensor parameters fitted to {log_path}")
     for col in ("parameter", "prior", "estimate", "95 % interval", *(("true", "in") if true else ()),
                 "status"):
         table.add_column(col, justify="left" if col in ("parameter", "status") else "right")
@@ -159,7 +165,7 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
     for p, why in res.findings.items():
         console.print(f"finding: {p} {why}", markup=False)
     if len(res.names) > 1:
-        corr = Table(title="Correlation of the fitted ln p")
+        corr = Table(title="Correlation of the fitted ln p (offsets: b)")
         corr.add_column("")
         for p in res.names:
             corr.add_column(p, justify="right")
