@@ -43,10 +43,10 @@ price of residuals that are correlated wherever the model is wrong; see *Interva
 Rows where the ``T_w`` board made no new reading (a ``fresh`` column without bit 1: a
 10 Hz board holds its reading for 100 samples) weigh nothing: a held reading is an old one.
 
-**Blocks.** The log is cut into blocks of at most ``m = t_fit / t_s`` samples that never
-straddle a pump switch. Over a block of ``n`` samples the inputs are held at their block
-means and, with ``Phi, Gamma`` the exact ZOH discretisation at ``t_s`` of the model above
-(``physics.network.discretize``) and ``c`` the row that is read::
+**Blocks.** The log is cut into blocks of at most ``m = t_fit / t_s`` samples (10 ms by
+default) that never straddle a pump switch. Over a block of ``n`` samples the inputs are
+held at their block means and, with ``Phi, Gamma`` the exact ZOH discretisation at ``t_s``
+of the model above (``physics.network.discretize``) and ``c`` the row that is read::
 
     x_{k+n} = Phi^n x_k + S_n u,               S_n = sum_{i<n} Phi^i Gamma
     mean_{i<n} c x_{k+i} = M_n x_k + N_n u,    M_n = (1/n) sum_{i<n} c Phi^i,
@@ -54,14 +54,30 @@ means and, with ``Phi, Gamma`` the exact ZOH discretisation at ``t_s`` of the mo
 
 exact for inputs constant over the block (:func:`model_tables`, by recursion; held to
 Sylvester's closed form of the two-node network, :func:`block_tables`, in the tests).
-Block ``j``'s residual is ``e_j = sqrt(n_j) (mean T_w - mean T_w_hat)``: with white
-sensor noise of standard deviation ``sigma`` every ``e_j`` has variance ``sigma^2``, so
-each sample weighs alike at the cost of one block instead of ``n`` samples. Blocks are an
-option (``t_fit``), not the default: the pump switches on the very reading of ``T_w`` it
-is fitted to (its logic runs on the measured ``T_w``), so a block mixes a reading with the
-model's response to the switch that reading caused; on a chattering log 10 ms blocks
-biased ``R_g`` and ``R_w_flowing`` by 2.2 standard deviations, single samples
-(``t_fit = 0``) by 0.6.
+Block ``j``'s residual is ``e_j = sqrt(n_j) (mean T_w - mean T_w_hat)``: with white sensor
+noise of standard deviation ``sigma`` every ``e_j`` has variance ``sigma^2``, so each sample
+weighs alike at the cost of one block instead of ``n`` samples. The pump switches on the
+very reading of ``T_w`` it is fitted to (its logic runs on the measured ``T_w``): that
+reading is a block of its own (a *point* block). In its block's mean (the block's mode
+then depends on a reading inside it) it biased ``R_g`` and ``R_w_flowing`` by 2.2 standard
+deviations on a chattering log; on its own, 10 ms blocks are as unbiased as single samples
+(z means +0.4 against +0.6 over 16 seeds). A board that converts less often than the log
+(a ``fresh`` column without bit 1) gives point blocks at its new readings only; the rows
+holding a reading weigh nothing and carry the model on.
+
+**Inputs.** A held ``T_p`` or ``T_a`` (a slow board) is taken as lines between its readings
+(:func:`between_readings`): held for 100 ms, a ramping tank lagged by 15 mK and biased
+``R_w_flowing`` by 6 %. ``T_a`` is smoothed over :data:`SMOOTH_T_A` (the air is slow).
+``T_p``'s noise, fed into the network, biases the fit (errors in the variables), most where
+the pump chatters and the log moves little else (at 0.1 K of noise ``R_w_flowing`` came out
+at twice the truth); a mean over the tank's readings removes it and bends its ramps at
+their kinks (0.2 s put ``R_g`` 2.3 sd off on a stepping log with 20 mK). So it is tested at
+each optimum: four draws of as much noise again on the tank's input, and a Gauss-Newton
+step from the optimum on each (its own Jacobian), say how far twice the noise would move
+each parameter (:data:`EIV_DRAWS`); where one would move by more than half its sd (and
+:data:`EIV_FLOOR`), the tank's readings are smoothed over the next of
+:data:`SMOOTH_WIDTHS` and the fit made again. A parameter running to a bound tries a
+smoother tank first.
 
 **Stretches and their start.** Usable rows (finite readings, away from flagged contacts)
 form stretches; each starts from its measured ``T_w`` (the mean of its first
@@ -95,9 +111,7 @@ residual drawn from the noise model. A scalar ``tau`` alone (``s^2 tau H^-1``, a
 effective sample size) was measured to give intervals 1.3-1.65 times too narrow: the
 filtered tank noise is a small share of the residuals' variance but sits where ``J``
 has its weight. 95 % intervals: ``exp(theta ± 1.96 sd)`` (offsets: ``b ± 1.96 sd``). The
-inputs' noise also biases the fit a little (errors in the variables); ``T_a`` is smoothed
-over :data:`SMOOTH_T_A` first (the air is slow), ``T_p`` is not (a ramping tank's kinks
-would bias more).
+inputs' noise also biases the fit (*Inputs*).
 
 **What a log can determine.** Temperatures fix the network only up to a common scale of
 heat: every ``C`` times ``k`` and every ``R`` over ``k`` leave every temperature as it
@@ -110,13 +124,20 @@ of ``R_g + R_ag`` are barely determined. ``R_w_stopped`` needs the pump to stop 
 enough (chattering stops of 50 ms tell little), ``R_w_flowing`` to run. An air sensor's
 lag needs the air to change (a door, a draught).
 
-Those limits are found from the data, not assumed: after each fit, if the weakest
-direction of ``J`` (its smallest singular value) is known to worse than ``×/÷
-exp(1.96 SD_MAX)`` (95 %; an offset: to worse than :data:`OFFSET_SD_MAX` K), the parameter
-with the largest share in it is held at its prior and the rest are fitted again. A fitted
-parameter's value then depends on what the held ones were set to:
-:attr:`Calibration.dependence` gives those elasticities, ``d ln p_fit / d ln p_held`` (the
-least-squares response to a held parameter's change).
+Those limits are found from the data, not assumed. Before the fit, a direction the fit does
+not change along is held, and so is a skin parameter whose direction is known to worse than
+``×/÷ exp(1.96 SD_MAX)`` (95 %) for the noise, linearised at the prior (provisionally: the
+fit's residual may release it). After each fit, if the worst-known direction of the
+covariance is known to worse than that (an offset: to worse than :data:`OFFSET_SD_MAX` K),
+a parameter is held and the rest are fitted again: the one whose holding leaves the rest
+known, a skin parameter before a lag before an offset (:func:`to_hold`). An offset held is
+kept in the model at its least-squares value (held at 0, tenths of a kelvin off, it drove
+the rest to their bounds). A fitted parameter's value then depends on what the held ones
+were set to: :attr:`Calibration.dependence` gives those elasticities, ``d ln p_fit / d ln
+p_held`` (the least-squares response to a held parameter's change); an offset whose value
+a held parameter's prior :data:`SKIN_DOUBT` off would move by more than
+:data:`OFFSET_DEP_TOL` is not determined (the air's on a chattering log trades with
+``R_g``), kept in the model, not written.
 
 **Touch logs.** A touch heats the sheet by an unknown, varying heat flow. Rows flagged in
 a ``contact`` column are left out, with :data:`PAD_BEFORE` s before (the detector's
