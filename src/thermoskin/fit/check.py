@@ -286,9 +286,7 @@ def check(log: Mapping[str, ArrayLike], cfg: Config, *, contact: ArrayLike | Non
     found: dict[str, float] = {}
     for ch in cal.CHANNELS:
         x = cols[ch]
-        fr = _fresh(log, BITS[ch])
-        if fr is not None and fr.all():
-            fr = None
+        fr = _fresh(log, BITS[ch])  # all rows fresh: a new reading every row (not guessed from changes)
         period, jitter, pfrom = period_of(x, t_s, fr)
         readings = x[fr] if fr is not None else (x if pfrom != "value changes" else
                                                   x[np.r_[True, x[1:] != x[:-1]]])
