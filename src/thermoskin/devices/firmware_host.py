@@ -464,16 +464,24 @@ class HostBoard:
 
 
 class _Frames:
-    """What the firmware sends, decoded by the host's decoder: each SAMPLE's truth row."""
+    """What the firmware sends, decoded by the host's decoder: each SAMPLE's truth row, and the
+    device time of its first SAMPLE in the safe state after an injected fault (``t_safe``, s;
+    NaN before: the firmware's own clock, as on a board)."""
 
     def __init__(self, world: World) -> None:
         self.world = world
         self.decoder = proto.Decoder(check_seq=False)
+        self.t_safe = math.nan
 
-    def feed(self, data: bytes) -> list[proto.Message]:
+    def feed(self, data: bytes, delivered: bool = True) -> list[proto.Message]:
         msgs = self.decoder.feed(data)
         w = self.world
-        if w.truth is not None and w.origin is not None:
+        if self.t_safe != self.t_safe and w.t_fault == w.t_fault:
+            for m in msgs:
+                if m.TYPE == proto.T_SAMPLE and m.status & proto.ST_SAFE:  # type: ignore[union-attr]
+                    self.t_safe = m.t_us * 1e-6  # type: ignore[union-attr]
+                    break
+        if delivered and w.truth is not None and w.origin is not None:
             for m in msgs:
                 if m.TYPE == proto.T_SAMPLE:
                     t_us = m.t_us  # type: ignore[union-attr]
@@ -506,6 +514,7 @@ class HostUsb:
     def write(self, data: Any) -> int:
         n = len(data)
         if self.world.link_cut:
+            self.frames.feed(bytes(data), delivered=False)
             return n  # into the cut cable
         if len(self.out) + n > self.max_out:
             self.dropped += 1
@@ -612,7 +621,8 @@ class FirmwarePty(PtyEmulator):
         self.device: Any = None
         self.board: HostBoard | None = None
         self.t_safe = math.nan
-        """Device time (s) at which the firmware's safe state began after the first fault."""
+        """Device time (s) of the firmware's first SAMPLE in its safe state after the first
+        injected fault (its own clock)."""
 
     def serve(self) -> None:
         fw = load_firmware()
@@ -631,17 +641,14 @@ class FirmwarePty(PtyEmulator):
         gc.freeze()
         gc.disable()  # as the emulator's: no collection pauses a session
         stop = self._stop
-        w = self.world
         try:
             while not stop.is_set():
                 d = dev.step()
-                if (dev.safe and self.t_safe != self.t_safe and w.t_fault == w.t_fault
-                        and w.origin is not None):
-                    self.t_safe = w.w * w.t_s
                 if d > 0:
                     usb.wait(d)
         finally:
             gc.enable()
+        self.t_safe = usb.frames.t_safe
         self.ready.clear()
 
     def timing(self) -> dict[str, float]:
