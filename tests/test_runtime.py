@@ -40,7 +40,9 @@ def emulator(tmp_path: Path) -> Iterator[Start]:
 
     def start(faults: tuple[str, ...] = ()) -> tuple[DeviceCore, Path, PtyEmulator]:
         core = DeviceCore(Config(), SCENARIOS["fingers"], [FaultSpec.parse(f) for f in faults])
-        emu = PtyEmulator(tmp_path / "skin", core)
+        # real-time priority for the emulator's thread where allowed, as the emulator's process
+        # asks for: at normal priority a loaded machine held it up past the 0.5 s link timeout
+        emu = PtyEmulator(tmp_path / "skin", core, rt_priority=40)
         th = threading.Thread(target=emu.run, daemon=True)
         th.start()
         assert emu.ready.wait(5.0)
