@@ -40,7 +40,9 @@ def emulator(tmp_path: Path) -> Iterator[Start]:
 
     def start(faults: tuple[str, ...] = ()) -> tuple[DeviceCore, Path, PtyEmulator]:
         core = DeviceCore(Config(), SCENARIOS["fingers"], [FaultSpec.parse(f) for f in faults])
-        emu = PtyEmulator(tmp_path / "skin", core)
+        # real-time priority for the emulator's thread where allowed, as the emulator's process
+        # asks for: at normal priority a loaded machine held it up past the 0.5 s link timeout
+        emu = PtyEmulator(tmp_path / "skin", core, rt_priority=40)
         th = threading.Thread(target=emu.run, daemon=True)
         th.start()
         assert emu.ready.wait(5.0)
@@ -162,8 +164,11 @@ def test_fault_ends_in_safe_state_within_delay(emulator: Start, kind: str) -> No
     assert res.fault == name, s
     delay_host = s["t_safe"] - t_f
     # the host's clock is set against the device's at the first sample, whose own transit
-    # (a few ms, more under load) is unknown: the host's delay is known to within it
-    assert -0.01 <= delay_host <= limit, (kind, delay_host)
+    # (a few ms, more under load) is unknown: the host's delay is known to within it; an
+    # emulator thread (this test's process, normal priority) that stalled as it was to send
+    # the fault's sample sends it that much later: its measured lateness is allowed
+    late_dev = emulator_stall(emu, t_f - 0.002, t_f + 0.002) if kind != "serial-drop" else 0.0
+    assert -0.01 <= delay_host <= limit + late_dev, (kind, delay_host, late_dev)
     if kind != "serial-drop":  # a cut cable carries no SAFE: the device's watchdog takes over
         delay_dev = wait_safe(core) - t_f
         # the host's SAFE takes effect at the emulator's next sample after it reads it: an

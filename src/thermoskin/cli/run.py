@@ -205,7 +205,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg))
             if recorder is not None:
                 recorder.event(0.0, "run-start", device=device, scenario=sc.name,
-                               realtime=bool(realtime or serial))
+                               realtime=bool(realtime or serial),
+                               estimator_inputs="device" if serial else "commands")
             try:
                 runlog = RunLog(log_path, names)
             except OSError as e:
@@ -520,6 +521,10 @@ def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str
     return sinks
 
 
+LATE_S = 0.05
+"""A sample handled later than this after its nominal arrival counts as late (the link timeout)."""
+
+
 def _loop_figures(res: Any, n: int) -> None:
     """The fixed-rate loop's timing and the link's figures."""
     summary = res.summary
@@ -533,18 +538,33 @@ def _loop_figures(res: Any, n: int) -> None:
                   f"{tm['lost_rows']:.0f} rows lost; priority {summary.get('priority', '?')}")
     if "link" in summary:
         ln = summary["link"]
+        late = summary.get("late_counts", {})
         console.print(f"[bold]link[/]: {ln['frames']} frames, {ln['corrupted']} corrupted, "
-                      f"{ln['lost']} lost, {ln['repeated']} repeated")
+                      f"{ln['lost']} lost, {ln['repeated']} repeated; {late.get('device', 0)} frames "
+                      f"late from the device, {late.get('host', 0)} samples handled more than "
+                      f"{LATE_S * 1e3:g} ms late")
+        if (late.get("host", 0) or ln["lost"]) and not res.fault:  # a fault: its own line says
+            click.echo(f"thermoskin: warning: the link fell behind: {late.get('device', 0)} frames the "
+                       f"device sent late, {late.get('host', 0)} samples this host handled more than "
+                       f"{LATE_S * 1e3:g} ms late (longest {g['late_max_us'] / 1e3:.0f} ms), "
+                       f"{ln['lost']} frames lost, {tm['overruns']:.0f} loop overruns: the estimates "
+                       "and contacts follow the device's clock and the outputs it applied, the control "
+                       "acted late; a busy host (give the loop real-time priority: docs/runtime.md)",
+                       err=True)
 
 
 def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[str, Any]], None],
                     stop: Any, on_event: Callable[[ContactEvent], None] | None = None) -> Any:
     """The fixed-rate loop process; contacts and faults printed as they come."""
+    from thermoskin.devices.protocol import ST_OVERRUN
     from thermoskin.runtime.realtime import LoopSpec, run_realtime
 
     state = {"contact": 0, "t_prev": -math.inf}
+    late = {"device": 0, "host": 0}
 
     def on_rows(block: dict[str, Any]) -> None:
+        late["device"] += int(np.count_nonzero(block["status"].astype(np.int64) & ST_OVERRUN))
+        late["host"] += int(np.count_nonzero(block["late"] > LATE_S))
         c = block["contact"]
         f = block["fault"]
         t = block["t"]
@@ -559,6 +579,7 @@ def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[
 
     spec = LoopSpec(cfg, sc, device=device, duration=sc.duration)
     res = run_realtime(spec, on_rows=on_rows, stop=stop, on_event=on_event, keep=False)
+    res.summary["late_counts"] = late
     err = res.summary.get("error")
     if err:
         if res.summary.get("device_error"):
