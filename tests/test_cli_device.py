@@ -460,5 +460,8 @@ def test_firmware_faults_reach_the_safe_state_and_the_host_says_so(tmp_path: Pat
     pat = r"safe state from t = ([\d.]+) s \(fault at t = ([\d.]+) s"
     t_safe, t_fault = (float(x) for x in re.findall(pat, err)[0])
     assert t_fault == 1.5
-    limit = 0.050 + 0.002 if name == "link" else 0.098 + 0.002
-    assert 0.0 <= t_safe - t_fault <= limit, err
+    # the watchdog trips on its own clock strictly past 50 ms after the last COMMAND's arrival, at
+    # the next tick; the stop line is in device time (sample counts), which a late tick on a loaded
+    # machine puts a few samples behind the firmware's clock: 5 samples of slack (CI saw 52 ms)
+    limit = 0.050 + 0.005 if name == "link" else 0.098 + 0.002
+    assert 0.0 <= round(t_safe - t_fault, 6) <= limit, err
