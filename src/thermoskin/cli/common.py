@@ -338,17 +338,28 @@ def _live_options(fn: F) -> F:
                            "before starting.")(fn)
     fn = click.option("--live-rate", "live_rate", type=float, default=100.0, show_default=True,
                       help="With --live: signals decimated to this rate, Hz of the loop clock.")(fn)
+    fn = click.option("--live-allow-origin", "live_allow_origin", multiple=True, metavar="ORIGIN",
+                      help="With --live: also serve web pages of this origin (a hosted viewer, e.g. "
+                           "https://app.foxglove.dev; * for any). Without it only the live page and "
+                           "clients that send no Origin (Foxglove desktop, Lichtblick, scripts) are "
+                           "served; other pages get 403.")(fn)
     return click.option("--live", "live_addr", is_flag=False, flag_value=DEFAULT_ADDRESS, default=None,
                         metavar="[HOST:]PORT",
                         help=f"Serve the topics live over the Foxglove WebSocket protocol (default "
                              f"{DEFAULT_ADDRESS}) and a live page on PORT+1.")(fn)  # type: ignore[return-value]
 
 
-def _live_address(addr: str, rate: float, wait: float) -> tuple[str, int]:
-    """``--live``'s ``(host, port)``, and ``--live-rate``, ``--live-wait`` checked: a user error of
-    one line, before the command compiles or starts anything (``run`` checks them at once)."""
+def _live_address(addr: str, rate: float, wait: float, origins: tuple[str, ...] = ()) -> tuple[str, int]:
+    """``--live``'s ``(host, port)``, and ``--live-rate``, ``--live-wait``, ``--live-allow-origin``
+    checked: a user error of one line, before the command compiles or starts anything (``run``
+    checks them at once)."""
     from thermoskin.live import LiveError, parse_address
+    from thermoskin.live.gate import allowed_origins
 
+    try:
+        allowed_origins(origins)
+    except ValueError as e:
+        raise UserError(str(e)) from None
     if not (rate > 0 and math.isfinite(rate)):
         raise UserError(f"--live-rate {rate}: must be > 0 Hz")
     if not (wait >= 0 and math.isfinite(wait)):
@@ -360,13 +371,17 @@ def _live_address(addr: str, rate: float, wait: float) -> tuple[str, int]:
 
 
 def _start_live(addr: str, rate: float, wait: float, cfg: Any,
-                view: str = "layout docs/foxglove-layout.json", **kw: Any) -> Any:
-    """The live server at ``addr`` (one-line errors), its addresses printed; waits for a viewer.
-    ``view``: how to look at it in Foxglove; ``kw``: a skin's ``topics`` and ``params`` (``LiveServer``)."""
+                view: str = "layout docs/foxglove-layout.json", *, origins: tuple[str, ...] = (),
+                stop: Callable[[], bool] | None = None, **kw: Any) -> Any:
+    """The live server at ``addr`` (one-line errors), its addresses printed; waits for a viewer
+    (a wait that ``stop``, a signal's stop request, ends). ``view``: how to look at it in
+    Foxglove; ``origins``: ``--live-allow-origin``; ``kw``: a skin's ``topics`` and ``params``
+    (``LiveServer``)."""
     from thermoskin.live import LiveError, LiveServer
 
     try:
-        live = LiveServer(*_live_address(addr, rate, wait), config=cfg, rate=rate, **kw)
+        live = LiveServer(*_live_address(addr, rate, wait, origins), config=cfg, rate=rate,
+                          allow_origins=origins, **kw)
     except LiveError as e:
         raise UserError(str(e)) from None
     console.print(f"[bold]live[/]: Foxglove WebSocket {live.ws_url} (Foxglove or Lichtblick: open "
@@ -374,7 +389,7 @@ def _start_live(addr: str, rate: float, wait: float, cfg: Any,
                   f"{live.page_url}; signals at {rate:g} Hz")
     if wait > 0:
         console.print(f"[bold]live[/]: waiting up to {wait:g} s for a viewer")
-        if not live.wait_for_client(wait):
+        if not live.wait_for_client(wait, stop):
             console.print("[bold]live[/]: no viewer yet; starting")
     return live
 

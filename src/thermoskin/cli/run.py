@@ -86,7 +86,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         config_path: Path | None, log_path: Path, plot_path: Path | None, events_path: Path | None,
         device: str, realtime: bool, record_path: Path | None, probe_amp: float | None,
         live_addr: str | None, live_rate: float, live_wait: float, skin_path: Path | None = None,
-        groups_path: Path | None = None) -> None:
+        groups_path: Path | None = None, live_allow_origin: tuple[str, ...] = ()) -> None:
     """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
 
     From ambient, the MPC and the inner loop bring T_w to its command while the observer
@@ -112,14 +112,15 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     from thermoskin.runtime.stopping import StopRequest
 
     if live_addr is not None:  # a bad address: its one line, before any compile notice
-        _live_address(live_addr, live_rate, live_wait)
+        _live_address(live_addr, live_rate, live_wait, live_allow_origin)
     if skin_path is not None:
         single_only = (device != "sim", realtime, setpoint is not None, probe_amp is not None)
         if any(single_only):
             raise UserError("--skin runs the simulated skin in this process: --device, --realtime, "
                             "--setpoint and --probe are for the single patch")
         _run_skin(skin_path, None if scenario == "fingers" else scenario, duration, config_path, log_path,
-                  plot_path, events_path, groups_path, record_path, live_addr, live_rate, live_wait)
+                  plot_path, events_path, groups_path, record_path, live_addr, live_rate, live_wait,
+                  live_allow_origin)
         return
     if groups_path is not None:
         raise UserError("--groups needs --skin (a skin of many patches)")
@@ -192,7 +193,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             if live_addr is not None:
                 from thermoskin.live import Fanout
 
-                recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg))
+                recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg,
+                                                        origins=live_allow_origin, stop=stop.is_set))
             if recorder is not None:
                 recorder.event(0.0, "run-start", device=device, scenario=sc.name,
                                realtime=bool(realtime or serial))
@@ -320,7 +322,7 @@ def _close_log(runlog: Any, path: Path) -> None:
 def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, config_path: Path | None,
               log_path: Path, plot_path: Path | None, events_path: Path | None,
               groups_path: Path | None, record_path: Path | None = None, live_addr: str | None = None,
-              live_rate: float = 100.0, live_wait: float = 0.0) -> None:
+              live_rate: float = 100.0, live_wait: float = 0.0, live_origins: tuple[str, ...] = ()) -> None:
     """``run --skin``: the whole skin in closed loop (one controller per water loop,
     ``runtime/skin_loop.py``), every patch estimated and its contacts detected block by block as
     the loop goes (``skin_observe.SkinEstimator``), printed as they come and served live / recorded
@@ -363,7 +365,7 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     stop = StopRequest().install()
     try:
         _run_skin_loop(skin, sc, cfg, est, stop, log_path, plot_path, events_path, groups_path,
-                       record_path, live_addr, live_rate, live_wait)
+                       record_path, live_addr, live_rate, live_wait, live_origins)
     finally:
         previous.close(wrote=has_rows(log_path))  # no sample on disk: the earlier files back
         stop.restore()
@@ -375,14 +377,15 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
 
 def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_path: Path, plot_path: Path,
                    events_path: Path | None, groups_path: Path | None, record_path: Path | None,
-                   live_addr: str | None, live_rate: float, live_wait: float) -> None:
+                   live_addr: str | None, live_rate: float, live_wait: float,
+                   live_origins: tuple[str, ...] = ()) -> None:
     """The body of ``run --skin`` (:func:`_run_skin`) under its stop request."""
     from thermoskin.estimation.events import EventsStream
     from thermoskin.live.skin_topics import figures
     from thermoskin.runtime.skin_loop import run_skin
     from thermoskin.skin.observe import SKIN_EVENT_COLUMNS, SkinEvent, observe_skin_file
 
-    sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait)
+    sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait, live_origins, stop)
     P = len(skin.patches)
     names = [p.name for p in skin.patches]
     width = max(len(n) for n in names)
@@ -475,7 +478,8 @@ class _RecorderSink:
 
 
 def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str | None, live_rate: float,
-                live_wait: float) -> list[tuple[Any, Any]]:
+                live_wait: float, live_origins: tuple[str, ...] = (),
+                stop: Any = None) -> list[tuple[Any, Any]]:
     """The recording (every sample) and the live server (decimated) of a skin's run, each with its
     :class:`~thermoskin.live.skin_topics.SkinMessages`."""
     from thermoskin.live.skin_topics import SkinMessages, layout, skin_topics
@@ -494,6 +498,7 @@ def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str
     if live_addr is not None:
         try:
             live = _start_live(live_addr, live_rate, live_wait, cfg, topics=topics, params=params,
+                               origins=live_origins, stop=None if stop is None else stop.is_set,
                                view="a 3D panel on /skin/scene, plots of /patch/NAME/estimate.dq_i_hat")
         except BaseException:
             for s, _ in sinks:
