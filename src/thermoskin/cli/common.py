@@ -381,7 +381,7 @@ def _start_live(addr: str, rate: float, wait: float, cfg: Any,
 
     try:
         live = LiveServer(*_live_address(addr, rate, wait, origins), config=cfg, rate=rate,
-                          allow_origins=origins, **kw)
+                          allow_origins=origins, stop=stop, **kw)
     except LiveError as e:
         raise UserError(str(e)) from None
     console.print(f"[bold]live[/]: Foxglove WebSocket {live.ws_url} (Foxglove or Lichtblick: open "

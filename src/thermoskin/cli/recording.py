@@ -183,7 +183,7 @@ def _replay_live(recording: Path, addr: str, rate: float, wait: float, speed: fl
         except RecordingError as e:
             raise UserError(str(e)) from None
         finally:
-            live.close(linger=0 if stop.is_set() else 0.5)
+            live.close()
     finally:
         stop.restore()
     cut = "" if res["complete"] else " (the recording was cut short: played what it holds)"

@@ -157,15 +157,17 @@ class LiveServer:
     ``topics`` (topic: schema, a JSON schema or a ``foxglove.Schema``) replaces the recording's
     topics (a skin's run, :func:`~thermoskin.live.skin_topics.skin_topics`);
     ``allow_origins``: origins served besides the page's own and clients with no ``Origin``
-    (``--live-allow-origin``, :class:`~thermoskin.live.gate.OriginRule`).
+    (``--live-allow-origin``, :class:`~thermoskin.live.gate.OriginRule`); ``stop``: a signal's stop
+    request (``is_set``): once true, :meth:`close` does not linger.
     Raises :class:`~thermoskin.live.address.LiveError` if a port cannot be bound.
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8765, *, config: Any = None,
                  rate: float = 100.0, page: bool = True, name: str = "thermoskin",
                  topics: Mapping[str, Any] | None = None, params: Mapping[str, Any] | None = None,
-                 allow_origins: tuple[str, ...] = ()) -> None:
+                 allow_origins: tuple[str, ...] = (), stop: Callable[[], bool] | None = None) -> None:
         self.host, self.port = host, port
+        self._stop = stop
         try:
             self.rule = OriginRule(host, port + 1, tuple(allow_origins))
         except ValueError as e:
@@ -292,7 +294,7 @@ class LiveServer:
         SDK waits for none), and the SDK's and the page server's stops are waited for that long."""
         if self._closed:
             return
-        if linger > 0:
+        if linger > 0 and not (self._stop is not None and self._stop()):
             time.sleep(linger)
         self._closed = True
         t_end = time.monotonic() + CLOSE_S
