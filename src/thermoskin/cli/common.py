@@ -50,6 +50,7 @@ def _user_errors(fn: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         from thermoskin.logio import LogError
 
+        held = len(_LOCKS)
         try:
             return fn(*args, **kwargs)
         except (ConfigError, LogError, PathError, UserError) as e:
@@ -66,6 +67,9 @@ def _user_errors(fn: F) -> F:
             click.echo(f"thermoskin: error: {where}{e.strerror} (the file system); what was "
                        "written before is kept", err=True)
             sys.exit(2)
+        finally:  # the command's outputs are free again (its lock files gone)
+            while len(_LOCKS) > held:
+                _LOCKS.pop().release()
 
     return wrapper  # type: ignore[return-value]
 
@@ -86,16 +90,29 @@ def _config(path: Path | None, preset: str = "paper") -> Config:
 TABLE_ROWS = 40
 
 
+#: The output locks the command running now holds (:func:`_outputs`), released as it ends.
+_LOCKS: list[Any] = []
+
+
 def _outputs(*items: tuple[str, Path | None, Any, str], inputs: tuple[Path, ...] = ()) -> None:
     """Check every output path before any work: ``(option, path, suffixes or None, what)``; no
-    two at the same path, and none one of the ``inputs`` (writing it would destroy what is read)."""
-    from thermoskin.paths import check_output, distinct, not_an_input
+    two at the same path, and none one of the ``inputs`` (writing it would destroy what is read);
+    then lock each (:func:`thermoskin.paths.lock_output`: one writer per output, a second
+    command on the same path refused with the holder's pid) until the command ends."""
+    from thermoskin.paths import check_output, distinct, lock_output, not_an_input
 
     for option, path, suffixes, what in items:
         if path is not None:
             check_output(path, option, suffixes, what)
             not_an_input(path, option, what, inputs)
     distinct(*((option, path) for option, path, _, _ in items))
+    ctx = click.get_current_context(silent=True)
+    command = f"thermoskin {ctx.info_name}" if ctx is not None else "thermoskin"
+    for option, path, _, what in items:
+        if path is not None:
+            lock = lock_output(path, option, what, command)
+            if lock is not None:
+                _LOCKS.append(lock)
 
 
 def _check_loop(cfg: Config) -> None:
