@@ -35,6 +35,16 @@ LOG_SUFFIXES = (".csv", ".parquet")
 PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".webp", ".tif", ".tiff", ".eps", ".ps")
 
 
+def shown(text: str) -> str:
+    """``text`` (a title holding a file name) as any font can show it: bytes of a name that the
+    locale could not decode (Python's escapes for them, lone surrogates) as U+FFFD."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    return text
+
+
 class PathError(ValueError):
     """A path cannot be used; the message (one line) names the option, the path and why."""
 

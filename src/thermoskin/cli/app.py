@@ -41,6 +41,9 @@ class _Commands(click.Group):
     that is not a number) are one line and exit 2, as every other user error."""
 
     def main(self, *args: Any, **kwargs: Any) -> Any:  # type: ignore[override]
+        from thermoskin.cli.terminal import degrade_to_ascii
+
+        degrade_to_ascii()  # an ASCII-only locale: "µs" written "us", never an encoding error
         if kwargs.get("standalone_mode", True) is False:  # a caller handling click's errors
             return super().main(*args, **kwargs)
         try:

@@ -128,8 +128,11 @@ def has_rows(path: str | os.PathLike[str]) -> bool:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
+    from thermoskin.atomic import arrow_target
+
     try:
-        return pq.ParquetFile(p).metadata.num_rows > 0
+        with arrow_target(p) as f:
+            return pq.ParquetFile(f).metadata.num_rows > 0
     except (pa.ArrowInvalid, OSError):
         return False
 

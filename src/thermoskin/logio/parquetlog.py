@@ -62,13 +62,20 @@ class ParquetSource:
     def __init__(self, path: Path) -> None:
         import pyarrow.parquet as pq
 
+        from thermoskin.atomic import arrow_name
+
         self.path = path
+        name = arrow_name(path)
+        self._fh = None if name is not None else open(path, "rb")  # noqa: SIM115 (closed by close())
         try:
             # pre_buffer (pyarrow's default) keeps every row group read so far: memory would
             # grow with the log's length
-            self._file = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
+            self._file = pq.ParquetFile(name if name is not None else self._fh, pre_buffer=False,
+                                        buffer_size=1 << 20)
             schema = self._file.schema_arrow
         except _arrow_errors() as exc:
+            if self._fh is not None:
+                self._fh.close()
             raise LogError(
                 f"{path}: not a readable Parquet file ({_first_line(exc)}); "
                 "a Parquet log is readable only once its writer has closed it"
@@ -97,6 +104,8 @@ class ParquetSource:
 
     def close(self) -> None:
         self._file.close()
+        if self._fh is not None:
+            self._fh.close()
 
     def batches(self, chunk_rows: int) -> Iterator[tuple[list[Array], list[np.ndarray | None]]]:
         """Float64 columns (nulls as NaN) per batch, with each column's null mask (None if no null)."""
@@ -148,15 +157,21 @@ class ParquetSink:
         self.row_group_rows = row_group_rows
         self._schema = pa.schema([(n, pa.float64()) for n in names])
         self._writer: Any = None  # opened with the first row group, its encodings chosen on it
+        self._fh: Any = None
         self._buf: list[list[np.ndarray]] = []
         self._rows = 0
 
     def _open(self, first: list[np.ndarray] | None) -> Any:
         import pyarrow.parquet as pq
 
+        from thermoskin.atomic import arrow_name
+
         few = [n for n, c in zip(self.names, first, strict=True) if few_values(c)] if first else self.names
+        name = arrow_name(self.path)
+        if name is None:  # a name pyarrow cannot take (module doc of thermoskin.atomic)
+            self._fh = open(self.path, "wb")  # noqa: SIM115 (closed by close())
         return pq.ParquetWriter(
-            self.path, self._schema, compression=COMPRESSION, use_dictionary=few,
+            name if name is not None else self._fh, self._schema, compression=COMPRESSION, use_dictionary=few,
             use_byte_stream_split=[n for n in self.names if n not in few],
             dictionary_pagesize_limit=DICTIONARY_PAGE_BYTES,
         )
@@ -188,4 +203,8 @@ class ParquetSink:
         self.flush()
         if self._writer is None:  # no row: the schema alone
             self._writer = self._open(None)
-        self._writer.close()
+        try:
+            self._writer.close()
+        finally:
+            if self._fh is not None:
+                self._fh.close()

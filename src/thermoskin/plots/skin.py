@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from thermoskin.atomic import atomic_path
+from thermoskin.paths import shown
 from thermoskin.skin.layout import Skin
 
 MM = 1000.0
@@ -73,7 +74,7 @@ def plot_layout(skin: Skin, contacts: Iterable[Any] = (), path: str | Path | Non
     ax.set_aspect("equal")
     ax.set_xlabel("x along the link (mm)")
     ax.set_ylabel("y around the link (mm)")
-    ax.set_title(title or f"{skin.name}: {len(skin.patches)} patches on {len(skin.loops)} water loops")
+    ax.set_title(shown(title or f"{skin.name}: {len(skin.patches)} patches on {len(skin.loops)} water loops"))
     for name, link in skin.links.items():
         x0, y0 = _xy(skin, name, 0.0, 0.0)
         ax.add_patch(Rectangle((x0, y0), link.length * MM, link.circumference * MM, facecolor="0.95",
