@@ -52,8 +52,10 @@ class _Commands(click.Group):
             if isinstance(e, _NO_ARGS):  # `thermoskin` alone: the help, as click gives it
                 e.show()
                 sys.exit(e.exit_code)
+            from thermoskin.cli.terminal import one_line
+
             where = e.ctx.command_path if e.ctx is not None else "thermoskin"
-            msg = " ".join(e.format_message().split())
+            msg = one_line(e.format_message())
             click.echo(f"thermoskin: error: {msg} (see {where} --help)", err=True)
             sys.exit(2)
         except click.ClickException as e:

@@ -54,7 +54,9 @@ def _user_errors(fn: F) -> F:
         try:
             return fn(*args, **kwargs)
         except (ConfigError, LogError, PathError, UserError) as e:
-            msg = " ".join(str(e).split())  # one line, whatever the message held
+            from thermoskin.cli.terminal import one_line
+
+            msg = one_line(str(e))  # one line of at most 400 characters, whatever the message held
             click.echo(f"thermoskin: error: {msg}", err=True)
             sys.exit(2)
         except KeyboardInterrupt:

@@ -27,6 +27,20 @@ ASCII_WORDS = {
 }
 
 HANDLER = "thermoskin-ascii"
+#: Longest error message, characters: what an input put in it (a name, a value) is cut.
+MAX_MESSAGE = 400
+
+
+def one_line(text: str, limit: int = MAX_MESSAGE) -> str:
+    """``text`` as one line of at most ``limit`` characters: blanks and line breaks as one space,
+    a longer text cut in its middle (its start says what and where, its end often what to do)."""
+    if len(text) > 64 * limit:  # a huge message: only its two ends are looked at
+        text = text[: 32 * limit] + " " + text[-32 * limit:]
+    msg = " ".join(text.split())
+    if len(msg) <= limit:
+        return msg
+    tail = limit // 4
+    return msg[: limit - tail - 5] + " ... " + msg[-tail:]
 
 
 def to_ascii(text: str) -> str:

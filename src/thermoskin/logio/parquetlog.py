@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.logio.common import Array, LogError, arrow_float64, short, writable
+from thermoskin.logio.common import MAX_COLUMNS, Array, LogError, arrow_float64, listing, short, writable
 
 #: Rows per row group (8 columns: 16 MiB before compression).
 ROW_GROUP_ROWS = 262_144
@@ -94,13 +94,16 @@ class ParquetSource:
         path = self.path
         if not self.names:
             raise LogError(f"{path}: empty file (no columns)")
+        if len(self.names) > MAX_COLUMNS:
+            raise LogError(f"{path}: {len(self.names)} columns, more than a log may have ({MAX_COLUMNS})")
         dups = [n for n, c in Counter(self.names).items() if c > 1]
         if dups:
-            raise LogError(f"{path}: duplicate column name(s): {', '.join(dups)}")
+            raise LogError(f"{path}: duplicate column name(s): {listing(dups)}")
         for field in schema:
             ty = field.type
             if not (pa.types.is_integer(ty) or pa.types.is_floating(ty) or pa.types.is_boolean(ty)):
-                raise LogError(f"{path}: column {field.name!r} has type {ty}, expected numbers")
+                raise LogError(f"{path}: column {short(field.name)} has type {short(str(ty), 60)[1:-1]}, "
+                               "expected numbers")
 
     def close(self) -> None:
         self._file.close()
