@@ -297,6 +297,25 @@ def _write_events(path: Path | None, events: list[ContactEvent]) -> None:
         raise UserError(f"cannot write {path}: {e.strerror or e}") from None
 
 
+def _units_options(fn: F) -> F:
+    """``--time-unit s|ms|us`` and ``--temp-unit C|K``: the units of a log read (default: seconds
+    and °C, a log that looks like another unit refused; :mod:`thermoskin.logio.units`)."""
+    fn = click.option("--temp-unit", "temp_unit", type=click.Choice(["C", "K"]), default=None,
+                      help="The log's temperatures are in C (degrees Celsius) or K (kelvin, converted). "
+                           "Default: C, and a log whose T columns look like kelvin is refused.")(fn)
+    return click.option("--time-unit", "time_unit", type=click.Choice(["s", "ms", "us"]), default=None,
+                        help="The log's t is in s, ms or us (converted to s). Default: s, and a log "
+                             "whose t looks like ms or us (a step of 0.1-10 whole tenths, ...) is "
+                             "refused.")(fn)  # type: ignore[return-value]
+
+
+def _units(time_unit: str | None, temp_unit: str | None) -> Any:
+    """:class:`~thermoskin.logio.units.Units` of the two options."""
+    from thermoskin.logio.units import Units
+
+    return Units(time_unit, temp_unit)
+
+
 CONFIG_OPT = click.option("--config", "config_path", type=click.Path(path_type=Path),
                           default=None, help="TOML file overriding the paper's Table I preset.")
 

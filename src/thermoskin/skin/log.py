@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from thermoskin.atomic import atomic_path
 from thermoskin.logio import LogError
+from thermoskin.logio.units import Units
 from thermoskin.skin.layout import Skin
 
 Array = NDArray[np.float64]
@@ -84,12 +85,14 @@ class SkinLogReader:
     the column, when its block is reached. Attributes: ``names`` (the file's columns), ``t_s``
     (the first block's interval, once read), ``n`` (samples read so far)."""
 
-    def __init__(self, path: str | os.PathLike[str], skin: Skin, chunk_samples: int = CHUNK_SAMPLES) -> None:
+    def __init__(self, path: str | os.PathLike[str], skin: Skin, chunk_samples: int = CHUNK_SAMPLES,
+                 units: Units | None = None) -> None:
+        """``units``: the log's units (:class:`~thermoskin.logio.units.Units`; None: as they are)."""
         from thermoskin.logio import LogReader
 
         self.path, self.skin, self.P = Path(path), skin, len(skin.patches)
         self._r = LogReader(path, ("t",), _nan_ok, chunk_rows=block_samples(self.P, chunk_samples) * self.P,
-                            rows_per_sample=self.P, check=self._patches, rtol=RTOL)
+                            rows_per_sample=self.P, check=self._patches, rtol=RTOL, units=units)
         self.names: list[str] = list(self._r.names)
         missing = [c for c in REQUIRED if c not in self.names]
         if missing:
