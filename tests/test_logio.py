@@ -841,3 +841,34 @@ def test_read_log_keep_holds_only_those_columns(tmp_path: Path, ext: str, peak_m
     with pytest.raises(LogError) as kept_err:
         read_log(p, required=("t",), keep=("t",))
     assert str(kept_err.value) == str(whole_err.value) and "c7" in str(kept_err.value)
+
+
+def test_parquet_float32_and_other_widths_read_exactly(tmp_path: Path) -> None:
+    """A Parquet log as many loggers write it: T_w float32, T_p float16, v a uint16 count, T_a an
+    int8, t float64, a row group split into batches at an offset (issue 46: a float32 column
+    failed with "buffer is smaller than requested size" when read as float64). Each value read
+    is the float64 of the value written (numpy's own conversion, the reference)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from thermoskin.logio import LogReader
+
+    n = 5003
+    rng = np.random.default_rng(46)
+    cols = {"t": np.arange(n) * 1e-3, "T_w": (24 + rng.standard_normal(n)).astype(np.float32),
+            "T_p": (25 + rng.standard_normal(n)).astype(np.float16),
+            "v": rng.integers(0, 300, n).astype(np.uint16), "T_a": rng.integers(18, 23, n).astype(np.int8)}
+    mask = np.zeros(n, bool)
+    mask[7::11] = True  # nulls in T_w: read as NaN
+    table = pa.table({k: pa.array(v, mask=mask if k == "T_w" else None) for k, v in cols.items()})
+    pq.write_table(table, tmp_path / "x.parquet", row_group_size=1000)
+    got = read_log(tmp_path / "x.parquet")
+    want_Tw = cols["T_w"].astype(np.float64)
+    want_Tw[mask] = np.nan
+    np.testing.assert_array_equal(got["T_w"], want_Tw)
+    for k in ("t", "T_p", "v", "T_a"):
+        assert got[k].dtype == np.float64
+        np.testing.assert_array_equal(got[k], cols[k].astype(np.float64))
+    with LogReader(tmp_path / "x.parquet", chunk_rows=333) as r:  # batches cut inside row groups
+        chunks = list(r)
+    np.testing.assert_array_equal(np.concatenate([c["T_w"] for c in chunks]), want_Tw)

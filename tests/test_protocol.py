@@ -57,6 +57,21 @@ def test_cobs_round_trip(n: int) -> None:
         assert len(enc) <= n + n // 254 + 1
 
 
+def test_cobs_keeps_the_zero_after_a_run_of_254() -> None:
+    """A run of exactly 254 non-zero bytes is one block of code 0xFF ("254 bytes, no zero
+    follows"): a zero right after it is a block of its own. The encodings written out by hand
+    from the COBS rule (issue 46: a mutant that let the run reach 255 before splitting lost that
+    zero, and every test passed)."""
+    run = bytes(range(1, 255))  # 254 non-zero bytes
+    assert cobs_encode(run + b"\x00" + b"\x07") == b"\xff" + run + b"\x01" + b"\x02\x07"
+    assert cobs_encode(run + b"\x00") == b"\xff" + run + b"\x01\x01"
+    assert cobs_encode(run) == b"\xff" + run + b"\x01"
+    assert cobs_encode(run + b"\x09") == b"\xff" + run + b"\x02\x09"
+    for data in (run + b"\x00", run + b"\x00\x07", b"\x00" + run + b"\x00" + run, run + run + b"\x00"):
+        assert cobs_decode(cobs_encode(data)) == data
+    assert len(cobs_decode(cobs_encode(run + b"\x00"))) == 255
+
+
 def test_cobs_decode_rejects_bad_codes() -> None:
     assert cobs_decode(b"\x05\x01\x02") is None  # code points past the end
     assert cobs_decode(b"\x02\x00") is None  # zero inside a frame
