@@ -52,6 +52,49 @@ def test_admit_keeps_the_range_and_drops_the_rest() -> None:
         assert math.isnan(w) and math.isnan(p) and math.isnan(a), bad
 
 
+#: Limits that differ for every column and bound (a mix-up of two of them shows).
+DISTINCT = {"T_w_min": -10.0, "T_w_max": 60.0, "T_p_min": 0.0, "T_p_max": 80.0, "T_a_min": -20.0,
+            "T_a_max": 45.0, "v_min": 0.01, "v_max": 2.0, "drive_min": -0.9, "drive_max": 0.8}
+
+
+@pytest.mark.parametrize("col", ["T_w", "T_p", "T_a"])
+def test_every_bound_is_inside_and_the_next_double_outside(col: str) -> None:
+    """Each reading exactly at its own lower and upper bound is kept, the next double beyond is
+    dropped, on the loop's path (admit, admit_arrays) and the log's (clean_log): the bounds are
+    closed, on every channel and side (issue 46: ``<`` for ``<=`` at the upper bound survived)."""
+    from thermoskin.logio.plausible import admit_arrays
+
+    cfg = Config().replace(plausible=DISTINCT)
+    lim = limits(cfg.plausible)
+    j = ("T_w", "T_p", "T_a").index(col)
+    lo, hi = DISTINCT[f"{col}_min"], DISTINCT[f"{col}_max"]
+    mid = [20.0, 30.0, 20.0]  # plausible for every channel
+    for value, kept in ((lo, True), (hi, True), (np.nextafter(lo, -np.inf), False),
+                        (np.nextafter(hi, np.inf), False)):
+        x = list(mid)
+        x[j] = value
+        got = admit(lim, *x)
+        assert (got[j] == value) if kept else math.isnan(got[j]), (col, value)
+        assert [g for k, g in enumerate(got) if k != j] == [m for k, m in enumerate(mid) if k != j]
+        arr = admit_arrays(lim, *(np.array([v]) for v in x))
+        assert (arr[j][0] == value) if kept else math.isnan(arr[j][0])
+        log = {"t": np.array([0.0]), **{k: np.array([v]) for k, v in zip(("T_w", "T_p", "T_a"), x, strict=True)}}
+        c = clean_log(log, cfg)
+        assert (c.columns[col][0] == value) if kept else math.isnan(c.columns[col][0])
+        assert c.counts == ({} if kept else {col: 1})
+
+
+@pytest.mark.parametrize("col", ["v", "drive"])
+def test_velocity_and_drive_bounds_are_closed(col: str) -> None:
+    cfg = Config().replace(plausible=DISTINCT)
+    lo, hi = DISTINCT[f"{col}_min"], DISTINCT[f"{col}_max"]
+    x = np.array([lo, hi, np.nextafter(lo, -np.inf), np.nextafter(hi, np.inf), 0.5 * (lo + hi)])
+    c = clean_log({"t": np.arange(5) * 1e-3, col: x}, cfg)
+    np.testing.assert_array_equal(c.columns[col], [lo, hi, np.nan, np.nan, 0.5 * (lo + hi)])
+    assert c.counts == {col: 2} and c.first == {col: 2e-3}
+    np.testing.assert_array_equal(c.rejected, [0, 0, 1, 1, 0])
+
+
 def test_clean_log_counts_and_holds_the_command() -> None:
     t = np.arange(6) * 1e-3
     log = {"t": t, "T_w": np.array([24, 1e30, 24, np.nan, 24, 24.0]),
