@@ -78,7 +78,8 @@ def test_every_bound_is_inside_and_the_next_double_outside(col: str) -> None:
         assert [g for k, g in enumerate(got) if k != j] == [m for k, m in enumerate(mid) if k != j]
         arr = admit_arrays(lim, *(np.array([v]) for v in x))
         assert (arr[j][0] == value) if kept else math.isnan(arr[j][0])
-        log = {"t": np.array([0.0]), **{k: np.array([v]) for k, v in zip(("T_w", "T_p", "T_a"), x, strict=True)}}
+        log = {"t": np.array([0.0]),
+               **{k: np.array([v]) for k, v in zip(("T_w", "T_p", "T_a"), x, strict=True)}}
         c = clean_log(log, cfg)
         assert (c.columns[col][0] == value) if kept else math.isnan(c.columns[col][0])
         assert c.counts == ({} if kept else {col: 1})
