@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -17,12 +19,20 @@ ROOT = Path(__file__).resolve().parent.parent
 T_S = 1e-3
 
 
-def _readings(skin, i: int, par: float, k_on: int, n: int, q: float, seed: int):
+def _readings(skin, i: int, par: float, k_on: int, n: int, q: float, seed: int, cells: int | None = None,
+              offsets: tuple[float, ...] = ()):
     """The thermocouples of patch ``i`` (its spatial model through ``physics.spatial``'s own heat
     input ``q_x``, spread on the contact's cells), the pump chattering 50 ms off / 50 ms on,
-    ``q`` W into the sheet at ``par`` of the footprint's travel from sample ``k_on``; noise 20 mK."""
+    ``q`` W into the sheet at ``par`` of the footprint's travel from sample ``k_on``; noise 20 mK.
+    ``cells``: the readings' model with this many cells (a second discretisation of the pipe, not
+    the locator's own); ``offsets``: each thermocouple's constant error (K, a board's)."""
     p, lp = skin.patches[i], skin.loops[skin.patches[i].loop]
     sp, v_on = p.spatial, lp.cfg.pump.v_on
+    if cells is not None:
+        sp = dataclasses.replace(sp, n_cells=cells)
+    # each thermocouple's cell on this grid (cell 0 at the outlet; s from the inlet)
+    tc_cells = [min(max(math.floor((1.0 - s / p.length) * sp.n_cells), 0), sp.n_cells - 1)
+                for s in p.thermocouples]
     flow = FlowResistance(lp.cfg.skin)
     ends = (p.index == lp.patches[0], p.index == lp.patches[-1])
     w = contact_cells(par, sp.n_cells, sp.footprint)
@@ -40,12 +50,14 @@ def _readings(skin, i: int, par: float, k_on: int, n: int, q: float, seed: int):
     for k in range(3000):  # into the chatter's periodic state before the log begins
         F, G = E[float(v[k % 100])]
         x = F @ x + G @ np.array([T_in[0], 20.0, 0.0, 0.0])
-    Y = np.empty((n, len(p.tc_cells)))
+    Y = np.empty((n, len(tc_cells)))
     for k in range(n):
-        Y[k] = x[list(p.tc_cells)]
+        Y[k] = x[tc_cells]
         F, G = E[float(v[k])]
         x = F @ x + G @ np.array([T_in[k], 20.0, q if k >= k_on else 0.0, 0.0])
     Y += np.random.default_rng(seed).normal(0.0, 0.02, Y.shape)
+    for j, c in enumerate(offsets):
+        Y[:, j] += c
     s_true = p.length * (1.0 - (0.5 * sp.footprint + par * (1.0 - sp.footprint)))
     return T_in, v, [Y[:, j] for j in range(Y.shape[1])], s_true
 
@@ -67,3 +79,23 @@ def test_a_touch_near_either_end_is_placed_where_it_was(par: float) -> None:
     assert np.isfinite(pos.mean), "a position is reported"
     assert abs(pos.mean - s_true) < 0.1 * p.length
     assert pos.heat == pytest.approx(1.0, abs=0.2)  # dq is the heat itself: scale 1
+
+
+@pytest.mark.parametrize("par", [0.2, 0.8])
+def test_board_offsets_and_another_discretisation(par: float) -> None:
+    """The readings from a model of the pipe with twice the cells (not the locator's own), each
+    thermocouple off by a board's constant error (+0.4 K at the outlet, -0.3 K at the inlet, ten
+    times the touch's rise): the touch is still placed within 15 % of the pipe of the truth, its
+    scale near 1 (the offsets are fitted before the onset; without that fit the +0.7 K between
+    the two thermocouples would read as a touch at the inlet)."""
+    skin = load_skin(ROOT / "examples" / "forearm.toml")
+    i = skin.patch("ventral1").index
+    p = skin.patches[i]
+    n, k_on, k_off = 5000, 2000, 4200
+    T_in, v, Y, s_true = _readings(skin, i, par, k_on, n, q=1.5, seed=5, cells=2 * p.spatial.n_cells,
+                                   offsets=(0.4, -0.3))
+    pos = PatchLocator(skin, i, T_S).locate(k_on, k_off, T_in, np.full(n, 20.0), v, Y, None,
+                                            np.where(np.arange(n) >= k_on, 1.5, 0.0))
+    assert np.isfinite(pos.mean)
+    assert abs(pos.mean - s_true) < 0.15 * p.length, (pos.mean, s_true)
+    assert pos.heat == pytest.approx(1.0, abs=0.3)
