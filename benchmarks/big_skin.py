@@ -40,18 +40,22 @@ def skin_toml(n: int, per_loop: int = 10) -> str:
                 f"pipes = [{', '.join(str(p) for p in pipes)}]", "tank = [-0.05, 0.0]", ""]
     for k, name in enumerate(names):
         c, r = k % cols, k // cols
-        out += [f"[patches.{name}]", 'link = "body"', f"centre = [{0.03 + 0.04 * c:.3f}, {0.02 + 0.02 * r:.3f}]", ""]
+        centre = f"[{0.03 + 0.04 * c:.3f}, {0.02 + 0.02 * r:.3f}]"
+        out += [f"[patches.{name}]", 'link = "body"', f"centre = {centre}", ""]
     return "\n".join(out).replace("'", '"')
 
 
 def measure(args: list[str]) -> dict[str, object]:
-    t0 = time.perf_counter()
-    p = subprocess.Popen([*CMD, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    _, status, usage = os.wait4(p.pid, 0)
-    wall = time.perf_counter() - t0
-    err = p.stderr.read().strip() if p.stderr else ""
+    with tempfile.TemporaryFile("w+") as errf:  # a file: a pipe would fill with the contacts' lines
+        t0 = time.perf_counter()
+        p = subprocess.Popen([*CMD, *args], stdout=subprocess.DEVNULL, stderr=errf, text=True)
+        _, status, usage = os.wait4(p.pid, 0)
+        wall = time.perf_counter() - t0
+        errf.seek(0)
+        err = errf.read().strip()
     return {"exit": os.waitstatus_to_exitcode(status), "wall_s": round(wall, 1),
-            "peak_mib": round(usage.ru_maxrss / 1024.0), "last_line": err.splitlines()[-1][:300] if err else ""}
+            "peak_mib": round(usage.ru_maxrss / 1024.0),
+            "last_line": err.splitlines()[-1][:300] if err else ""}
 
 
 def main() -> None:
