@@ -198,3 +198,19 @@ def test_estimates_do_not_depend_on_the_blocks(tmp_path: Path, monkeypatch: pyte
     assert a.events == b.events and len(a.events) > 0
     assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
     assert math.isfinite(a.t_s)
+
+
+def test_a_skin_beyond_the_limit_is_refused_at_once() -> None:
+    """More patches than ``MAX_PATCHES``: one line with the limit and why, before any patch is read."""
+    from thermoskin.params import ConfigError
+    from thermoskin.skin.layout import MAX_PATCHES
+
+    n = MAX_PATCHES + 1
+    data = {"links": {"a": {"length": 1.0, "circumference": 1.0}},
+            "loops": {"l": {"patches": ["p0"], "pipes": [0.1, 0.1]}},
+            "patches": {f"p{k}": {"link": "a", "centre": "not even read"} for k in range(n)}}
+    with pytest.raises(ConfigError) as e:
+        parse_skin(data, "big.toml")
+    msg = str(e.value)
+    assert msg.startswith(f"big.toml: [patches] holds {n} patches, more than a skin may have ({MAX_PATCHES}")
+    assert "\n" not in msg and len(msg) < 400
