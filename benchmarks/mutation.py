@@ -10,7 +10,9 @@ For each run the script copies ``src``, ``tests``, ``examples`` and ``benchmarks
 work folder (a temporary one unless ``--workdir``), writes mutmut's settings there (only the
 modules asked for mutated; only their tests run; pytest in one process) and runs ``mutmut run``;
 mutmut makes every mutant of those modules (an operator swapped, a number or a string changed,
-an argument dropped, ...), and runs, for each, the tests that reach the mutated function. A
+an argument dropped, ...), and runs, for each, the tests that reach the mutated function. Raise
+statements are left as they are (what an error says is held by the one-line tests; a mutant of
+its words changes no behaviour; the conditions that raise are mutated). A
 mutant the tests fail on is *killed*; one they pass on *survived*. In the sweep's engine only
 :func:`~thermoskin.sweep.engine.score` (the metrics) is mutated: the rest is the batched
 simulation, which ``tests/test_sweep.py`` holds to the one-point runs (minutes per mutant).
@@ -77,6 +79,9 @@ def settings(files: list[str], tests: list[str]) -> str:
             f"pytest_add_cli_args = {q(['-p', 'no:cacheprovider', '-p', 'no:randomly', '-x', '-q'])}\n"
             f"pytest_add_cli_args_test_selection = {q(tests)}\n"
             "timeout_multiplier = 10.0\n"
+            # what an error says is not mutated (its words are checked by the one-line tests; a
+            # mutant of a message's text changes no behaviour): a raise statement, whole
+            'do_not_mutate_patterns = ["^\\\\s*raise\\\\b"]\n'
             # each mutant's tests in a process forked from one that never ran a test: forked from
             # one that had, numba's worker threads (started by the compiled kernels) were lost
             # in the child, and its first parallel call hung
