@@ -152,10 +152,11 @@ def main() -> None:
             ran = counts.get("killed", 0) + counts.get("survived", 0) + counts.get("timeout", 0)
             survivors = [{"name": n, "diff": mutmut(work, "show", n).strip()} for n in sorted(names)
                          if status[n] == "survived"]
+            rate = round(counts.get("survived", 0) / ran, 4) if ran else None
             out["modules"][key] = {"mutants": len(names), **counts,  # type: ignore[index]
-                                   "survival_rate": round(counts.get("survived", 0) / ran, 4) if ran else None,
-                                   "survivors": survivors}
-        tot = {k: sum(m.get(k, 0) for m in out["modules"].values()) for k in ("killed", "survived", "timeout")}
+                                   "survival_rate": rate, "survivors": survivors}
+        mods = out["modules"].values()  # type: ignore[attr-defined]
+        tot = {k: sum(m.get(k, 0) for m in mods) for k in ("killed", "survived", "timeout")}
         ran = sum(tot.values())
         out["total"] = {**tot, "survival_rate": round(tot["survived"] / ran, 4) if ran else None}
         print(json.dumps(out, indent=1))
