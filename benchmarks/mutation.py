@@ -75,6 +75,7 @@ def settings(files: list[str], tests: list[str]) -> str:
     q = lambda xs: "[" + ", ".join(json.dumps(x) for x in xs) + "]"  # noqa: E731
     return ("\n[tool.mutmut]\n"
             'source_paths = ["src"]\n'
+            'also_copy = ["examples", "benchmarks/skins"]\n'
             f"only_mutate = {q(['src/thermoskin/' + f for f in files])}\n"
             f"pytest_add_cli_args = {q(['-p', 'no:cacheprovider', '-p', 'no:randomly', '-x', '-q'])}\n"
             f"pytest_add_cli_args_test_selection = {q(tests)}\n"
