@@ -268,12 +268,12 @@ def invoke(*args: str) -> tuple[int, str, str]:
 def test_cli_writes_a_loadable_config_and_a_figure(tmp_path: Path):
     log_path = tmp_path / "log.csv"
     write_log(log_path, log_of(steps(20.0, 9), seed=2))
-    skin = tmp_path / "skin.toml"
+    skin = tmp_path / "params.toml"
     skin.write_text("[skin]\nC_w = 0.2\nR_ag = 1.3\n")
     truth = tmp_path / "true.toml"
     truth.write_text("[skin]\n" + "".join(f"{k} = {v}\n" for k, v in TRUE_SKIN.items()))
     out = tmp_path / "fitted.toml"
-    code, stdout, stderr = invoke("calibrate", str(log_path), "--skin", str(skin), "--params",
+    code, stdout, stderr = invoke("calibrate", str(log_path), "--config", str(skin), "--params",
                                   "R_g,R_w_flowing,R_w_stopped", "--truth", str(truth), "-o", str(out))
     assert code == 0, stderr
     fitted = load_config(out)

@@ -872,3 +872,24 @@ def test_parquet_float32_and_other_widths_read_exactly(tmp_path: Path) -> None:
     with LogReader(tmp_path / "x.parquet", chunk_rows=333) as r:  # batches cut inside row groups
         chunks = list(r)
     np.testing.assert_array_equal(np.concatenate([c["T_w"] for c in chunks]), want_Tw)
+
+
+def test_a_skins_patch_column_is_an_integer_in_parquet(tmp_path: Path) -> None:
+    """A skin's long-format log stores ``patch`` as int64 (an index, not a float: a lab's pandas or
+    polars reads it as one), the other columns as float64 (the skin's reader reads it back:
+    tests/test_skin_stream.py); a non-whole patch index is refused rather than rounded."""
+    import pyarrow.parquet as pq
+
+    from thermoskin.logio import LogWriter
+
+    path = tmp_path / "skin.parquet"
+    with LogWriter(path, ["t", "patch", "T_w"]) as w:
+        w.write({"t": np.repeat([0.0, 0.001], 3), "patch": np.tile(np.arange(3.0), 2),
+                 "T_w": np.linspace(20, 21, 6)})
+    schema = pq.read_schema(path)
+    assert str(schema.field("patch").type) == "int64" and str(schema.field("T_w").type) == "double"
+    assert pq.read_table(path)["patch"].to_pylist() == [0, 1, 2, 0, 1, 2]
+    assert pq.read_table(path)["T_w"].to_pylist() == np.linspace(20, 21, 6).tolist()
+    bad = tmp_path / "bad.parquet"
+    with pytest.raises(ValueError, match="whole number"), LogWriter(bad, ["t", "patch"]) as w:
+        w.write({"t": np.array([0.0]), "patch": np.array([0.5])})

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import random
 import struct
-import time
 
 import pytest
 
@@ -171,20 +170,3 @@ def test_sequence_wraps_and_hello_restarts() -> None:
     assert [m.seq for m in out] == seqs and dec.stats.lost == 0
     out = dec.feed(encode(HelloAck(0)) + encode(sample(1, counters=(0, 0, 0))))
     assert [m.TYPE for m in out] == [proto.T_HELLO_ACK, proto.T_SAMPLE]
-
-
-def test_encode_decode_fast_enough_for_1khz() -> None:
-    m = sample(123)
-    frame = encode(m)
-    dec = Decoder(check_seq=False)
-    n = 2000
-    t0 = time.perf_counter()
-    for _ in range(n):
-        encode(m)
-    t_enc = (time.perf_counter() - t0) / n
-    t0 = time.perf_counter()
-    for _ in range(n):
-        dec.feed(frame)
-    t_dec = (time.perf_counter() - t0) / n
-    print(f"SAMPLE encode {t_enc * 1e6:.1f} µs, decode {t_dec * 1e6:.1f} µs")
-    assert t_enc + t_dec < 200e-6  # a fifth of the 1 ms budget, even on a loaded machine

@@ -333,3 +333,25 @@ def test_sweep_plot(tmp_path: Path) -> None:
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     r = CliRunner().invoke(main, ["sweep-plot", str(out), "-o", str(png), "--metric", "speed"])
     assert r.exit_code == 2 and "--metric speed" in r.output
+
+
+def test_sweep_plot_says_why_a_panel_is_empty(tmp_path: Path) -> None:
+    """A metric with no value in any point (latencies where nothing was detected) drew an empty
+    panel without a word: its panel now says why, and the command prints the same line."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from thermoskin.plots.sweep import plot_results
+
+    n = 6
+    cols = {"point": np.arange(n), "hash": [f"h{i}" for i in range(n)], "seed": np.zeros(n, dtype=np.int64),
+            "pump.v_on": np.linspace(0.1, 0.2, n), "detection_rate": np.zeros(n),
+            "latency_median_s": np.full(n, np.nan), "tracking_rms_K": np.linspace(0.04, 0.05, n)}
+    res = tmp_path / "r.parquet"
+    pq.write_table(pa.table(cols), res)
+    png = tmp_path / "p.png"
+    lines = plot_results(res, png, ["detection_rate", "latency_median_s", "tracking_rms_K"])
+    assert lines == ["latency median, s: no value in any of the 6 points (no touch detected)"]
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    r = CliRunner().invoke(main, ["sweep-plot", str(res), "-o", str(png), "--metric", "latency_median_s"])
+    assert r.exit_code == 0 and "no touch detected" in r.stderr, r.output

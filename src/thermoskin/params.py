@@ -663,6 +663,37 @@ def read_toml(path: str | Path, what: str, error: type[ConfigError] | None = Non
         raise err(f"{p}: nested too deep: not a {what}") from None
 
 
+#: The three kinds of TOML file the commands take, by what each is given with.
+FILE_KINDS = {
+    "parameters": "a parameter file (tables such as [skin], [sensor], [detector]: the model and the "
+                  "boards as the lab knows them; give it with --config)",
+    "layout": "a skin's layout file (links, loops, patches: where the patches lie; give it with --skin)",
+    "sweep": "a sweep file ([sweep], [keys]: designs to simulate; give it to `thermoskin sweep`)",
+}
+
+
+def file_kind(data: dict[str, Any]) -> str | None:
+    """Which of :data:`FILE_KINDS` a parsed TOML file is, by its top-level tables; None if it
+    has none of their marks (an empty file, or a file of none of these kinds)."""
+    if "sweep" in data or "keys" in data:
+        return "sweep"
+    if {"links", "loops", "patches"} & set(data):
+        return "layout"
+    if set(data) & set(_SECTION_TYPES):
+        return "parameters"
+    return None
+
+
+def check_kind(path: str | Path, data: dict[str, Any], want: str,
+               error: type[ConfigError] | None = None) -> None:
+    """One line when the file at ``path`` is another kind than ``want`` (a layout given where a
+    parameter file goes said "unknown table [name]"; the two were both called SKIN.toml)."""
+    kind = file_kind(data)
+    if kind is not None and kind != want:
+        err = ConfigError if error is None else error
+        raise err(f"{path} is {FILE_KINDS[kind]}, not {FILE_KINDS[want].split(' (')[0]} as this option takes")
+
+
 def load_config(path: str | Path | None = None, preset: str = "paper") -> Config:
     """The preset, overridden by the TOML file at ``path`` if given."""
     if preset not in PRESETS:
@@ -671,8 +702,23 @@ def load_config(path: str | Path | None = None, preset: str = "paper") -> Config
     if path is None:
         return cfg
     p = Path(path)
-    data = read_toml(p, "config file")
+    data = read_toml(p, "parameter file")
+    check_kind(p, data, "parameters")
     return _merge(cfg, data, source=str(p))
+
+
+#: Significant digits a written config keeps: a fitted or measured value's last bits are noise
+#: (a log's median step of 0.10000000000012221 s is 0.1 s), and 12 digits are 1e-12 of it.
+TOML_DIGITS = 12
+
+
+def toml_number(x: float) -> str:
+    """A float as a config file writes it: rounded to :data:`TOML_DIGITS` significant digits,
+    in the shortest form that reads back as that float (``nan``, ``inf``, ``-inf`` as TOML spells them)."""
+    x = float(x)
+    if not math.isfinite(x):
+        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    return repr(float(f"{x:.{TOML_DIGITS}g}"))
 
 
 def to_toml(cfg: Config) -> str:
@@ -690,7 +736,9 @@ def to_toml(cfg: Config) -> str:
             elif isinstance(value, bool):
                 text = "true" if value else "false"
             elif isinstance(value, tuple | list):
-                text = "[" + ", ".join(repr(float(x)) for x in value) + "]"
+                text = "[" + ", ".join(toml_number(x) for x in value) + "]"
+            elif isinstance(value, float):
+                text = toml_number(value)
             else:
                 text = repr(value)
             unit = f.metadata.get("unit", "")

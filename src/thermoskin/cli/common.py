@@ -317,7 +317,8 @@ def _units(time_unit: str | None, temp_unit: str | None) -> Any:
 
 
 CONFIG_OPT = click.option("--config", "config_path", type=click.Path(path_type=Path),
-                          default=None, help="TOML file overriding the paper's Table I preset.")
+                          default=None, help="PARAMS.toml, a parameter file: its tables override the "
+                                            "paper's Table I preset (examples/params.toml).")
 
 
 def _read_log(path: Path, required: Any) -> dict[str, Any]:

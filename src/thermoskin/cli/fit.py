@@ -65,9 +65,10 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
 
 @main.command()
 @click.argument("log_path", type=click.Path(path_type=Path))
-@click.option("--config", "--skin", "config_path", type=click.Path(path_type=Path), default=None,
-              help="The skin's config (TOML): the starting values and those held. --skin: a "
-                   "single patch's skin file.")
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
+              help="PARAMS.toml, a parameter file: its [skin] values start the fit and hold what is "
+                   "not fitted (default: the paper's Table I).")
+@click.option("--skin", "layout_path", type=click.Path(path_type=Path), default=None, hidden=True)
 @click.option("-o", "--output", "output_toml", type=click.Path(path_type=Path), required=True,
               help="FITTED.toml: the config with the fitted [skin] values (intervals as comments); "
                    "the fit figure goes beside it as FITTED.png.")
@@ -83,7 +84,8 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
                    "chatters) instead of every sample (default).")
 @_user_errors
 def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, params: str | None,
-              truth_path: Path | None, contact_column: str, t_fit: float | None) -> None:
+              truth_path: Path | None, contact_column: str, t_fit: float | None,
+              layout_path: Path | None = None) -> None:
     """Fit the skin's network parameters and R_w to a recorded log (docs/calibration.md).
 
     LOG_PATH (CSV or Parquet) has t,T_w,T_p,v,T_a, uniformly sampled, no touch (or a
@@ -94,6 +96,10 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
     from thermoskin.fit import calibrate as cal_mod
     from thermoskin.logio import read_log
     from thermoskin.plots.calibration import plot_fit
+
+    if layout_path is not None:  # --skin was once another name of --config here
+        raise UserError("calibrate fits one patch's parameters: give its parameter file with --config "
+                        "(--skin names a skin's layout file, which calibrate does not take)")
 
     _outputs(("-o", output_toml, (".toml",), "fitted config"),
              ("-o", output_toml.with_suffix(".png"), (".png",), "fit figure"), inputs=(log_path,))

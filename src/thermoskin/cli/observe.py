@@ -45,9 +45,10 @@ from thermoskin.params import Config
 @EVENTS_OPT
 @CONFIG_OPT
 @click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
-              help="A skin of many patches (TOML): INPUT is its long-format log (t,patch,T_w,T_p,v,T_a,"
-                   "...); every patch is estimated with its inlet water (the cross-talk of shared water "
-                   "removed); events gain patch,position,position_sd; the layout with the contacts is "
+              help="LAYOUT.toml, a skin of many patches' layout file (examples/forearm.toml): INPUT "
+                   "is its long-format log (t,patch,T_w,T_p,v,T_a,...); every patch is estimated "
+                   "with its inlet water (the cross-talk of shared water removed); events gain "
+                   "patch,position,position_sd; the layout with the contacts is "
                    "drawn beside the output (OUTPUT.png).")
 @click.option("--groups", "groups_path", type=click.Path(path_type=Path), default=None,
               help="With --skin: also write the body contacts (events on neighbouring patches "

@@ -18,6 +18,7 @@ from thermoskin.cli.common import (
     _config,
     _live_address,
     _live_options,
+    _note_compile,
     _outputs,
     _start_live,
     _user_errors,
@@ -124,6 +125,7 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
         _replay_live(recording, live_addr, live_rate, live_wait, speed or 1.0, live_allow_origin)
         return
     cfg = _config(config_path) if config_path is not None else None
+    _note_compile("estimation/kernel.run")  # the estimator over each block (TouchEstimator.feed)
     info: dict[str, Any] = {}
     cmp: dict[str, Any] = {}
 

@@ -9,6 +9,7 @@ import contextlib
 import math
 import os
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -45,6 +46,9 @@ from thermoskin.cli.observe import _skin_report
 from thermoskin.estimation.events import ContactEvent
 from thermoskin.params import Config
 
+#: Samples a paced ``run --skin`` steps between two looks at the wall clock (0.1 s at 1 kHz).
+PACED_BLOCK = 100
+
 #: Seconds the closed loop gets to bring the skin from ambient to its command before the
 #: scenario's touches begin.
 SETTLE_S = 10.0
@@ -64,8 +68,10 @@ SETTLE_S = 10.0
 @click.option("--device", default="sim", show_default=True,
               help="sim (the simulated skin in this process) or serial://PATH (a device or "
                    "`thermoskin device-emulator` speaking docs/protocol.md).")
-@click.option("--realtime", is_flag=True,
-              help="Pace the simulated skin at wall-clock speed in the fixed-rate loop process.")
+@click.option("--realtime/--no-realtime", default=None,
+              help="Pace the simulated skin at wall-clock speed (one patch: in the fixed-rate loop "
+                   "process); the default with --live, so that a viewer sees the run as it goes. "
+                   "--no-realtime: as fast as it computes.")
 @click.option("--record", "record_path", type=click.Path(path_type=Path), default=None,
               help="Record every signal, command, event and the parameters to this MCAP file.")
 @click.option("--probe", "probe_amp", type=float, default=None, metavar="K",
@@ -74,7 +80,8 @@ SETTLE_S = 10.0
                    "that the toucher's conductance and temperature separate (docs/characterise.md).")
 @_live_options
 @click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
-              help="Run a whole skin of many patches (TOML) in closed loop on the simulated device "
+              help="Run a whole skin of many patches (LAYOUT.toml, its layout file: examples/forearm.toml) "
+                   "in closed loop on the simulated device "
                    "(scenario default: multi): every patch estimated and its contacts printed as the run "
                    "goes; --live and --record serve / record per-patch topics and a scene (docs/live.md); "
                    "the long-format log, events with patch,position,position_sd, the body contacts "
@@ -84,7 +91,7 @@ SETTLE_S = 10.0
 @_user_errors
 def run(scenario: str, duration: float | None, setpoint: float | None,
         config_path: Path | None, log_path: Path, plot_path: Path | None, events_path: Path | None,
-        device: str, realtime: bool, record_path: Path | None, probe_amp: float | None,
+        device: str, realtime: bool | None, record_path: Path | None, probe_amp: float | None,
         live_addr: str | None, live_rate: float, live_wait: float, skin_path: Path | None = None,
         groups_path: Path | None = None, live_allow_origin: tuple[str, ...] = ()) -> None:
     """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
@@ -113,14 +120,16 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
 
     if live_addr is not None:  # a bad address: its one line, before any compile notice
         _live_address(live_addr, live_rate, live_wait, live_allow_origin)
+    if realtime is None:  # a live view watches the run at its own pace; a run alone goes flat out
+        realtime = live_addr is not None and device == "sim"
     if skin_path is not None:
-        single_only = (device != "sim", realtime, setpoint is not None, probe_amp is not None)
+        single_only = (device != "sim", setpoint is not None, probe_amp is not None)
         if any(single_only):
-            raise UserError("--skin runs the simulated skin in this process: --device, --realtime, "
-                            "--setpoint and --probe are for the single patch")
+            raise UserError("--skin runs the simulated skin in this process: --device, --setpoint and "
+                            "--probe are for the single patch")
         _run_skin(skin_path, None if scenario == "fingers" else scenario, duration, config_path, log_path,
                   plot_path, events_path, groups_path, record_path, live_addr, live_rate, live_wait,
-                  live_allow_origin)
+                  paced=realtime, live_origins=live_allow_origin)
         return
     if groups_path is not None:
         raise UserError("--groups needs --skin (a skin of many patches)")
@@ -273,7 +282,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 console.print("what: the scenario's fingers are the paper's simple finger (a body held "
                               "at its temperature), which the characteriser, made for people and "
                               "objects as they are, may call an object; --scenario touchers has both "
-                              "(README: What touched the skin)")
+                              "(docs/characterise.md)")
         stopped = bool(summary.get("interrupted"))
         if n > 1 and not res.fault:
             if serial:
@@ -322,13 +331,14 @@ def _close_log(runlog: Any, path: Path) -> None:
 def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, config_path: Path | None,
               log_path: Path, plot_path: Path | None, events_path: Path | None,
               groups_path: Path | None, record_path: Path | None = None, live_addr: str | None = None,
-              live_rate: float = 100.0, live_wait: float = 0.0, live_origins: tuple[str, ...] = ()) -> None:
+              live_rate: float = 100.0, live_wait: float = 0.0, paced: bool = False,
+              live_origins: tuple[str, ...] = ()) -> None:
     """``run --skin``: the whole skin in closed loop (one controller per water loop,
     ``runtime/skin_loop.py``), every patch estimated and its contacts detected block by block as
     the loop goes (``skin_observe.SkinEstimator``), printed as they come and served live / recorded
     (``runtime/skin_topics.py``); at the end the positions and body contacts from the log
     (``observe_skin_file``, streamed, which gives the live contacts again), the layout picture
-    beside the log."""
+    beside the log. ``paced``: at wall-clock speed (``--realtime``, the default with ``--live``)."""
     from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.sim.skin_scenarios import skin_scenario
     from thermoskin.skin.layout import load_skin
@@ -350,7 +360,8 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
         raise UserError(str(e).strip("'\"")) from None
     console.print(f"[bold]thermoskin run --skin[/]: {skin.name} ({len(skin.patches)} patches on "
                   f"{len(skin.loops)} loops) in closed loop on the simulated skin, scenario '{sc.name}' "
-                  f"({len(sc.contacts)} contacts), {sc.duration:g} s; every patch estimated as it goes")
+                  f"({len(sc.contacts)} contacts), {sc.duration:g} s"
+                  + (" at wall-clock speed" if paced else "") + "; every patch estimated as it goes")
     from thermoskin.runtime.stopping import StopRequest
 
     period = skin.cfg.sensor.period_T_w  # the simulated boards'
@@ -365,7 +376,7 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     stop = StopRequest().install()
     try:
         _run_skin_loop(skin, sc, cfg, est, stop, log_path, plot_path, events_path, groups_path,
-                       record_path, live_addr, live_rate, live_wait, live_origins)
+                       record_path, live_addr, live_rate, live_wait, paced, live_origins)
     finally:
         previous.close(wrote=has_rows(log_path))  # no sample on disk: the earlier files back
         stop.restore()
@@ -377,9 +388,10 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
 
 def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_path: Path, plot_path: Path,
                    events_path: Path | None, groups_path: Path | None, record_path: Path | None,
-                   live_addr: str | None, live_rate: float, live_wait: float,
+                   live_addr: str | None, live_rate: float, live_wait: float, paced: bool = False,
                    live_origins: tuple[str, ...] = ()) -> None:
-    """The body of ``run --skin`` (:func:`_run_skin`) under its stop request."""
+    """The body of ``run --skin`` (:func:`_run_skin`) under its stop request; ``paced``: each
+    block of :data:`PACED_BLOCK` samples waits for its end on the wall clock."""
     from thermoskin.estimation.events import EventsStream
     from thermoskin.live.skin_topics import figures
     from thermoskin.runtime.skin_loop import run_skin
@@ -402,6 +414,7 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
                 sink.publish(topic, t, m)
         with _progress_bar("running") as bar:
             task = bar.add_task("closed loop", total=1.0)
+            wall0 = time.monotonic()
 
             def on_block(block: dict[str, Any]) -> None:
                 m = len(block["t"]) // P
@@ -425,10 +438,14 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
                 for sink, msgs in sinks:
                     for topic, tt, msg in msgs.messages(t, cols, b):
                         sink.publish(topic, tt, msg)
+                if paced:  # the block's last sample is due at its time on the wall clock
+                    ahead = wall0 + float(t[-1]) - time.monotonic()
+                    if ahead > 0.0 and not stop.is_set():
+                        time.sleep(ahead)  # a block's worth at most: a signal's stop waits no longer
 
             try:
                 res = run_skin(skin, sc, log_path, progress=lambda f: bar.update(task, completed=f),
-                               on_block=on_block, stop=stop)
+                               on_block=on_block, stop=stop, **({"block": PACED_BLOCK} if paced else {}))
             except OSError as e:
                 raise UserError(f"cannot write {log_path}: {e.strerror or e}") from None
         t_end = max(res.n - 1, 0) * cfg.sampling.t_s

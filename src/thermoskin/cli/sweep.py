@@ -58,5 +58,6 @@ def sweep_plot(results: Path, output: Path, metrics: tuple[str, ...]) -> None:
     from thermoskin.plots.sweep import plot_results
 
     _outputs(("-o", output, (".png", ".pdf", ".svg"), "plot"))
-    plot_results(results, output, list(metrics) or None)
+    for line in plot_results(results, output, list(metrics) or None):
+        err_console.print(f"thermoskin: note: {line}")
     console.print(f"plot written to {output}")

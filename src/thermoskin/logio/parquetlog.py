@@ -7,7 +7,8 @@ be readable while it grows or after a crash. Errors in a Parquet log name the da
 (1-based), there being no text lines.
 
 Columns are written as float64 (flags too: exact for integers up to 2**53, and Parquet's
-dictionary and run-length encodings store them compactly); reading accepts any integer,
+dictionary and run-length encodings store them compactly), but for :data:`INTEGER_COLUMNS`
+(a skin's ``patch``: an index, int64 in the file's schema); reading accepts any integer,
 float or boolean column, and reads a null as NaN where NaN is allowed.
 """
 
@@ -149,6 +150,29 @@ def bad_value_message(path: Path, row: int, name: str, value: float, is_null: bo
     return f"{path}: row {row + 1}, column {name!r}: {what}{hint}"
 
 
+#: Columns written as int64: a skin's long-format log's patch index.
+INTEGER_COLUMNS = frozenset({"patch"})
+
+
+def _arrow_type(name: str) -> Any:
+    import pyarrow as pa
+
+    return pa.int64() if name in INTEGER_COLUMNS else pa.float64()
+
+
+def _as_stored(name: str, a: Any) -> np.ndarray:
+    """A chunk of column ``name`` as its stored dtype (an integer column's values checked whole)."""
+    if name not in INTEGER_COLUMNS:
+        return np.asarray(a, dtype=np.float64)
+    x = np.asarray(a)
+    if x.dtype.kind in "iub":
+        return x.astype(np.int64, copy=False)
+    out = x.astype(np.int64)
+    if not np.array_equal(out, x):
+        raise ValueError(f"column {name!r} holds a value that is not a whole number")
+    return out
+
+
 class ParquetSink:
     """Appends chunks to a Parquet file, one row group per ``row_group_rows`` rows."""
 
@@ -158,7 +182,7 @@ class ParquetSink:
         self.path = path
         self.names = names
         self.row_group_rows = row_group_rows
-        self._schema = pa.schema([(n, pa.float64()) for n in names])
+        self._schema = pa.schema([(n, _arrow_type(n)) for n in names])
         self._writer: Any = None  # opened with the first row group, its encodings chosen on it
         self._fh: Any = None
         self._buf: list[list[np.ndarray]] = []
@@ -180,7 +204,7 @@ class ParquetSink:
         )
 
     def write(self, cols: list[np.ndarray]) -> None:
-        self._buf.append([np.asarray(a, dtype=np.float64) for a in cols])
+        self._buf.append([_as_stored(n, a) for n, a in zip(self.names, cols, strict=True)])
         self._rows += len(cols[0])
         if self._rows >= self.row_group_rows:
             self.flush()
@@ -193,10 +217,10 @@ class ParquetSink:
             return
         cols = [np.concatenate([c[j] for c in self._buf]) for j in range(len(self.names))]
         self._buf, self._rows = [], 0
-        # zero-copy views of the float64 buffers (``pa.array`` would import pandas to check for it)
+        # zero-copy views of the buffers (``pa.array`` would import pandas to check for it)
         n = len(cols[0])
-        arrays = [pa.Array.from_buffers(pa.float64(), n, [None, pa.py_buffer(np.ascontiguousarray(c))])
-                  for c in cols]
+        arrays = [pa.Array.from_buffers(_arrow_type(name), n, [None, pa.py_buffer(np.ascontiguousarray(c))])
+                  for name, c in zip(self.names, cols, strict=True)]
         table = pa.Table.from_arrays(arrays, schema=self._schema)
         if self._writer is None:
             self._writer = self._open(cols)

@@ -121,7 +121,7 @@ class LogReader:
             missing_columns(p, self.names, required, "line 1: " if self.format == "csv" else "")
             if one_patch and "patch" in self.names:
                 raise LogError(f"{p}: a skin's log (its 'patch' column: one row per sample and "
-                               "patch), not one patch's: observe reads it with --skin SKIN.toml")
+                               "patch), not one patch's: observe reads it with --skin LAYOUT.toml")
         except LogError:
             self.close()
             raise

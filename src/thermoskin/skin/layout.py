@@ -64,7 +64,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from thermoskin.params import Config, ConfigError, SkinParams, read_toml
+from thermoskin.params import Config, ConfigError, SkinParams, check_kind, read_toml
 from thermoskin.physics.spatial import SpatialParams
 
 REF_LENGTH = 0.03
@@ -492,7 +492,9 @@ def load_skin(path: str | Path | None = None, cfg: Config | None = None) -> Skin
     """The skin described in the TOML file ``path`` (None: :func:`single_skin`) on config ``cfg``."""
     if path is None:
         return single_skin(cfg)
-    return parse_skin(read_toml(path, "skin description"), str(Path(path)), cfg)
+    data = read_toml(path, "layout file")
+    check_kind(path, data, "layout")
+    return parse_skin(data, str(Path(path)), cfg)
 
 
 SINGLE = """\

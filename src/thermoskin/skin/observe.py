@@ -1,4 +1,4 @@
-"""Estimation and detection on a skin of many patches: ``thermoskin observe LOG --skin SKIN.toml``.
+"""Estimation and detection on a skin of many patches: ``thermoskin observe LOG --skin LAYOUT.toml``.
 
 Per patch, the one-patch estimator of the compiled kernel
 (:class:`~thermoskin.estimation.patches.PatchEstimators`, one state row per patch,
