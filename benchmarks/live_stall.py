@@ -39,7 +39,8 @@ def one(args: argparse.Namespace, folder: Path) -> dict[str, float]:
     port = free_port_pair()
     log = folder / "x.csv"
     cmd = [*CMD, "run", "--duration", str(args.duration), "--live", f"127.0.0.1:{port}", "--live-wait", "60",
-           "--log", str(log), "--record", str(folder / "x.mcap")] + (["--realtime"] if args.realtime else [])
+           "--log", str(log), "--record", str(folder / "x.mcap"),
+           "--realtime" if args.realtime else "--no-realtime"]
     t0 = time.monotonic()
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                          env={**os.environ, "PYTHONUNBUFFERED": "1"})

@@ -143,9 +143,10 @@ def log_end(path: Path) -> float:
 
 def test_run_with_a_stalled_viewer_ends_with_every_output(tmp_path: Path) -> None:
     """`run --live` with a viewer that subscribed and stalled: the run ends, exit 0, the whole log,
-    the plot and a complete recording (before, the process never ended)."""
+    the plot and a complete recording (before, the process never ended). As fast as it computes
+    (--no-realtime: 30 s of loop in a few); the paced run is the signal test's below."""
     port = free_port_pair()
-    p = start(["run", "--duration", "30", "--live", f"127.0.0.1:{port}", "--live-wait", "60",
+    p = start(["run", "--no-realtime", "--duration", "30", "--live", f"127.0.0.1:{port}", "--live-wait", "60",
                "--live-rate", "1000", "--log", "x.csv", "--record", "x.mcap"], tmp_path)
     ws = stalled_client(port)
     try:
@@ -166,8 +167,9 @@ def test_run_with_a_stalled_viewer_ends_with_every_output(tmp_path: Path) -> Non
 
 @pytest.mark.parametrize(("sig", "code"), [(signal.SIGTERM, 143)])
 def test_signal_stops_a_live_run_with_a_stalled_viewer(tmp_path: Path, sig: int, code: int) -> None:
-    """SIGTERM to `run --live` while a stalled viewer is connected: the run stops with 128 + the
-    signal, its log, plot and a complete recording written, within a bound (2 s by design)."""
+    """SIGTERM to `run --live` (paced at wall-clock speed in the fixed-rate loop process, as a live
+    run is by default) while a stalled viewer is connected: the run stops with 128 + the signal,
+    its log, plot and a complete recording written (in about a second on a quiet machine)."""
     port = free_port_pair()
     p = start(["run", "--duration", "600", "--live", f"127.0.0.1:{port}", "--live-wait", "60",
                "--log", "x.csv", "--record", "x.mcap"], tmp_path)
