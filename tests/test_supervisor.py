@@ -85,3 +85,36 @@ def test_safety_config_validated(tmp_path) -> None:
     f.write_text("[safety]\nT_touch_max = 38.5\nsurface = 'network'\n")
     cfg = load_config(f)
     assert cfg.safety.T_touch_max == 38.5 and cfg.safety.surface == "network"
+
+
+@pytest.mark.parametrize(("name", "code"), [("tc-open", sv.TC_OPEN), ("overtemp", sv.OVERTEMP),
+                                            ("internal", sv.DEVICE), ("fault-9", sv.DEVICE)])
+def test_device_fault_frames(name: str, code: int) -> None:
+    """A FAULT frame from the device: its name's code (an unknown one is a device fault), the time,
+    the value and the words latched; outputs zero."""
+    s = sup()
+    assert s.device_fault(1.25, name, 46.5) == code
+    assert (s.code, s.t_fault, s.value, s.detail) == (code, 1.25, 46.5, f"device reported {name}")
+    assert s.gate(0.5, 0.141) == (0.0, 0.0)
+
+
+def test_link_lost_past_the_timeout_only() -> None:
+    """No sample for exactly the timeout is not yet a loss; past it, a link fault with the age
+    (s) as its value and in ms in its words; a fault already latched is kept."""
+    s = sup(link_timeout_s=0.05)
+    assert s.link_lost(1.0, 0.05) == sv.OK and not s.tripped
+    assert s.link_lost(1.1, 0.0625) == sv.LINK
+    assert (s.t_fault, s.value, s.detail) == (1.1, 0.0625, "no sample from the device for 62 ms")
+    s = sup()
+    s.device_fault(0.5, "overtemp", 50.0)
+    assert s.link_lost(0.9, 10.0) == sv.OVERTEMP and s.detail == "device reported overtemp"
+
+
+def test_channels_are_named_in_the_words() -> None:
+    s = sup()
+    assert s.check(0.0, 24.0, 30.0, 20.0, stale=proto.CH_W | proto.CH_A) == sv.STALE
+    assert s.detail == "no new thermocouple reading (channels T_w,T_a)" and s.value == 5.0
+    s = sup()
+    assert s.check(0.0, 24.0, 30.0, 20.0, stuck=proto.CH_P) == sv.STUCK
+    assert s.detail == "thermocouple reading frozen (channels T_p)"
+    assert sv._channels(0) == "" and sv._channels(7) == "T_w,T_p,T_a"
