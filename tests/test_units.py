@@ -125,3 +125,43 @@ def test_a_skin_log_in_ms_is_refused(tmp_path: Path) -> None:
     r = CliRunner().invoke(main, ["observe", str(tmp_path / "skin.csv"), "--skin",
                                   str(root / "examples" / "forearm.toml"), "-o", str(tmp_path / "o.csv")])
     assert r.exit_code == 2 and "--time-unit ms" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(("step", "unit"), [(10.5, None), (10.1, None), (9.9, "ms"), (0.1, "ms")])
+def test_the_edges_of_the_millisecond_rule(step: float, unit: str | None) -> None:
+    """10.1 and 10.5 are past 10 ms; 9.9 ms and 0.1 ms are inside."""
+    assert suspected_time_unit(step) == unit
+
+
+def test_the_refusals_word_for_word(tmp_path: Path) -> None:
+    """What the refusals say (the rate as read, the step in the suspected unit, the option), for a
+    log of two rows already, and for temperatures at the very ends of the kelvin range; at most
+    four columns named."""
+    p = tmp_path / "x.csv"
+    p.write_text("t,T_w\n0,24\n2,24\n")
+    with pytest.raises(LogError) as e:
+        read_log(p, required=("t",), units=Units())
+    assert str(e.value) == (f"{p}: t steps by 2 a row: read as seconds the log is sampled at 0.5 Hz, which a "
+                            "skin's log never is (rows every 0.1 to 10 ms); read as milliseconds it is every "
+                            "2 ms: give --time-unit ms (or --time-unit s if t is in seconds)")
+    p.write_text("t,T_w\n0,24\n5000,24\n")
+    with pytest.raises(LogError, match="read as microseconds it is every 5 ms: give --time-unit us"):
+        read_log(p, required=("t",), units=Units())
+    for edge in (200.0, 400.0):
+        p.write_text(f"t,T_w\n0,{edge}\n0.001,{edge}\n")
+        with pytest.raises(LogError, match=f"T_w about {edge:.1f}: no skin"):
+            read_log(p, required=("t",), units=Units())
+    p.write_text("t,T_w,T_w2,T_p,T_a,T_w_cmd\n0,297,297,298,293,297\n0.001,297,297,298,293,297\n")
+    with pytest.raises(LogError) as e:
+        read_log(p, required=("t",), units=Units())
+    assert str(e.value) == (f"{p}: T_w about 297.0, T_w2 about 297.0, T_p about 298.0, T_a about 293.0: no "
+                            "skin is that warm in degrees Celsius; read as kelvin that is 23.9 degC: give "
+                            "--temp-unit K (or --temp-unit C if they are in degrees Celsius)")
+
+
+def test_check_on_its_own_takes_one_row_a_sample() -> None:
+    """:meth:`Units.check` without ``rows_per_sample``: each row a sample (a step of 1 between rows)."""
+    cols = [np.array([0.0, 1.0, 2.0, 3.0])]
+    with pytest.raises(LogError, match="t steps by 1 a row"):
+        Units().check(Path("x.csv"), ["t"], cols)
+    Units().check(Path("x.csv"), ["t"], [np.array([0.0, 0.0, 1e-3, 1e-3])], rows_per_sample=2)
