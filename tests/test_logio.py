@@ -893,3 +893,46 @@ def test_a_skins_patch_column_is_an_integer_in_parquet(tmp_path: Path) -> None:
     bad = tmp_path / "bad.parquet"
     with pytest.raises(ValueError, match="whole number"), LogWriter(bad, ["t", "patch"]) as w:
         w.write({"t": np.array([0.0]), "patch": np.array([0.5])})
+
+
+def test_parquet_row_groups_and_integer_columns(tmp_path: Path) -> None:
+    """The Parquet writer: a row group once ``row_group_rows`` rows are buffered (100, 100, 50 here,
+    from chunks of 50), an integer column's values kept (not its bytes read as floats)."""
+    import pyarrow.parquet as pq
+
+    from thermoskin.logio import LogWriter
+
+    p = tmp_path / "x.parquet"
+    t = np.arange(250) * 1e-3
+    with LogWriter(p, ["t", "T_w", "n"], row_group_rows=100) as w:
+        for i in range(0, 250, 50):
+            w.write({"t": t[i:i + 50], "T_w": 24.0 + t[i:i + 50], "n": np.arange(i, i + 50)})
+    meta = pq.ParquetFile(p).metadata
+    assert [meta.row_group(k).num_rows for k in range(meta.num_row_groups)] == [100, 100, 50]
+    got = read_log(p, required=("t",))
+    np.testing.assert_array_equal(got["t"], t)
+    np.testing.assert_array_equal(got["T_w"], 24.0 + t)
+    np.testing.assert_array_equal(got["n"], np.arange(250.0))
+
+
+def test_parquet_at_a_name_pyarrow_cannot_take(tmp_path: Path) -> None:
+    """A file name holding a byte no locale decodes (Python's escape for it, a lone surrogate, as
+    under an ASCII locale): written through an open file, read back, seen to have rows."""
+    from thermoskin.logio import has_rows
+
+    p = tmp_path / (os.fsdecode(b"log\xff") + ".parquet")
+    n = 50
+    write_log(p, {"t": np.arange(n) * 1e-3, "T_w": np.full(n, 24.0), "T_p": np.full(n, 25.0),
+                  "v": np.full(n, 0.1), "T_a": np.full(n, 20.0)})
+    assert os.fsencode(p).endswith(b"log\xff.parquet") and has_rows(p)
+    assert read_log(p)["t"][-1] == 49e-3
+
+
+def test_a_file_that_is_not_parquet_says_what_pyarrow_found(tmp_path: Path) -> None:
+    p = tmp_path / "x.parquet"
+    p.write_bytes(b"t,T_w\n0,1\n")
+    with pytest.raises(LogError) as e:
+        read_log(p, required=("t",))
+    msg = str(e.value)
+    assert msg.startswith(f"{p}: not a readable Parquet file (") and "magic" in msg.lower()
+    assert msg.endswith("a Parquet log is readable only once its writer has closed it")
