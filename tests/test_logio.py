@@ -936,3 +936,42 @@ def test_a_file_that_is_not_parquet_says_what_pyarrow_found(tmp_path: Path) -> N
     msg = str(e.value)
     assert msg.startswith(f"{p}: not a readable Parquet file (") and "magic" in msg.lower()
     assert msg.endswith("a Parquet log is readable only once its writer has closed it")
+
+
+def test_messages_of_long_lists_and_bad_bytes(tmp_path: Path) -> None:
+    """What the reader says, word for word: at most 12 names (each cut at 40 characters) and how
+    many more; the bad bytes of a line that is not UTF-8 (four at most), where on the line."""
+    from thermoskin.logio.common import listing
+
+    names = [f"c{k}" for k in range(15)]
+    assert listing(names) == ", ".join(names[:12]) + " and 3 more"
+    assert listing(names[:12]) == ", ".join(names[:12]) and listing(names, 2) == "c0, c1 and 13 more"
+    long = "x" * 41
+    assert listing(["y" * 40, long]) == "y" * 40 + ", " + "x" * 36 + "..."
+    p = tmp_path / "x.csv"
+    p.write_bytes(b"t,T_w\n0,1\n0.001,\xff\xfe\xfd\xfc\xfb\n")
+    with pytest.raises(LogError) as e:
+        read_log(p, required=("t",))
+    assert str(e.value) == (f"{p}: line 3: not valid UTF-8 text (b'\\xff\\xfe\\xfd\\xfc' at byte 7 of "
+                            "the line); save the log as UTF-8 CSV")
+
+
+def test_blank_first_lines_and_a_blank_file(tmp_path: Path) -> None:
+    """A file of blanks alone is empty; a blank first line before a header is not an empty file
+    (its first line is the header, and blank: refused for that)."""
+    p = tmp_path / "x.csv"
+    p.write_text(" \n\t\n\n")
+    with pytest.raises(LogError, match="empty file"):
+        read_log(p, required=("t",))
+    p.write_text("\nt,T_w\n0,1\n0.001,1\n")
+    with pytest.raises(LogError) as e:
+        read_log(p, required=("t",))
+    assert "empty file" not in str(e.value)
+
+
+def test_sample_time_of_two_samples() -> None:
+    from thermoskin.logio import sample_time
+
+    assert sample_time([0.0, 0.5]) == 0.5 and sample_time(np.array([[0.0, 1e-3, 2e-3]])) == 1e-3
+    with pytest.raises(ValueError, match="at least 2 samples, got 1"):
+        sample_time([1.0])
