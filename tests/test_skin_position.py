@@ -136,6 +136,7 @@ def test_a_reported_position_carries_its_own_spread() -> None:
     pos, loc, _, _ = _locate("ventral1")
     prior = float(np.std(loc.positions))
     assert np.isfinite(pos.mean) and pos.sd == pos.sd_fit and 0.0 < pos.sd < IDENTIFIABLE * prior
+    assert len(loc.positions) == len(loc.shares) == 25 and loc.positions[0] > loc.positions[-1]
 
 
 def test_one_thermocouple_with_the_pump_running_is_not_placed() -> None:
