@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -45,8 +46,12 @@ def test_two_runs_on_one_log(tmp_path: Path) -> None:
             assert first.poll() is None, first.communicate()
             assert time.monotonic() < t_end
             time.sleep(0.02)
-        second = subprocess.run([*CMD, "run", "--duration", "20", "--log", "x.csv"], cwd=tmp_path,
-                                capture_output=True, text=True, env=ENV, timeout=120)
+        first.send_signal(signal.SIGSTOP)  # held under way, whatever this machine's speed
+        try:
+            second = subprocess.run([*CMD, "run", "--duration", "20", "--log", "x.csv"], cwd=tmp_path,
+                                    capture_output=True, text=True, env=ENV, timeout=120)
+        finally:
+            first.send_signal(signal.SIGCONT)
         _, err = first.communicate(timeout=600)
     finally:
         if first.poll() is None:
@@ -63,10 +68,12 @@ def test_two_runs_on_one_log(tmp_path: Path) -> None:
 
 def test_two_sweeps_on_one_output(tmp_path: Path) -> None:
     """Two sweeps on one output: the second is refused (it crashed with a traceback from the
-    parts store); the first's results are whole."""
+    parts store); the first's results are whole. The first is held (SIGSTOP) once it has its lock,
+    while the second runs: a sweep this small is done in seconds."""
     spec = tmp_path / "s.toml"
-    spec.write_text('[sweep]\nsampler = "grid"\nchunk = 1\n[scenario]\nloop = "open"\nduration = 6.0\n'
-                    'settle = 2.0\ntouches = "one-finger"\n[keys]\n"skin.R_g" = [8.0, 10.0, 12.0]\n')
+    spec.write_text('[sweep]\nsampler = "grid"\nchunk = 1\nseeds = [0, 1]\n[scenario]\nloop = "open"\n'
+                    'duration = 30.0\nsettle = 2.0\ntouches = "one-finger"\n[keys]\n'
+                    '"skin.R_g" = [7.0, 8.0, 9.0, 10.0, 11.0, 12.0]\n')
     out = tmp_path / "r.parquet"
     first = subprocess.Popen([*CMD, "sweep", str(spec), "-o", str(out)], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True, env=ENV)
@@ -76,8 +83,12 @@ def test_two_sweeps_on_one_output(tmp_path: Path) -> None:
             assert first.poll() is None, first.communicate()
             assert time.monotonic() < t_end
             time.sleep(0.02)
-        second = subprocess.run([*CMD, "sweep", str(spec), "-o", str(out)], capture_output=True, text=True,
-                                env=ENV, timeout=120)
+        first.send_signal(signal.SIGSTOP)  # held in the middle of its work (it would be done in seconds)
+        try:
+            second = subprocess.run([*CMD, "sweep", str(spec), "-o", str(out)], capture_output=True,
+                                    text=True, env=ENV, timeout=120)
+        finally:
+            first.send_signal(signal.SIGCONT)
         _, err = first.communicate(timeout=600)
     finally:
         if first.poll() is None:
@@ -86,7 +97,7 @@ def test_two_sweeps_on_one_output(tmp_path: Path) -> None:
     lines = second.stderr.strip().splitlines()
     assert len(lines) == 1 and f"thermoskin sweep (pid {first.pid})" in lines[0], second.stderr
     assert first.returncode == 0, err
-    assert pq.read_table(out).column("point").to_pylist() == [0, 1, 2]
+    assert pq.read_table(out).column("point").to_pylist() == list(range(12))
 
 
 @pytest.fixture
