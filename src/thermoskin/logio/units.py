@@ -38,8 +38,6 @@ from thermoskin.logio.common import LogError
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
 #: ``--temp-unit``: what is added to a ``T_*`` value for °C.
 TEMP_UNITS = {"C": 0.0, "K": -273.15}
-#: A skin's log has a row every this many seconds, at most and at least (0.1 to 10 ms).
-ROW_S = (1e-4, 1e-2)
 #: Medians of a ``T_*`` column read as kelvin, K.
 KELVIN_RANGE = (200.0, 400.0)
 
@@ -51,12 +49,15 @@ def is_temperature(name: str) -> bool:
 
 
 def suspected_time_unit(step: float) -> str | None:
-    """The unit ``t`` looks like from its step (module doc), None if seconds."""
-    if not (math.isfinite(step) and step > 0):
+    """The unit ``t`` looks like from its step (module doc), None if seconds: a whole number of
+    tenths from 1 to 100 (0.1 to 10 ms in milliseconds, to a millionth of a tenth), or 100 to
+    10 000 (0.1 to 10 ms in microseconds)."""
+    if not math.isfinite(step):
         return None
-    if 0.1 - 1e-9 <= step <= 10.0 + 1e-9 and abs(step * 10 - round(step * 10)) <= 1e-6 * step * 10:
+    tenths = step * 10.0
+    if 1 <= round(tenths) <= 100 and abs(tenths - round(tenths)) <= 1e-6 * tenths:
         return "ms"
-    if step > 10.0 and ROW_S[0] * (1 - 1e-9) <= step * TIME_UNITS["us"] <= ROW_S[1] * (1 + 1e-9):
+    if 100.0 <= step <= 10_000.0:
         return "us"
     return None
 
@@ -100,7 +101,7 @@ class Units:
                 step = float(np.median(np.diff(t)))
                 unit = suspected_time_unit(step)
                 if unit is not None:
-                    rate = f"{1 / step:.3g} Hz" if step > 0 else "?"
+                    rate = f"{1 / step:.3g} Hz"  # a step of 0.1 at least (suspected_time_unit)
                     ms = step * TIME_UNITS[unit] * 1e3
                     raise LogError(f"{path}: t steps by {step:g} a row: read as seconds the log is sampled "
                                    f"at {rate}, which a skin's log never is (rows every 0.1 to 10 ms); read "
