@@ -93,3 +93,26 @@ def test_stream_counts_rows_fills_what_it_can_and_ends_lines_with_lf(tmp_path: P
     got = rows(p)
     assert [r["kind"] for r in got] == ["tap", "hold", ""]
     assert got[1]["release"] == "" and got[2]["toucher"] == "Müller"
+
+
+def test_the_whole_csv_table_ends_lines_with_lf_and_a_given_kind_stays(tmp_path: Path) -> None:
+    """The end-of-run table's lines end in LF alone; a row that says its kind keeps it (a stroke
+    of 0.2 s is not made a tap); a stream two folders down makes both."""
+    p = tmp_path / "ev.csv"
+    write_events(p, [TAP, HOLD])
+    assert b"\r" not in p.read_bytes()
+    q = tmp_path / "a" / "b" / "ev.csv"
+    with EventsStream(q) as s:
+        s.add_row({"onset": 1.0, "duration": 0.2, "kind": "stroke"})
+    assert rows(q)[0]["kind"] == "stroke"
+
+
+def test_a_parquet_table_at_a_name_pyarrow_cannot_take(tmp_path: Path) -> None:
+    import os
+
+    import pyarrow.parquet as pq
+
+    p = tmp_path / (os.fsdecode(b"ev\xff") + ".parquet")
+    write_events(p, [TAP, HOLD])
+    with open(p, "rb") as fh:
+        assert pq.read_table(fh).column("onset").to_pylist() == [1.0, 3.0]

@@ -25,6 +25,7 @@ pytestmark = pytest.mark.usefixtures("compiled_estimator")
     (0.25, None), (0.123, None), (1.5e-3, None),                                      # not whole tenths
     (20.0, None), (5e5, None), (0.0, None), (float("nan"), None),                     # neither
     (float("inf"), None), (-1.0, None), (99.5, None), (10_000.5, None), (10.04, None),
+    (1.0000001, "ms"),                                                                # a float's slack
 ])
 def test_suspected_time_unit(step: float, unit: str | None) -> None:
     assert suspected_time_unit(step) == unit
