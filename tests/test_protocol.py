@@ -190,10 +190,14 @@ def test_oversize_frames_at_the_limit() -> None:
     assert dec.stats.oversize == 2
     good = sample(9)
     assert dec.feed(b"\x00" + encode(good)) == [good]  # nothing of the dropped bytes before it
-    dec.feed(b"\x05" * 300)  # a tail past the limit after a delimiter
+    dec.feed(b"\x05" * 300)  # past the limit with no delimiter at all
     assert dec.stats.oversize == 3
     assert dec.feed(b"\x00" + encode(sample(10))) == [sample(10)]
-    assert dec.stats.oversize == 3
+    assert dec.feed(encode(sample(11)) + b"\x06" * 300) == [sample(11)]  # a long tail after a frame
+    assert dec.stats.oversize == 4
+    assert dec.feed(b"\x00" + encode(sample(12))) == [sample(12)]  # the tail's bytes are gone
+    dec.feed(b"\x07" * (limit + 1) + b"\x00" + b"\x07" * (limit + 5) + b"\x00")  # two oversize frames
+    assert dec.stats.oversize == 6
 
 
 def test_a_packet_of_seven_bytes_is_long_enough_to_be_checked() -> None:
