@@ -110,6 +110,29 @@ def test_stop_request_ends_in_safe_state() -> None:
     assert 500 <= len(res.columns["t"]) < 1000 and res.wall_s < 10
 
 
+@needs_pty
+def test_stop_request_over_a_device_leaves_drive_and_pump_at_zero(emulator: Start) -> None:
+    """A stop request while the device heats with the pump running (the run from ambient: drive
+    at its limit): the device ends latched safe with drive 0 and pump 0 as it applies them (the
+    emulator's own state, not the host's log, which ends before the SAFE)."""
+    core, link, _ = emulator()
+    stop = threading.Event()
+    seen = [0]
+
+    def on_rows(block: dict) -> None:
+        seen[0] += len(block["t"])
+        if seen[0] >= 800:
+            stop.set()
+
+    res = run_realtime(LoopSpec(TOLERANT, SCENARIOS["fingers"], device=f"serial://{link}", duration=30.0),
+                       stop=stop, on_rows=on_rows)
+    assert res.summary["fault"] == sv.STOPPED and res.fault is None
+    c = res.columns
+    assert c["drive"][-1] != 0.0 and c["v"][-1] > 0.0  # it was heating with the pump on
+    assert wait_safe(core) == wait_safe(core)  # the SAFE took effect (not NaN)
+    assert core.safe_latched and core.drive == 0.0 and core.v == 0.0
+
+
 def test_unknown_device_reported() -> None:
     res = run_realtime(LoopSpec(Config(), SCENARIOS["none"].with_duration(1.0), device="usb://x"))
     assert "unknown device" in res.summary["error"]

@@ -93,7 +93,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         config_path: Path | None, log_path: Path, plot_path: Path | None, events_path: Path | None,
         device: str, realtime: bool | None, record_path: Path | None, probe_amp: float | None,
         live_addr: str | None, live_rate: float, live_wait: float, skin_path: Path | None = None,
-        groups_path: Path | None = None) -> None:
+        groups_path: Path | None = None, live_allow_origin: tuple[str, ...] = ()) -> None:
     """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
 
     From ambient, the MPC and the inner loop bring T_w to its command while the observer
@@ -119,7 +119,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     from thermoskin.runtime.stopping import StopRequest
 
     if live_addr is not None:  # a bad address: its one line, before any compile notice
-        _live_address(live_addr, live_rate, live_wait)
+        _live_address(live_addr, live_rate, live_wait, live_allow_origin)
     if realtime is None:  # a live view watches the run at its own pace; a run alone goes flat out
         realtime = live_addr is not None and device == "sim"
     if skin_path is not None:
@@ -129,7 +129,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                             "--probe are for the single patch")
         _run_skin(skin_path, None if scenario == "fingers" else scenario, duration, config_path, log_path,
                   plot_path, events_path, groups_path, record_path, live_addr, live_rate, live_wait,
-                  paced=realtime)
+                  paced=realtime, live_origins=live_allow_origin)
         return
     if groups_path is not None:
         raise UserError("--groups needs --skin (a skin of many patches)")
@@ -202,7 +202,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             if live_addr is not None:
                 from thermoskin.live import Fanout
 
-                recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg))
+                recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg,
+                                                        origins=live_allow_origin, stop=stop.is_set))
             if recorder is not None:
                 recorder.event(0.0, "run-start", device=device, scenario=sc.name,
                                realtime=bool(realtime or serial),
@@ -331,7 +332,8 @@ def _close_log(runlog: Any, path: Path) -> None:
 def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, config_path: Path | None,
               log_path: Path, plot_path: Path | None, events_path: Path | None,
               groups_path: Path | None, record_path: Path | None = None, live_addr: str | None = None,
-              live_rate: float = 100.0, live_wait: float = 0.0, paced: bool = False) -> None:
+              live_rate: float = 100.0, live_wait: float = 0.0, paced: bool = False,
+              live_origins: tuple[str, ...] = ()) -> None:
     """``run --skin``: the whole skin in closed loop (one controller per water loop,
     ``runtime/skin_loop.py``), every patch estimated and its contacts detected block by block as
     the loop goes (``skin_observe.SkinEstimator``), printed as they come and served live / recorded
@@ -375,7 +377,7 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     stop = StopRequest().install()
     try:
         _run_skin_loop(skin, sc, cfg, est, stop, log_path, plot_path, events_path, groups_path,
-                       record_path, live_addr, live_rate, live_wait, paced)
+                       record_path, live_addr, live_rate, live_wait, paced, live_origins)
     finally:
         previous.close(wrote=has_rows(log_path))  # no sample on disk: the earlier files back
         stop.restore()
@@ -387,7 +389,8 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
 
 def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_path: Path, plot_path: Path,
                    events_path: Path | None, groups_path: Path | None, record_path: Path | None,
-                   live_addr: str | None, live_rate: float, live_wait: float, paced: bool = False) -> None:
+                   live_addr: str | None, live_rate: float, live_wait: float, paced: bool = False,
+                   live_origins: tuple[str, ...] = ()) -> None:
     """The body of ``run --skin`` (:func:`_run_skin`) under its stop request; ``paced``: each
     block of :data:`PACED_BLOCK` samples waits for its end on the wall clock."""
     from thermoskin.estimation.events import EventsStream
@@ -395,7 +398,7 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
     from thermoskin.runtime.skin_loop import run_skin
     from thermoskin.skin.observe import SKIN_EVENT_COLUMNS, SkinEvent, observe_skin_file
 
-    sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait)
+    sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait, live_origins, stop)
     P = len(skin.patches)
     names = [p.name for p in skin.patches]
     width = max(len(n) for n in names)
@@ -493,7 +496,8 @@ class _RecorderSink:
 
 
 def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str | None, live_rate: float,
-                live_wait: float) -> list[tuple[Any, Any]]:
+                live_wait: float, live_origins: tuple[str, ...] = (),
+                stop: Any = None) -> list[tuple[Any, Any]]:
     """The recording (every sample) and the live server (decimated) of a skin's run, each with its
     :class:`~thermoskin.live.skin_topics.SkinMessages`."""
     from thermoskin.live.skin_topics import SkinMessages, layout, skin_topics
@@ -512,6 +516,7 @@ def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str
     if live_addr is not None:
         try:
             live = _start_live(live_addr, live_rate, live_wait, cfg, topics=topics, params=params,
+                               origins=live_origins, stop=None if stop is None else stop.is_set,
                                view="a 3D panel on /skin/scene, plots of /patch/NAME/estimate.dq_i_hat")
         except BaseException:
             for s, _ in sinks:

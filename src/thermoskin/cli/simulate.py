@@ -122,7 +122,9 @@ def _simulate_skin(skin_path: Path, scenario: str, duration: float | None, cfg: 
             raise UserError(str(e)) from None
         except OSError as e:
             raise UserError(f"cannot write {output}: {e.strerror or e}") from None
-    names = ", ".join(f"{p.index} {p.name}" for p in skin.patches)
+    from thermoskin.logio.common import listing
+
+    names = listing([f"{p.index} {p.name}" for p in skin.patches], 20)  # 10 000 names are not read
     console.print(f"simulated {sc.duration:g} s of '{sc.name}' on {skin.name} ({len(skin.patches)} patches "
                   f"on {len(skin.loops)} loops, {len(sc.contacts)} contacts) at "
                   f"{res.realtime_factor:.0f}x real time; {res.n * len(skin.patches)} rows; patch: {names}; "

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.logio.common import Array, LogError, arrow_float64, short, writable
+from thermoskin.logio.common import MAX_COLUMNS, Array, LogError, arrow_float64, listing, short, writable
 
 #: Rows per row group (8 columns: 16 MiB before compression).
 ROW_GROUP_ROWS = 262_144
@@ -63,13 +63,20 @@ class ParquetSource:
     def __init__(self, path: Path) -> None:
         import pyarrow.parquet as pq
 
+        from thermoskin.atomic import arrow_name
+
         self.path = path
+        name = arrow_name(path)
+        self._fh = None if name is not None else open(path, "rb")  # noqa: SIM115 (closed by close())
         try:
             # pre_buffer (pyarrow's default) keeps every row group read so far: memory would
             # grow with the log's length
-            self._file = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
+            self._file = pq.ParquetFile(name if name is not None else self._fh, pre_buffer=False,
+                                        buffer_size=1 << 20)
             schema = self._file.schema_arrow
         except _arrow_errors() as exc:
+            if self._fh is not None:
+                self._fh.close()
             raise LogError(
                 f"{path}: not a readable Parquet file ({_first_line(exc)}); "
                 "a Parquet log is readable only once its writer has closed it"
@@ -88,16 +95,21 @@ class ParquetSource:
         path = self.path
         if not self.names:
             raise LogError(f"{path}: empty file (no columns)")
+        if len(self.names) > MAX_COLUMNS:
+            raise LogError(f"{path}: {len(self.names)} columns, more than a log may have ({MAX_COLUMNS})")
         dups = [n for n, c in Counter(self.names).items() if c > 1]
         if dups:
-            raise LogError(f"{path}: duplicate column name(s): {', '.join(dups)}")
+            raise LogError(f"{path}: duplicate column name(s): {listing(dups)}")
         for field in schema:
             ty = field.type
             if not (pa.types.is_integer(ty) or pa.types.is_floating(ty) or pa.types.is_boolean(ty)):
-                raise LogError(f"{path}: column {field.name!r} has type {ty}, expected numbers")
+                raise LogError(f"{path}: column {short(field.name)} has type {short(str(ty), 60)[1:-1]}, "
+                               "expected numbers")
 
     def close(self) -> None:
         self._file.close()
+        if self._fh is not None:
+            self._fh.close()
 
     def batches(self, chunk_rows: int) -> Iterator[tuple[list[Array], list[np.ndarray | None]]]:
         """Float64 columns (nulls as NaN) per batch, with each column's null mask (None if no null)."""
@@ -172,15 +184,21 @@ class ParquetSink:
         self.row_group_rows = row_group_rows
         self._schema = pa.schema([(n, _arrow_type(n)) for n in names])
         self._writer: Any = None  # opened with the first row group, its encodings chosen on it
+        self._fh: Any = None
         self._buf: list[list[np.ndarray]] = []
         self._rows = 0
 
     def _open(self, first: list[np.ndarray] | None) -> Any:
         import pyarrow.parquet as pq
 
+        from thermoskin.atomic import arrow_name
+
         few = [n for n, c in zip(self.names, first, strict=True) if few_values(c)] if first else self.names
+        name = arrow_name(self.path)
+        if name is None:  # a name pyarrow cannot take (module doc of thermoskin.atomic)
+            self._fh = open(self.path, "wb")  # noqa: SIM115 (closed by close())
         return pq.ParquetWriter(
-            self.path, self._schema, compression=COMPRESSION, use_dictionary=few,
+            name if name is not None else self._fh, self._schema, compression=COMPRESSION, use_dictionary=few,
             use_byte_stream_split=[n for n in self.names if n not in few],
             dictionary_pagesize_limit=DICTIONARY_PAGE_BYTES,
         )
@@ -212,4 +230,8 @@ class ParquetSink:
         self.flush()
         if self._writer is None:  # no row: the schema alone
             self._writer = self._open(None)
-        self._writer.close()
+        try:
+            self._writer.close()
+        finally:
+            if self._fh is not None:
+                self._fh.close()

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from thermoskin.paths import shown
 from thermoskin.sweep.engine import EXTRA, METRICS
 from thermoskin.sweep.spec import SweepError
 
@@ -33,8 +34,11 @@ def read_results(path: Path) -> dict[str, np.ndarray]:
 
     if not Path(path).is_file():
         raise SweepError(f"results file {path} does not exist")
+    from thermoskin.atomic import arrow_target
+
     try:
-        t = pq.read_table(path)
+        with arrow_target(path) as src:
+            t = pq.read_table(src)
     except (pa.ArrowInvalid, OSError) as e:
         raise SweepError(f"{path} is not a Parquet file: {' '.join(str(e).split())}") from None
     if "hash" not in t.column_names or "point" not in t.column_names:
@@ -104,7 +108,7 @@ def plot_results(path: Path, out: Path, metrics: list[str] | None = None, dpi: i
             _parallel(fig, ax, [num[k] for k in keys], keys, y, LABELS.get(m, m))
     for j in range(n, nrow * ncol):
         axes[j // ncol][j % ncol].axis("off")
-    fig.suptitle(f"{Path(path).name}: {len(cols['point'])} points")
+    fig.suptitle(shown(f"{Path(path).name}: {len(cols['point'])} points"))
     fig.tight_layout()
     fig.savefig(out, dpi=dpi)
     plt.close(fig)

@@ -43,7 +43,7 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
-from thermoskin.atomic import atomic_path
+from thermoskin.atomic import arrow_target, atomic_path
 from thermoskin.devices.base import Sample
 from thermoskin.runtime.mcap_scan import RecordingError, RecordingReport, ScanError, Scanner
 
@@ -840,7 +840,8 @@ def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
     out.parent.mkdir(parents=True, exist_ok=True)
     table = pa.table({k: pa.array(v, type=pa.string() if _is_text(v) else pa.float64())
                       for k, v in cols.items()})
-    pq.write_table(table, out)
+    with arrow_target(out, "wb") as f:
+        pq.write_table(table, f)
     return out
 
 
@@ -877,7 +878,8 @@ def _export_blocks(blocks: Iterator[dict[str, Column]], out: Path, path_mcap: st
         for b in numbers():
             table = pa.table({k: pa.array(v, type=pa.float64()) for k, v in b.items()})
             if writer is None:
-                writer = stack.enter_context(pq.ParquetWriter(tmp, table.schema))
+                target = stack.enter_context(arrow_target(tmp, "wb"))
+                writer = stack.enter_context(pq.ParquetWriter(target, table.schema))
             writer.write_table(table)
     return out
 
