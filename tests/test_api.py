@@ -37,6 +37,22 @@ def test_docs_examples_run() -> None:
             raise AssertionError(f"docs/api.md block {i + 1} fails: {e!r}\n{block}") from e
 
 
+def test_readme_example_runs() -> None:
+    """The README's Python example runs as it is, from the repository's root."""
+    import os
+
+    readme = DOC.parents[1] / "README.md"
+    blocks = re.findall(r"```python\n(.*?)```", readme.read_text(encoding="utf-8"), re.S)
+    assert blocks
+    here = os.getcwd()
+    os.chdir(readme.parent)
+    try:
+        for block in blocks:
+            exec(compile(block, "README.md", "exec"), {})
+    finally:
+        os.chdir(here)
+
+
 def test_no_public_name_hides_a_module() -> None:
     """A lazily exported name equal to a submodule's would replace ``thermoskin.<module>``
     once used (``thermoskin.fit.calibrate`` the function instead of the module)."""

@@ -492,3 +492,43 @@ def test_exit_freeze_only_for_the_command_line() -> None:
              "print('main', '_freeze_at_exit' in seen, file=sys.stderr)\n")
     r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
     assert "import False" in r.stdout and "main True" in r.stderr
+
+
+def test_scenarios_lists_every_scenario_a_command_takes() -> None:
+    """`scenarios` lists the patch's scenarios, `excitation` and the skin's (`multi`, which the
+    README's `simulate --skin ... --scenario multi` uses): every name `run` or `simulate` takes."""
+    from thermoskin.sim.scenarios import SCENARIOS
+    from thermoskin.sim.skin_scenarios import SKIN_SCENARIOS
+
+    code, out, _ = invoke("scenarios")
+    assert code == 0
+    names = {line.split("│")[1].strip() for line in out.splitlines() if line.count("│") > 2}
+    assert {*SCENARIOS, "excitation", "multi"} <= names
+    assert set(SKIN_SCENARIOS) == {"multi"}
+    assert "--skin only" in " ".join(out.split())
+
+
+def test_replay_and_reproduce_say_when_they_compile(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """`replay` (the estimator over the recording) and `reproduce` (the paper's runs) compile
+    the estimator on a cold cache like `observe` and `run`, and said nothing for 8 and 15 s: they
+    ask the cache and say so once; a warm cache, nothing."""
+    from thermoskin import _numba_cache
+    from thermoskin.experiments import reproduce as rep_mod
+
+    rec = tmp_path / "r.mcap"
+    code, _, err = invoke("run", "--duration", "1", "--log", str(tmp_path / "r.csv"), "--record", str(rec))
+    assert code == 0, err
+
+    def stop(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise KeyboardInterrupt  # the reproduction would start here
+
+    monkeypatch.setattr(rep_mod, "reproduce", stop)
+    for cached in (True, False):
+        asked: list[str] = []
+        monkeypatch.setattr(_numba_cache, "has_compiled", lambda w, c=cached, a=asked: a.append(w) or c)
+        code, _, err = invoke("replay", str(rec), "-o", str(tmp_path / "rep.csv"))
+        assert code == 0 and "estimation/kernel.run" in asked, err
+        assert err.count("thermoskin: compiling the estimator") == (not cached), err
+        code, _, err = invoke("reproduce", "--only", "fig15", "--out", str(tmp_path / "repro"))
+        assert code == 130, err
+        assert err.count("thermoskin: compiling the estimator") == (not cached), err

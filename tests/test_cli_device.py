@@ -4,12 +4,14 @@ processes, end to end over a real pseudo-terminal."""
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -142,13 +144,20 @@ def test_killed_recording_loses_at_most_a_second(tmp_path: Path) -> None:
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
     assert p.stdout is not None
     assert p.stdout.readline().startswith("thermoskin run")  # the loop starts right after this
-    time.sleep(3.0)
+    # once it is recording (its start-up is the loaded machine's business, not under test), the
+    # device time it has recorded so far; the loop, paced at wall-clock speed, goes on 2 s
+    deadline = time.monotonic() + 120.0
+    while time.monotonic() < deadline and (not rec.exists() or rec.stat().st_size < 20_000):
+        assert p.poll() is None
+        time.sleep(0.05)
+    t_seen = max(ti for _, ti, _ in iter_messages(rec, ["/skin/sample"], {}))
+    time.sleep(2.0)
     p.kill()
     p.wait(10)
     info: dict = {}
     t = [ti for _, ti, _ in iter_messages(rec, ["/skin/sample"], info)]
     assert info["truncated"] or not info["complete"]
-    assert 3.0 - 1.0 - 0.6 <= t[-1] <= 3.1  # at most the last second lost (0.6 s start-up)
+    assert t_seen + 2.0 - 1.0 - 0.1 <= t[-1]  # at most the last second lost
     assert np.allclose(np.diff(t), 1e-3)  # contiguous: nothing lost in between
     # its export ends at the last whole sample, so every command reads it (a sample whose
     # estimate was never written would be a NaN estimate, which logs refuse)
@@ -269,3 +278,193 @@ def test_serial_run_detects_with_10hz_boards_scored_against_truth(tmp_path: Path
     assert (tmp_path / "ev2.csv").read_text() == (tmp_path / "ev.csv").read_text()
     live, off = read_log(tmp_path / "run.csv"), read_log(tmp_path / "obs.csv")
     np.testing.assert_array_equal(off["dq_i_hat"], live["dq_i_hat"])
+
+
+def _score(truth: Path, events_csv: Path, t_end: float) -> Any:
+    """The truth file's touches against a run's --events (those cut by ``t_end`` not scored)."""
+    import csv
+
+    from thermoskin.analysis.evaluation import match_events, touches_from_truth
+    from thermoskin.estimation.events import ContactEvent
+
+    tr = read_log(truth, required=("t", "contact_true", "q_i", "n_fingers", "T_g"))
+    touches = touches_from_truth(tr["t"], tr["contact_true"], tr["n_fingers"])
+    with open(events_csv) as fh:
+        events = [ContactEvent(float(x["onset"]), float(x["detected"]), float(x["release"]),
+                               float(x["duration"]), int(x["sign"]), float(x["peak_dq"]),
+                               float(x["mean_dq"]), float(x["energy"])) for x in csv.DictReader(fh)]
+    return match_events(touches, events, t_end=t_end), tr
+
+
+def _start(args: list[str], link: Path) -> subprocess.Popen[str]:
+    p = subprocess.Popen([*CMD, *args], stderr=subprocess.PIPE, text=True, env=ENV)
+    t_end = time.monotonic() + 30
+    while not link.is_symlink():
+        assert p.poll() is None and time.monotonic() < t_end, p.stderr.read() if p.stderr else ""
+        time.sleep(0.05)
+    return p
+
+
+def _stop(p: subprocess.Popen[str]) -> str:
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=20)
+    assert p.returncode == 0, err
+    return err
+
+
+def test_serial_run_against_the_firmware_and_a_second_session(tmp_path: Path) -> None:
+    """`device-emulator --firmware`: the reference firmware's own code on models of its
+    hardware. A 30 s run detects every touch with no false alarm, scored against the truth;
+    `observe` of its log gives the live estimates again; a second run on the same device is a
+    fresh session (its log and the truth file from t = 0), and a third `run` while the second
+    is on is refused in one line."""
+    link, truth = tmp_path / "skin", tmp_path / "truth.csv"
+    emu = _start(["device-emulator", "--firmware", "--link", str(link), "--scenario", "mixed", "--truth",
+                  str(truth), "--watchdog", "0.5"], link)
+    try:
+        r = thermoskin("run", "--device", f"serial://{link}", "--duration", "30", "--config",
+                       tolerant_config(tmp_path), "--log", str(tmp_path / "run.csv"), "--events",
+                       str(tmp_path / "ev.csv"), "--record", str(tmp_path / "run.mcap"), timeout=120)
+        assert r.returncode == 0, r.stderr
+        assert "0 corrupted" in r.stdout
+        m, _ = _score(truth, tmp_path / "ev.csv", 30.0)
+        assert m.false_alarms == 0, m.spurious
+        assert m.hits == 4 and not m.missed and np.median(m.latencies) <= 0.6
+        log = read_log(tmp_path / "run.csv")
+        assert log["t"][0] == 0.0 and len(log["t"]) == 30_000
+        o = thermoskin("observe", str(tmp_path / "run.csv"), "-o", str(tmp_path / "obs.csv"))
+        assert o.returncode == 0 and "max |q_i_hat difference| 0 W, 0 contact mismatches" in o.stdout
+        rp = thermoskin("replay", str(tmp_path / "run.mcap"), "-o", str(tmp_path / "replay.csv"))
+        assert rp.returncode == 0 and "identical" in rp.stdout, rp.stdout + rp.stderr
+        # a second session on the same device, and a third host while it is on
+        second = subprocess.Popen([*CMD, "run", "--device", f"serial://{link}", "--duration", "12",
+                                   "--config", tolerant_config(tmp_path), "--log", str(tmp_path / "run2.csv"),
+                                   "--plot", str(tmp_path / "run2.png")],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+        deadline = time.monotonic() + 60
+        while not (tmp_path / "run2.csv").exists() or (tmp_path / "run2.csv").stat().st_size < 2000:
+            assert second.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        third = thermoskin("run", "--device", f"serial://{link}", "--duration", "2", "--log",
+                           str(tmp_path / "run3.csv"))
+        _, err2 = second.communicate(timeout=60)
+        assert second.returncode == 0, err2
+    finally:
+        err = _stop(emu)
+    assert third.returncode == 2 and len(third.stderr.strip().splitlines()) == 1
+    assert "in use by another program" in third.stderr
+    log2 = read_log(tmp_path / "run2.csv")
+    assert log2["t"][0] == 0.0 and len(log2["t"]) == 12_000
+    tr2 = read_log(truth, required=("t", "contact_true"))
+    assert tr2["t"][0] == 0.0 and 12_000 <= len(tr2["t"]) <= 14_000  # the truth file started again
+    assert "in 2 sessions" in err and "0 frames dropped" in err
+
+
+def test_a_run_started_any_time_after_the_emulator_is_ready(tmp_path: Path) -> None:
+    """At once, and after the emulator idled a while: the first sample is there, no link
+    fault; the lateness is never negative."""
+    link = tmp_path / "skin"
+    emu = _start(["device-emulator", "--link", str(link)], link)
+    try:
+        for i, wait in enumerate((0.0, 3.0)):
+            time.sleep(wait)
+            r = thermoskin("run", "--device", f"serial://{link}", "--duration", "2", "--config",
+                           tolerant_config(tmp_path), "--log", str(tmp_path / f"r{i}.csv"))
+            assert r.returncode == 0, r.stderr
+            assert read_log(tmp_path / f"r{i}.csv")["t"][0] == 0.0
+            late = [float(x) for x in re.findall(r"lateness p50 (-?\d+) µs, p99 (-?\d+) µs, max (-?\d+)",
+                                                 r.stdout)[0]]
+            assert min(late) >= 0, r.stdout
+    finally:
+        _stop(emu)
+
+
+def test_a_loaded_host_never_turns_late_frames_into_contacts(tmp_path: Path) -> None:
+    """Two CPU-bound processes beside the emulator and the run on the two cores: every touch is
+    detected and there is no false alarm, scored against the truth; where frames came late the
+    run says so. Judged by the device's clock and by counts (no duration is asserted). The
+    processes run at nice 19: the emulator and the loop (real-time priority) meet them as they
+    would any others, while the suite's other worker, whose tests start processes at normal
+    priority, is not starved meanwhile (`benchmarks/serial_load.py --load 2` runs them at
+    nice 0, 75 s)."""
+    link, truth = tmp_path / "skin", tmp_path / "truth.csv"
+    hogs = [subprocess.Popen([sys.executable, "-c", "import os; os.nice(19)\nwhile True: pass"])
+            for _ in range(2)]
+    try:
+        emu = _start(["device-emulator", "--link", str(link), "--scenario", "mixed", "--truth", str(truth)],
+                     link)
+        try:
+            r = thermoskin("run", "--device", f"serial://{link}", "--duration", "20", "--config",
+                           tolerant_config(tmp_path), "--log", str(tmp_path / "run.csv"), "--events",
+                           str(tmp_path / "ev.csv"), timeout=180)
+        finally:
+            _stop(emu)
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+    assert r.returncode == 0, r.stderr
+    m, _ = _score(truth, tmp_path / "ev.csv", 20.0)
+    assert m.false_alarms == 0, m.spurious
+    assert m.hits == 3 and not m.missed
+    fell_behind = "fell behind" in r.stderr
+    link_line = next(ln for ln in r.stdout.splitlines() if ln.startswith("link"))
+    pat = r"(\d+) frames late from the device, (\d+) samples handled"
+    counts = [int(x) for x in re.findall(pat, link_line)[0]]
+    assert fell_behind == (counts[1] > 0 or " 0 lost" not in link_line)
+
+
+def test_device_hello_answers_with_outputs_off(tmp_path: Path) -> None:
+    """`device-hello`: the device's HELLO_ACK and its channels, no COMMAND sent (the device's
+    outputs stay off); an open thermocouple is exit 3; no device is exit 2 in one line."""
+    link, bad = tmp_path / "skin", tmp_path / "bad"
+    emu = _start(["device-emulator", "--link", str(link), "--scenario", "none"], link)
+    emu2 = _start(["device-emulator", "--firmware", "--link", str(bad), "--scenario", "none", "--fault",
+                   "tc-open@0.5"], bad)
+    try:
+        r = thermoskin("device-hello", "--device", f"serial://{link}", "--seconds", "1.5")
+        r2 = thermoskin("device-hello", "--device", f"serial://{bad}", "--seconds", "1")
+    finally:
+        _stop(emu)
+        _stop(emu2)
+    assert r.returncode == 0, r.stderr
+    assert "id 0x7E570001" in r.stdout and "every 1000 µs; 0 frames corrupted" in r.stdout
+    assert len(re.findall(r"T_[wpa]: 1[56] conversions \(10\.0/s\)", r.stdout)) == 3, r.stdout
+    assert "no command yet: outputs off" in r.stdout
+    assert r2.returncode == 3 and "T_w: open thermocouple" in r2.stdout and "tc-open" in r2.stdout
+    r3 = thermoskin("device-hello", "--device", f"serial://{tmp_path / 'none'}")
+    assert r3.returncode == 2 and len(r3.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("fault,name", [("tc-open@1.5", "tc-open"), ("overtemp@1.5", "overtemp"),
+                                        ("serial-drop@1.5", "link")])
+def test_firmware_faults_reach_the_safe_state_and_the_host_says_so(tmp_path: Path, fault: str,
+                                                                   name: str) -> None:
+    """Against the firmware: the fault trips the host (exit 3, one line naming it), and the
+    firmware was in its own safe state within the fault's delay (the emulator's stop line: its
+    first sample in the safe state, device time): at the conversion that showed the fault for
+    tc-open and overtemp (at most 98 ms after its onset, plus a sample), its watchdog (50 ms)
+    for a cut cable."""
+    link = tmp_path / "skin"
+    # a stall of this loaded machine is no fault under test: a tolerant link timeout, and the
+    # firmware's watchdog at 0.5 s but where it is what is under test (the cut cable)
+    wd = [] if name == "link" else ["--watchdog", "0.5"]
+    emu = _start(["device-emulator", "--firmware", "--link", str(link), "--scenario", "none", "--fault",
+                  fault, *wd], link)
+    try:
+        r = thermoskin("run", "--device", f"serial://{link}", "--duration", "4", "--log",
+                       str(tmp_path / "f.csv"), "--plot", str(tmp_path / "f.png"), "--config",
+                       tolerant_config(tmp_path))
+    finally:
+        err = _stop(emu)
+    assert r.returncode == 3, r.stdout + r.stderr
+    line = [ln for ln in r.stderr.splitlines() if ln.startswith("thermoskin: fault:")]
+    assert len(line) == 1 and f"fault: {name} at t = " in line[0]
+    pat = r"safe state from t = ([\d.]+) s \(fault at t = ([\d.]+) s"
+    t_safe, t_fault = (float(x) for x in re.findall(pat, err)[0])
+    assert t_fault == 1.5
+    # the watchdog trips on its own clock strictly past 50 ms after the last COMMAND's arrival, at
+    # the next tick; the stop line is in device time (sample counts), which a late tick on a loaded
+    # machine puts a few samples behind the firmware's clock: 5 samples of slack (CI saw 52 ms)
+    limit = 0.050 + 0.005 if name == "link" else 0.098 + 0.002
+    assert 0.0 <= round(t_safe - t_fault, 6) <= limit, err

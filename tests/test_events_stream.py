@@ -51,3 +51,68 @@ def test_a_skin_table_keeps_its_patch_and_leaves_what_is_said_at_the_end_empty(t
     r = got[0]
     assert r["patch"] == "dorsal3" and r["position"] == "" and r["kind"] == ""
     assert math.isclose(float(r["mean_dq"]), -0.3) and r["sign"] == "-1"
+
+
+WHAT = ContactEvent(onset=8.0, detected_at=8.05, release=9.0, duration=1.0, sign=1, peak_dq=0.6, mean_dq=0.45,
+                    energy=0.45, kind="hold", toucher="person", material="skin", p_human=0.93, G_hat=0.05,
+                    G_sd=0.01, T_f_hat=33.9, T_f_sd=0.4, effusivity_hat=1100.0)
+
+
+def test_the_whole_table_in_parquet(tmp_path: Path) -> None:
+    """`--events E.parquet` (a folder that is not there yet): every column, numbers as float64 with
+    NaN as null, text as text with an empty field as null, the rows in order (pyarrow reads it)."""
+    import pyarrow.parquet as pq
+
+    p = tmp_path / "new" / "deeper" / "ev.parquet"
+    write_events(p, [TAP, WHAT])
+    t = pq.read_table(p)
+    assert t.column_names == list(EVENT_COLUMNS)
+    got = t.to_pylist()
+    assert got[0]["onset"] == 1.0 and got[0]["sign"] == 1.0 and got[0]["toucher"] is None
+    assert got[0]["G_hat"] is None and got[0]["kind"] is None  # NaN and "" as nulls
+    assert got[1] == {"onset": 8.0, "detected": 8.05, "release": 9.0, "duration": 1.0, "sign": 1.0,
+                      "peak_dq": 0.6, "mean_dq": 0.45, "energy": 0.45, "kind": "hold", "toucher": "person",
+                      "material": "skin", "p_human": 0.93, "G_hat": 0.05, "G_sd": 0.01, "T_f_hat": 33.9,
+                      "T_f_sd": 0.4, "effusivity_hat": 1100.0}
+    assert str(t.schema.field("onset").type) == "double" and str(t.schema.field("kind").type) == "string"
+
+
+def test_stream_counts_rows_fills_what_it_can_and_ends_lines_with_lf(tmp_path: Path) -> None:
+    """Rows counted; a missing column left empty; a row without kind gets the one patch's kind of
+    its duration (none without one); lines end in LF alone, the file in UTF-8 (a non-ASCII
+    toucher's name as written), in a folder made for it."""
+    p = tmp_path / "made" / "ev.csv"
+    with EventsStream(p) as s:
+        assert s.rows == 0
+        s.add(TAP)
+        s.add_row({"onset": 2.0, "duration": 2.5})
+        s.add_row({"onset": 4.0, "toucher": "Müller"})
+        assert s.rows == 3
+    raw = p.read_bytes()
+    assert b"\r" not in raw and raw.endswith(b"\n")
+    got = rows(p)
+    assert [r["kind"] for r in got] == ["tap", "hold", ""]
+    assert got[1]["release"] == "" and got[2]["toucher"] == "Müller"
+
+
+def test_the_whole_csv_table_ends_lines_with_lf_and_a_given_kind_stays(tmp_path: Path) -> None:
+    """The end-of-run table's lines end in LF alone; a row that says its kind keeps it (a stroke
+    of 0.2 s is not made a tap); a stream two folders down makes both."""
+    p = tmp_path / "ev.csv"
+    write_events(p, [TAP, HOLD])
+    assert b"\r" not in p.read_bytes()
+    q = tmp_path / "a" / "b" / "ev.csv"
+    with EventsStream(q) as s:
+        s.add_row({"onset": 1.0, "duration": 0.2, "kind": "stroke"})
+    assert rows(q)[0]["kind"] == "stroke"
+
+
+def test_a_parquet_table_at_a_name_pyarrow_cannot_take(tmp_path: Path) -> None:
+    import os
+
+    import pyarrow.parquet as pq
+
+    p = tmp_path / (os.fsdecode(b"ev\xff") + ".parquet")
+    write_events(p, [TAP, HOLD])
+    with open(p, "rb") as fh:
+        assert pq.read_table(fh).column("onset").to_pylist() == [1.0, 3.0]

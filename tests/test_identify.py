@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from scipy.signal import lfilter
@@ -72,9 +74,13 @@ def test_toml_roundtrip(tmp_path, peltier_log):
     p = save_model(m, tmp_path / "m.toml")
     m2 = load_model(p)
     assert (m2.na, m2.nb, m2.nk, m2.t_s) == (m.na, m.nb, m.nk, m.t_s)
-    assert m2.a == pytest.approx(m.a, rel=0, abs=0)
-    assert m2.b == pytest.approx(m.b, rel=0, abs=0)
-    assert m2.nrmse == m.nrmse
+    assert m.t_s == 1.0 and m.t_s_log == 1e-3  # the log's median step, not its clock's last bits
+    assert m2.a == pytest.approx(m.a, rel=1e-11, abs=0)  # written to 12 significant digits
+    assert m2.b == pytest.approx(m.b, rel=1e-11, abs=0)
+    assert m2.nrmse == pytest.approx(m.nrmse, rel=1e-11)
+    text = p.read_text()
+    assert all(len(v.split("e")[0].strip("-").replace(".", "").lstrip("0")) <= 12
+               for v in re.findall(r"-?\d+\.\d+(?:e-?\d+)?", text))
     with pytest.raises(IdentifyError, match="not found"):
         load_model(tmp_path / "none.toml")
     (tmp_path / "bad.toml").write_text("[arx]\nna = 1\n")
@@ -124,7 +130,8 @@ def test_written_model_is_a_config_the_controller_uses(tmp_path, peltier_log):
     m = identify(peltier_log)
     cfg = load_config(save_model(m, tmp_path / "peltier.toml"))
     pm = cfg.peltier_model
-    assert pm.use == "feedforward" and pm.a == tuple(m.a) and pm.b == tuple(m.b)
+    assert pm.use == "feedforward"
+    assert pm.a == pytest.approx(tuple(m.a), rel=1e-11) and pm.b == pytest.approx(tuple(m.b), rel=1e-11)
     inner = SkinController(cfg).inner
     T_a, T_p_cmd = 20.0, 30.0
     inner.reset(0.0)

@@ -841,3 +841,137 @@ def test_read_log_keep_holds_only_those_columns(tmp_path: Path, ext: str, peak_m
     with pytest.raises(LogError) as kept_err:
         read_log(p, required=("t",), keep=("t",))
     assert str(kept_err.value) == str(whole_err.value) and "c7" in str(kept_err.value)
+
+
+def test_parquet_float32_and_other_widths_read_exactly(tmp_path: Path) -> None:
+    """A Parquet log as many loggers write it: T_w float32, T_p float16, v a uint16 count, T_a an
+    int8, t float64, a row group split into batches at an offset (issue 46: a float32 column
+    failed with "buffer is smaller than requested size" when read as float64). Each value read
+    is the float64 of the value written (numpy's own conversion, the reference)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from thermoskin.logio import LogReader
+
+    n = 5003
+    rng = np.random.default_rng(46)
+    cols = {"t": np.arange(n) * 1e-3, "T_w": (24 + rng.standard_normal(n)).astype(np.float32),
+            "T_p": (25 + rng.standard_normal(n)).astype(np.float16),
+            "v": rng.integers(0, 300, n).astype(np.uint16), "T_a": rng.integers(18, 23, n).astype(np.int8)}
+    mask = np.zeros(n, bool)
+    mask[7::11] = True  # nulls in T_w: read as NaN
+    table = pa.table({k: pa.array(v, mask=mask if k == "T_w" else None) for k, v in cols.items()})
+    pq.write_table(table, tmp_path / "x.parquet", row_group_size=1000)
+    got = read_log(tmp_path / "x.parquet")
+    want_Tw = cols["T_w"].astype(np.float64)
+    want_Tw[mask] = np.nan
+    np.testing.assert_array_equal(got["T_w"], want_Tw)
+    for k in ("t", "T_p", "v", "T_a"):
+        assert got[k].dtype == np.float64
+        np.testing.assert_array_equal(got[k], cols[k].astype(np.float64))
+    with LogReader(tmp_path / "x.parquet", chunk_rows=333) as r:  # batches cut inside row groups
+        chunks = list(r)
+    np.testing.assert_array_equal(np.concatenate([c["T_w"] for c in chunks]), want_Tw)
+
+
+def test_a_skins_patch_column_is_an_integer_in_parquet(tmp_path: Path) -> None:
+    """A skin's long-format log stores ``patch`` as int64 (an index, not a float: a lab's pandas or
+    polars reads it as one), the other columns as float64 (the skin's reader reads it back:
+    tests/test_skin_stream.py); a non-whole patch index is refused rather than rounded."""
+    import pyarrow.parquet as pq
+
+    from thermoskin.logio import LogWriter
+
+    path = tmp_path / "skin.parquet"
+    with LogWriter(path, ["t", "patch", "T_w"]) as w:
+        w.write({"t": np.repeat([0.0, 0.001], 3), "patch": np.tile(np.arange(3.0), 2),
+                 "T_w": np.linspace(20, 21, 6)})
+    schema = pq.read_schema(path)
+    assert str(schema.field("patch").type) == "int64" and str(schema.field("T_w").type) == "double"
+    assert pq.read_table(path)["patch"].to_pylist() == [0, 1, 2, 0, 1, 2]
+    assert pq.read_table(path)["T_w"].to_pylist() == np.linspace(20, 21, 6).tolist()
+    bad = tmp_path / "bad.parquet"
+    with pytest.raises(ValueError, match="whole number"), LogWriter(bad, ["t", "patch"]) as w:
+        w.write({"t": np.array([0.0]), "patch": np.array([0.5])})
+
+
+def test_parquet_row_groups_and_integer_columns(tmp_path: Path) -> None:
+    """The Parquet writer: a row group once ``row_group_rows`` rows are buffered (100, 100, 50 here,
+    from chunks of 50), an integer column's values kept (not its bytes read as floats)."""
+    import pyarrow.parquet as pq
+
+    from thermoskin.logio import LogWriter
+
+    p = tmp_path / "x.parquet"
+    t = np.arange(250) * 1e-3
+    with LogWriter(p, ["t", "T_w", "n"], row_group_rows=100) as w:
+        for i in range(0, 250, 50):
+            w.write({"t": t[i:i + 50], "T_w": 24.0 + t[i:i + 50], "n": np.arange(i, i + 50)})
+    meta = pq.ParquetFile(p).metadata
+    assert [meta.row_group(k).num_rows for k in range(meta.num_row_groups)] == [100, 100, 50]
+    got = read_log(p, required=("t",))
+    np.testing.assert_array_equal(got["t"], t)
+    np.testing.assert_array_equal(got["T_w"], 24.0 + t)
+    np.testing.assert_array_equal(got["n"], np.arange(250.0))
+
+
+def test_parquet_at_a_name_pyarrow_cannot_take(tmp_path: Path) -> None:
+    """A file name holding a byte no locale decodes (Python's escape for it, a lone surrogate, as
+    under an ASCII locale): written through an open file, read back, seen to have rows."""
+    from thermoskin.logio import has_rows
+
+    p = tmp_path / (os.fsdecode(b"log\xff") + ".parquet")
+    n = 50
+    write_log(p, {"t": np.arange(n) * 1e-3, "T_w": np.full(n, 24.0), "T_p": np.full(n, 25.0),
+                  "v": np.full(n, 0.1), "T_a": np.full(n, 20.0)})
+    assert os.fsencode(p).endswith(b"log\xff.parquet") and has_rows(p)
+    assert read_log(p)["t"][-1] == 49e-3
+
+
+def test_a_file_that_is_not_parquet_says_what_pyarrow_found(tmp_path: Path) -> None:
+    p = tmp_path / "x.parquet"
+    p.write_bytes(b"t,T_w\n0,1\n")
+    with pytest.raises(LogError) as e:
+        read_log(p, required=("t",))
+    msg = str(e.value)
+    assert msg.startswith(f"{p}: not a readable Parquet file (") and "magic" in msg.lower()
+    assert msg.endswith("a Parquet log is readable only once its writer has closed it")
+
+
+def test_messages_of_long_lists_and_bad_bytes(tmp_path: Path) -> None:
+    """What the reader says, word for word: at most 12 names (each cut at 40 characters) and how
+    many more; the bad bytes of a line that is not UTF-8 (four at most), where on the line."""
+    from thermoskin.logio.common import listing
+
+    names = [f"c{k}" for k in range(15)]
+    assert listing(names) == ", ".join(names[:12]) + " and 3 more"
+    assert listing(names[:12]) == ", ".join(names[:12]) and listing(names, 2) == "c0, c1 and 13 more"
+    long = "x" * 41
+    assert listing(["y" * 40, long]) == "y" * 40 + ", " + "x" * 36 + "..."
+    p = tmp_path / "x.csv"
+    p.write_bytes(b"t,T_w\n0,1\n0.001,\xff\xfe\xfd\xfc\xfb\n")
+    with pytest.raises(LogError) as e:
+        read_log(p, required=("t",))
+    assert str(e.value) == (f"{p}: line 3: not valid UTF-8 text (b'\\xff\\xfe\\xfd\\xfc' at byte 7 of "
+                            "the line); save the log as UTF-8 CSV")
+
+
+def test_blank_first_lines_and_a_blank_file(tmp_path: Path) -> None:
+    """A file of blanks alone is empty; a blank first line before a header is not an empty file
+    (its first line is the header, and blank: refused for that)."""
+    p = tmp_path / "x.csv"
+    p.write_text(" \n\t\n\n")
+    with pytest.raises(LogError, match="empty file"):
+        read_log(p, required=("t",))
+    p.write_text("\nt,T_w\n0,1\n0.001,1\n")
+    with pytest.raises(LogError) as e:
+        read_log(p, required=("t",))
+    assert "empty file" not in str(e.value)
+
+
+def test_sample_time_of_two_samples() -> None:
+    from thermoskin.logio import sample_time
+
+    assert sample_time([0.0, 0.5]) == 0.5 and sample_time(np.array([[0.0, 1e-3, 2e-3]])) == 1e-3
+    with pytest.raises(ValueError, match="at least 2 samples, got 1"):
+        sample_time([1.0])

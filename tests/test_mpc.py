@@ -205,17 +205,31 @@ def test_model_without_sheet_loss_settles_below_command(cost: str) -> None:
 
 @pytest.mark.parametrize("cost", COSTS)
 def test_command_never_leaves_bounds(cost: str) -> None:
+    """Unreachable commands, then held ones: every command within eq. 11's bounds, and (the bounds
+    being where the step clamps anyway, which alone would pass a wrong optimum) every 200th command the
+    first element of the box-constrained least squares of the same state, solved apart
+    (scipy's BVLS), through the fast path and the QP alike."""
     ctl = ControlParams(cost=cost, T_p_min=18.0, T_p_max=30.0)
     mpc = Mpc(SKIN, ctl, T_S)
     rng = np.random.default_rng(11)
     T_w = 15.0
     mpc.reset(25.0)
+    checked = at_bound = inside = 0
     for k in range(2000):
-        cmd = 35.0 if (k // 400) % 2 == 0 else 12.0       # unreachable commands
-        T_p = mpc.step(T_w + rng.normal(0, 0.05), 20.0, cmd)
+        cmd = (35.0, 12.0, 24.0, 35.0, 24.5)[k // 400]    # unreachable, then held commands
+        T_w_meas = T_w + rng.normal(0, 0.05)
+        prev = mpc.T_p_prev
+        T_p = mpc.step(T_w_meas, 20.0, cmd)
         assert ctl.T_p_min <= T_p <= ctl.T_p_max
+        if k % 200 == 77:
+            ref = lsq_reference(T_w_meas, 20.0, cmd, prev, cost, ctl)[0]
+            assert T_p == pytest.approx(ref, abs=1e-6), (k, T_p, ref)
+            checked += 1
+            at_bound += int(min(abs(ref - ctl.T_p_min), abs(ref - ctl.T_p_max)) < 1e-9)
+            inside += int(ctl.T_p_min + 0.01 < ref < ctl.T_p_max - 0.01)
         T_w = eq10_step(T_w, T_p, 20.0)
     assert mpc.n_fallback == 0
+    assert checked == 10 and at_bound > 0 and inside > 0  # both kinds of optimum were held to it
 
 
 def test_warm_start_keeps_iterations_small() -> None:

@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import math
-import time
-
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -130,16 +127,3 @@ def test_drive_for_and_errors():
         PeltierTank(P, 1e-3, (0.2, 1.0))
     with pytest.raises(ValueError, match="t_s"):
         PeltierTank(P, 0.0)
-
-
-def test_step_speed():
-    tank = PeltierTank(P, 1e-3)
-    tank.reset(24.0)
-    step = tank.step
-    n = 50_000
-    t0 = time.perf_counter()
-    for _ in range(n):
-        step(0.1, 20.0, 0.0)
-    us = (time.perf_counter() - t0) / n * 1e6
-    assert us < 5.0 * 3  # 5 µs target; margin for loaded CI machines
-    assert math.isfinite(tank.T_p)

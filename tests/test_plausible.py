@@ -52,6 +52,94 @@ def test_admit_keeps_the_range_and_drops_the_rest() -> None:
         assert math.isnan(w) and math.isnan(p) and math.isnan(a), bad
 
 
+#: Limits that differ for every column and bound (a mix-up of two of them shows).
+DISTINCT = {"T_w_min": -10.0, "T_w_max": 60.0, "T_p_min": 0.0, "T_p_max": 80.0, "T_a_min": -20.0,
+            "T_a_max": 45.0, "v_min": 0.01, "v_max": 2.0, "drive_min": -0.9, "drive_max": 0.8}
+
+
+@pytest.mark.parametrize("col", ["T_w", "T_p", "T_a"])
+def test_every_bound_is_inside_and_the_next_double_outside(col: str) -> None:
+    """Each reading exactly at its own lower and upper bound is kept, the next double beyond is
+    dropped, on the loop's path (admit, admit_arrays) and the log's (clean_log): the bounds are
+    closed, on every channel and side (issue 46: ``<`` for ``<=`` at the upper bound survived)."""
+    from thermoskin.logio.plausible import admit_arrays
+
+    cfg = Config().replace(plausible=DISTINCT)
+    lim = limits(cfg.plausible)
+    j = ("T_w", "T_p", "T_a").index(col)
+    lo, hi = DISTINCT[f"{col}_min"], DISTINCT[f"{col}_max"]
+    mid = [20.0, 30.0, 20.0]  # plausible for every channel
+    for value, kept in ((lo, True), (hi, True), (np.nextafter(lo, -np.inf), False),
+                        (np.nextafter(hi, np.inf), False)):
+        x = list(mid)
+        x[j] = value
+        got = admit(lim, *x)
+        assert (got[j] == value) if kept else math.isnan(got[j]), (col, value)
+        assert [g for k, g in enumerate(got) if k != j] == [m for k, m in enumerate(mid) if k != j]
+        arr = admit_arrays(lim, *(np.array([v]) for v in x))
+        assert (arr[j][0] == value) if kept else math.isnan(arr[j][0])
+        log = {"t": np.array([0.0]),
+               **{k: np.array([v]) for k, v in zip(("T_w", "T_p", "T_a"), x, strict=True)}}
+        c = clean_log(log, cfg)
+        assert (c.columns[col][0] == value) if kept else math.isnan(c.columns[col][0])
+        assert c.counts == ({} if kept else {col: 1})
+
+
+@pytest.mark.parametrize("col", ["v", "drive"])
+def test_velocity_and_drive_bounds_are_closed(col: str) -> None:
+    cfg = Config().replace(plausible=DISTINCT)
+    lo, hi = DISTINCT[f"{col}_min"], DISTINCT[f"{col}_max"]
+    x = np.array([lo, hi, np.nextafter(lo, -np.inf), np.nextafter(hi, np.inf), 0.5 * (lo + hi)])
+    c = clean_log({"t": np.arange(5) * 1e-3, col: x}, cfg)
+    np.testing.assert_array_equal(c.columns[col], [lo, hi, np.nan, np.nan, 0.5 * (lo + hi)])
+    assert c.counts == {col: 2} and c.first == {col: 2e-3}
+    np.testing.assert_array_equal(c.rejected, [0, 0, 1, 1, 0])
+
+
+def test_hold_takes_the_last_plausible_command_and_the_first_before_it() -> None:
+    """The command held over implausible values: the last one before that was plausible or NaN (a
+    NaN command is an unknown one: what follows it stays unknown), not the first of the log; the
+    first plausible one for those before it; all NaN where none is plausible."""
+    cfg = Config()
+    t = np.arange(7) * 1e-3
+    cmd = np.array([999.0, 22.0, 24.0, 999.0, np.nan, 999.0, 26.0])
+    c = clean_log({"t": t, "T_w_cmd": cmd}, cfg)
+    np.testing.assert_array_equal(c.columns["T_w_cmd"], [22.0, 22.0, 24.0, 24.0, np.nan, np.nan, 26.0])
+    c = clean_log({"t": t[:3], "T_w_cmd": np.array([999.0, -999.0, 1e9])}, cfg)
+    assert np.isnan(c.columns["T_w_cmd"]).all() and c.counts == {"T_w_cmd": 3}
+
+
+@pytest.mark.parametrize("col", ["T_w", "T_p", "T_a", "v"])
+def test_a_measured_column_with_no_plausible_value_is_named(col: str) -> None:
+    """Each measured column with no plausible value at all is named (its own line); a command or a
+    drive with none is not a measured column."""
+    n = 4
+    log = {"t": np.arange(n) * 1e-3, "T_w": np.full(n, 24.0), "T_p": np.full(n, 25.0),
+           "T_a": np.full(n, 20.0), "v": np.full(n, 0.1), "T_w_cmd": np.full(n, 999.0),
+           "drive": np.full(n, 5.0)}
+    log[col] = np.array([np.nan, 1e9, np.nan, -1e9])
+    c = clean_log(log, Config())
+    assert c.no_valid == [col]
+    assert c.warnings(Config())[-1] == (f"column {col} has no valid sample (all NaN or implausible): every "
+                                        "row is a gap; no estimate and no contact can come from this log")
+
+
+def test_warnings_say_what_became_of_each_column() -> None:
+    """The warning lines, word for word: a reading held over as a gap, the command held, the drive
+    unknown (each with its range, unit and first time)."""
+    t = np.arange(4) * 1e-3
+    log = {"t": t, "T_w": np.array([24.0, 1e30, 24.0, 24.0]), "T_w_cmd": np.array([24.0, 24.0, 999.0, 24.0]),
+           "drive": np.array([0.1, 0.1, 0.1, 7.0])}
+    got = clean_log(log, Config()).warnings(Config())
+    assert got == [
+        "1 value(s) of T_w outside the plausible range [-50, 150] degC (first at t = 0.001 s) treated as "
+        "missing (held over, gap)",
+        "1 value(s) of drive outside the plausible range [-1, 1]  (first at t = 0.003 s) taken as an "
+        "unknown drive",
+        "1 value(s) of T_w_cmd outside the plausible range [-50, 150] degC (first at t = 0.002 s) held at "
+        "the last plausible command"]
+
+
 def test_clean_log_counts_and_holds_the_command() -> None:
     t = np.arange(6) * 1e-3
     log = {"t": t, "T_w": np.array([24, 1e30, 24, np.nan, 24, 24.0]),

@@ -91,3 +91,23 @@ def test_spatial_agrees_with_network_at_the_thermocouple(summary: dict) -> None:
     sv = summary["spatial_vs_network"]
     assert sv["ratio_mean"] == pytest.approx(1.0, abs=0.1)
     assert sv["ratio_peak"] == pytest.approx(1.0, abs=0.1)
+
+
+def test_a_partial_reproduction_reports_no_missing_number(tmp_path: Path) -> None:
+    """`--only fig8` (the set-point runs alone) and a report with no run at all: every number of
+    the report is there or said why not: no "n/a" (it wrote "≈ n/a W" for eq. 8's no-touch
+    level when the one-finger run was not among the runs). The level without that run is the
+    correction's closed form (T_w_cmd - T_a)/R_ag."""
+    from thermoskin.experiments.report import write_report
+    from thermoskin.experiments.scenarios import T_A, T_W_CMD
+
+    reproduce(tmp_path, ["fig8"], Console(file=io.StringIO()), _progress, n_contacts=2, setpoint_s=5.0)
+    text = (tmp_path / "report.md").read_text()
+    assert "n/a" not in text and f"≈ {(T_W_CMD - T_A) / 1.0:.2f} W at the" in text
+    empty = write_report(tmp_path / "empty.md", [], {}, {}, {}).read_text()
+    assert "n/a" not in empty
+
+
+def test_the_full_report_has_no_missing_number(out: Path) -> None:
+    text = (out / "report.md").read_text()
+    assert "n/a" not in text and "≈ nan" not in text

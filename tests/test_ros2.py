@@ -37,7 +37,8 @@ def invoke(*args: str) -> tuple[int, str, str]:
 def loop_rows(n: int, seed: int = 3) -> dict[str, np.ndarray]:
     """Every column of the fixed-rate loop's rows, with NaN readings, contacts, a fault row."""
     rng = np.random.default_rng(seed)
-    c = {k: rng.normal(24.0, 2.0, n) for k in ROW}
+    late = ("v_cmd", "drive_cmd")  # fields added later: drawn after the others (the same stream)
+    c = {k: rng.normal(24.0, 2.0, n) for k in ROW if k not in late}
     c["t"] = np.arange(n) * 1e-3
     for k in ("contact", "gap", "contact_true"):
         c[k] = (rng.random(n) < 0.3).astype(float)
@@ -50,6 +51,9 @@ def loop_rows(n: int, seed: int = 3) -> dict[str, np.ndarray]:
     c["fault"] = np.zeros(n)
     c["fault"][-1] = 1.0  # the tripping sample: no estimate
     c["T_w"][100:180] = np.nan  # a loose thermocouple
+    extra = np.random.default_rng(seed + 1)
+    for k in late:
+        c[k] = extra.normal(24.0, 2.0, n)
     c["q_i_hat"][400] = np.nan
     c["late"][7] = math.inf  # becomes null in JSON: NaN
     return c

@@ -40,7 +40,9 @@ def emulator(tmp_path: Path) -> Iterator[Start]:
 
     def start(faults: tuple[str, ...] = ()) -> tuple[DeviceCore, Path, PtyEmulator]:
         core = DeviceCore(Config(), SCENARIOS["fingers"], [FaultSpec.parse(f) for f in faults])
-        emu = PtyEmulator(tmp_path / "skin", core)
+        # real-time priority for the emulator's thread where allowed, as the emulator's process
+        # asks for: at normal priority a loaded machine held it up past the 0.5 s link timeout
+        emu = PtyEmulator(tmp_path / "skin", core, rt_priority=40)
         th = threading.Thread(target=emu.run, daemon=True)
         th.start()
         assert emu.ready.wait(5.0)
@@ -108,6 +110,29 @@ def test_stop_request_ends_in_safe_state() -> None:
     assert 500 <= len(res.columns["t"]) < 1000 and res.wall_s < 10
 
 
+@needs_pty
+def test_stop_request_over_a_device_leaves_drive_and_pump_at_zero(emulator: Start) -> None:
+    """A stop request while the device heats with the pump running (the run from ambient: drive
+    at its limit): the device ends latched safe with drive 0 and pump 0 as it applies them (the
+    emulator's own state, not the host's log, which ends before the SAFE)."""
+    core, link, _ = emulator()
+    stop = threading.Event()
+    seen = [0]
+
+    def on_rows(block: dict) -> None:
+        seen[0] += len(block["t"])
+        if seen[0] >= 800:
+            stop.set()
+
+    res = run_realtime(LoopSpec(TOLERANT, SCENARIOS["fingers"], device=f"serial://{link}", duration=30.0),
+                       stop=stop, on_rows=on_rows)
+    assert res.summary["fault"] == sv.STOPPED and res.fault is None
+    c = res.columns
+    assert c["drive"][-1] != 0.0 and c["v"][-1] > 0.0  # it was heating with the pump on
+    assert wait_safe(core) == wait_safe(core)  # the SAFE took effect (not NaN)
+    assert core.safe_latched and core.drive == 0.0 and core.v == 0.0
+
+
 def test_unknown_device_reported() -> None:
     res = run_realtime(LoopSpec(Config(), SCENARIOS["none"].with_duration(1.0), device="usb://x"))
     assert "unknown device" in res.summary["error"]
@@ -162,8 +187,11 @@ def test_fault_ends_in_safe_state_within_delay(emulator: Start, kind: str) -> No
     assert res.fault == name, s
     delay_host = s["t_safe"] - t_f
     # the host's clock is set against the device's at the first sample, whose own transit
-    # (a few ms, more under load) is unknown: the host's delay is known to within it
-    assert -0.01 <= delay_host <= limit, (kind, delay_host)
+    # (a few ms, more under load) is unknown: the host's delay is known to within it; an
+    # emulator thread (this test's process, normal priority) that stalled as it was to send
+    # the fault's sample sends it that much later: its measured lateness is allowed
+    late_dev = emulator_stall(emu, t_f - 0.002, t_f + 0.002) if kind != "serial-drop" else 0.0
+    assert -0.01 <= delay_host <= limit + late_dev, (kind, delay_host, late_dev)
     if kind != "serial-drop":  # a cut cable carries no SAFE: the device's watchdog takes over
         delay_dev = wait_safe(core) - t_f
         # the host's SAFE takes effect at the emulator's next sample after it reads it: an

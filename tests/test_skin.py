@@ -183,7 +183,7 @@ def test_every_bad_value_is_one_line_naming_file_and_key(path: str, value: Any, 
 
 
 def test_file_errors(tmp_path: Path) -> None:
-    with pytest.raises(ConfigError, match=r"skin description .*nothere.toml does not exist"):
+    with pytest.raises(ConfigError, match=r"layout file .*nothere.toml does not exist"):
         load_skin(tmp_path / "nothere.toml")
     bad = tmp_path / "bad.toml"
     bad.write_text("[links\nx = 1\n")

@@ -237,7 +237,7 @@ def test_live_estimation_equals_observe_on_the_log(tmp_path: Path) -> None:
 def start_skin_run(tmp_path: Path, port: int, *extra: str) -> tuple[subprocess.Popen[str], Lines, Lines]:
     p = subprocess.Popen([*CMD, "run", "--skin", str(FOREARM), "--scenario", "one-finger", "--duration", "8",
                           "--log", str(tmp_path / "skin.csv"), "--live", f"127.0.0.1:{port}",
-                          "--live-wait", "60", *extra],
+                          "--live-wait", "60", "--no-realtime", *extra],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV, cwd=tmp_path)
     return p, Lines(p.stdout), Lines(p.stderr)
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 
 import numpy as np
 import pytest
@@ -362,15 +361,3 @@ def test_same_interface_as_simulated_skin() -> None:
         assert math.isfinite(s.T_w) and math.isfinite(s.T_g) and math.isfinite(s.q_i)
         assert s.t == pytest.approx(CFG.sampling.t_s)
     assert dataclasses.is_dataclass(SpatialParams())
-
-
-def test_step_is_fast() -> None:
-    skin = SpatialSkin(CFG)
-    skin.reset_equilibrium(24.0, V_ON, T_A)
-    skin.step(24.0, V_ON, T_A, G_FINGER, T_F, position=0.5)
-    n = 20000
-    t0 = time.perf_counter()
-    for _ in range(n):
-        skin.step(24.0, V_ON, T_A, G_FINGER, T_F, position=0.5)
-    per_step = (time.perf_counter() - t0) / n
-    assert per_step < 50e-6  # about 3 µs on a desktop; loose for loaded CI machines

@@ -67,8 +67,15 @@ def _reference_metrics(cols: dict[str, np.ndarray], events: list, sc, spec: Scen
     one = on & (np.asarray(cols["n_fingers"]) == 1) & after
     q = cols["dq_i_hat"][quiet & after]
     snr = (cols["dq_i_hat"][one].mean() - q.mean()) / q.std() if one.any() else math.nan
+    hours = after.sum() * t_s / 3600.0  # the time watched for false alarms, in hours
+    lat = sorted(m.latencies)
+    # the 90th percentile between order statistics (numpy's default, written out)
+    pos = 0.9 * (len(lat) - 1)
+    lo, hi = int(pos), min(int(pos) + 1, len(lat) - 1)
+    p90 = lat[lo] + (pos - lo) * (lat[hi] - lat[lo]) if lat else math.nan
     return {"tracking_rms_K": float(np.sqrt(np.mean(e * e))), "hits": m.hits, "misses": m.misses,
-            "false_alarms": m.false_alarms,
+            "false_alarms": m.false_alarms, "false_alarms_per_h": m.false_alarms / hours,
+            "latency_p90_s": float(p90),
             "latency_median_s": float(np.median(m.latencies)) if m.hits else math.nan,
             "snr_one_finger": float(snr), "observed_s": float(after.sum() * t_s)}
 
@@ -102,7 +109,8 @@ def test_batch_equals_closed_loop(monkeypatch: pytest.MonkeyPatch) -> None:
         assert row["touches"] == len(sc.touches) >= 1
         for k in ("hits", "misses", "false_alarms"):
             assert row[k] == ref[k], k
-        for k in ("tracking_rms_K", "latency_median_s", "observed_s"):
+        for k in ("tracking_rms_K", "latency_median_s", "latency_p90_s", "observed_s",
+                  "false_alarms_per_h"):
             assert _close(row[k], ref[k], 1e-7), (k, row[k], ref[k])
         # the SNR's spread of dq_i_hat over quiet stretches: what the estimator learns of the
         # sensors (its variances' median trackers, a step each reading) can step otherwise for
@@ -110,6 +118,68 @@ def test_batch_equals_closed_loop(monkeypatch: pytest.MonkeyPatch) -> None:
         assert _close(row["snr_one_finger"], ref["snr_one_finger"], 2e-2), (row, ref)
         assert _close(row["energy_J"], energy[0], 1e-7)
         assert row["detection_rate"] == ref["hits"] / (ref["hits"] + ref["misses"])
+
+
+def test_metrics_from_hand_numbers() -> None:
+    """:func:`score` on touches and contacts laid out by hand: 10 touches (one more after the run's
+    end, not scored), 8 of them detected (latencies 0.1 to 0.8 s), one detected 0.7 s after its
+    touch's end (outside ``late`` = 0.5 s: a miss and a false alarm), 3 more contacts; watched
+    1 800 000 samples of 1 ms (half an hour): 8 false alarms an hour, detection 0.8, latency median
+    0.45 s and 90th percentile 0.73 s (0.7 + 0.3 of the way to 0.8: numpy's linear rule, position
+    0.9 x 7 = 6.3); the one-finger SNR from the kernel's sums (mean 0.5 over 4 samples, quiet mean
+    0.3 and variance 0.02 over 5: 0.2 / sqrt(0.02)); every key, and no warning."""
+    import warnings
+    from types import SimpleNamespace
+
+    from thermoskin.estimation.events import ContactEvent
+    from thermoskin.physics.finger import Touch
+    from thermoskin.sweep import kernel as SK  # noqa: N812
+    from thermoskin.sweep.engine import EXTRA, METRICS, score
+
+    touches = [Touch(t_on=10.0 * k, duration=1.0, n_fingers=1) for k in range(1, 11)]
+    touches.append(Touch(t_on=210.0, duration=1.0, n_fingers=1))  # after t_end = 200 s
+    lat = [0.1 * (k + 1) for k in range(8)]
+    on = [10.0 * (k + 1) for k in range(8)]
+    events = [ContactEvent(on[k], on[k] + lat[k], on[k] + 1.2, 1.2, 1, 0.5, 0.3, 0.36) for k in range(8)]
+    events.append(ContactEvent(90.0, 91.7, 92.0, 2.0, 1, 0.5, 0.3, 0.6))  # 0.7 s after the 9th's end
+    events += [ContactEvent(t, t + 0.1, t + 0.5, 0.5, 1, 0.2, 0.1, 0.05) for t in (5.0, 103.0, 150.0)]
+    res = np.zeros(SK.NR)
+    res[SK.R_NARMED] = 1_800_000
+    res[SK.R_SSE], res[SK.R_NTRACK] = 0.09 * 400, 400  # rms 0.3 K
+    res[SK.R_SUM1], res[SK.R_N1] = 2.0, 4
+    res[SK.R_SUMQ], res[SK.R_SUMQ2], res[SK.R_NQ] = 1.5, 0.55, 5  # 0.1 .. 0.5
+    res[SK.R_ENERGY], res[SK.R_QPS] = 12.5, 7
+    spec = ScenarioSpec(late=0.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        row = score(SimpleNamespace(touches=touches), events, res, spec, 200.0, 1e-3)
+        assert set(row) == set(METRICS) | set(EXTRA)
+        assert (row["touches"], row["hits"], row["misses"], row["false_alarms"]) == (11, 8, 2, 4)
+        assert row["detection_rate"] == pytest.approx(0.8)
+        assert row["false_alarms_per_h"] == pytest.approx(8.0, rel=1e-12)
+        assert row["observed_s"] == pytest.approx(1800.0)
+        assert row["latency_median_s"] == pytest.approx(0.45, abs=1e-12)
+        assert row["latency_p90_s"] == pytest.approx(0.73, abs=1e-12)
+        assert row["tracking_rms_K"] == pytest.approx(0.3, rel=1e-12)
+        assert row["snr_one_finger"] == pytest.approx(0.2 / math.sqrt(0.02), rel=1e-9)
+        assert row["energy_J"] == 12.5 and row["qp_solves"] == 7 and isinstance(row["qp_solves"], int)
+        # the edges: one sample of contact and two quiet ones are enough; fewer, or no spread, no SNR
+        for n1, nq, sq2, ok in ((1, 2, 0.26, True), (0, 5, 0.55, False), (4, 1, 0.09, False),
+                                (4, 5, 0.45, False)):
+            r = res.copy()
+            r[SK.R_N1], r[SK.R_SUM1] = n1, 0.5 * n1
+            r[SK.R_NQ], r[SK.R_SUMQ], r[SK.R_SUMQ2] = nq, 0.3 * nq, sq2
+            snr = score(SimpleNamespace(touches=touches), events, r, spec, 200.0, 1e-3)["snr_one_finger"]
+            assert math.isfinite(snr) == ok, (n1, nq, sq2, snr)
+        # nothing to measure: NaN, never a division by zero
+        none = score(SimpleNamespace(touches=[]), [], np.zeros(SK.NR), spec, 200.0, 1e-3)
+        for k in ("detection_rate", "false_alarms_per_h", "latency_median_s", "latency_p90_s",
+                  "snr_one_finger", "tracking_rms_K"):
+            assert math.isnan(none[k]), k
+        unwatched = res.copy()
+        unwatched[SK.R_NARMED] = 0
+        assert math.isnan(score(SimpleNamespace(touches=touches), events, unwatched, spec, 200.0,
+                                1e-3)["false_alarms_per_h"])
 
 
 def test_batch_equals_open_loop() -> None:
@@ -296,3 +366,25 @@ def test_sweep_plot(tmp_path: Path) -> None:
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     r = CliRunner().invoke(main, ["sweep-plot", str(out), "-o", str(png), "--metric", "speed"])
     assert r.exit_code == 2 and "--metric speed" in r.output
+
+
+def test_sweep_plot_says_why_a_panel_is_empty(tmp_path: Path) -> None:
+    """A metric with no value in any point (latencies where nothing was detected) drew an empty
+    panel without a word: its panel now says why, and the command prints the same line."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from thermoskin.plots.sweep import plot_results
+
+    n = 6
+    cols = {"point": np.arange(n), "hash": [f"h{i}" for i in range(n)], "seed": np.zeros(n, dtype=np.int64),
+            "pump.v_on": np.linspace(0.1, 0.2, n), "detection_rate": np.zeros(n),
+            "latency_median_s": np.full(n, np.nan), "tracking_rms_K": np.linspace(0.04, 0.05, n)}
+    res = tmp_path / "r.parquet"
+    pq.write_table(pa.table(cols), res)
+    png = tmp_path / "p.png"
+    lines = plot_results(res, png, ["detection_rate", "latency_median_s", "tracking_rms_K"])
+    assert lines == ["latency median, s: no value in any of the 6 points (no touch detected)"]
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    r = CliRunner().invoke(main, ["sweep-plot", str(res), "-o", str(png), "--metric", "latency_median_s"])
+    assert r.exit_code == 0 and "no touch detected" in r.stderr, r.output

@@ -12,8 +12,10 @@ The objects a lab composes in its own code (``docs/api.md`` shows each with exam
     many = ts.PatchEstimators(cfg, n=100)         # many patches, one compiled loop
     log = ts.read_log("run.csv")                  # CSV or Parquet; ts.write_log, ts.LogReader, ts.LogWriter
     ts.write_events("events.csv", res.events)     # one row per contact
-    skin = ts.load_skin("examples/forearm.toml")  # a skin of many patches: ts.run_skin, ts.read_skin_log,
-                                                  # ts.observe_skin, ts.group_events
+    skin = ts.load_skin("examples/forearm.toml")  # a skin of many patches (its layout file)
+    sc = ts.skin_scenario("multi", skin)          # its scenario (or ts.SkinScenario of ts.SkinContact);
+                                                  # ts.run_skin, ts.read_skin_log, ts.observe_skin,
+                                                  # ts.group_events
     ts.characterise_events(events, columns, cfg)  # what touched; thermoskin.fit.calibrate.calibrate (a fit);
                                                   # ts.load_sweep / ts.run_sweep (design sweeps)
 
@@ -64,6 +66,9 @@ _EXPORTS = {
     "observe_skin": "thermoskin.skin.observe",
     "group_events": "thermoskin.skin.groups",
     "run_skin": "thermoskin.runtime.skin_loop",
+    "skin_scenario": "thermoskin.sim.skin_scenarios",
+    "SkinScenario": "thermoskin.sim.skin_scenarios",
+    "SkinContact": "thermoskin.sim.skin_scenarios",
     "characterise_events": "thermoskin.touch.characterise",
     "load_sweep": "thermoskin.sweep.spec",
     "run_sweep": "thermoskin.sweep.run",
@@ -82,7 +87,9 @@ __all__ = [
     "PatchEstimators",
     "Scenario",
     "Skin",
+    "SkinContact",
     "SkinController",
+    "SkinScenario",
     "ThermalExchangeObserver",
     "Touch",
     "TouchEstimator",
@@ -103,6 +110,7 @@ __all__ = [
     "run_sweep",
     "save_config",
     "simulate",
+    "skin_scenario",
     "write_events",
     "write_log",
 ]
@@ -136,6 +144,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs
     from thermoskin.runtime.skin_loop import run_skin
     from thermoskin.sim.run import simulate
     from thermoskin.sim.scenarios import SCENARIOS, Scenario
+    from thermoskin.sim.skin_scenarios import SkinContact, SkinScenario, skin_scenario
     from thermoskin.skin.groups import group_events
     from thermoskin.skin.layout import Skin, load_skin
     from thermoskin.skin.log import read_skin_log

@@ -12,6 +12,7 @@ import contextlib
 import os
 from collections.abc import Iterator
 from pathlib import Path
+from typing import IO, Any
 
 
 @contextlib.contextmanager
@@ -37,3 +38,27 @@ def write_text(path: str | os.PathLike[str], text: str) -> None:
     """``Path(path).write_text(text)`` (UTF-8), whole or not at all."""
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
+
+
+def arrow_name(path: str | os.PathLike[str]) -> str | None:
+    """``path`` as pyarrow takes a file name (UTF-8 text), or None where it is not one: under an
+    ASCII locale a name holding other bytes comes as text with escaped bytes (surrogates), which
+    pyarrow cannot encode."""
+    s = os.fspath(path)
+    try:
+        s.encode("utf-8")
+    except UnicodeEncodeError:
+        return None
+    return s
+
+
+@contextlib.contextmanager
+def arrow_target(path: str | os.PathLike[str], mode: str = "rb") -> Iterator[str | IO[Any]]:
+    """What to hand pyarrow for ``path``: its name (:func:`arrow_name`), or where that cannot
+    be, the file opened in ``mode`` for the block."""
+    name = arrow_name(path)
+    if name is not None:
+        yield name
+        return
+    with open(path, mode) as fh:
+        yield fh

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -597,10 +598,78 @@ def _merge(base: Config, data: dict[str, Any], source: str) -> Config:
         raise ConfigError(f"{e} in {source}") from None
 
 
+#: Largest TOML file read (a skin of 10 000 patches takes about 1.5 MB), bytes.
+MAX_TOML_BYTES = 16 << 20
+#: Deepest nesting of arrays and inline tables in a TOML file (this project's files nest 3 deep;
+#: Python's parser recurses, and 400 levels raised ``RecursionError``).
+MAX_TOML_DEPTH = 32
+
+_TOML_MARKS = re.compile(r"[\n#\"'\[\]{}]")
+
+
+def toml_depth(text: str, limit: int = MAX_TOML_DEPTH) -> tuple[int, int]:
+    """``(depth, line)``: the deepest nesting of brackets and braces in TOML ``text`` outside its
+    strings and comments, up to ``limit + 1`` (then the line where it passed ``limit``); table
+    headers count as one or two levels. Linear in the text (a regular expression finds the next
+    mark), no recursion."""
+    depth = deepest = 0
+    line = 1
+    i, n = 0, len(text)
+    while True:
+        m = _TOML_MARKS.search(text, i)
+        if m is None:
+            return deepest, line
+        c, i = m.group(), m.end()
+        if c == "\n":
+            line += 1
+        elif c == "#":
+            j = text.find("\n", i)
+            i = n if j < 0 else j
+        elif c in "\"'":
+            if text.startswith(c * 3, i - 1):  # a multi-line string
+                end = _string_end(text, i + 2, c * 3)
+                line += text.count("\n", i, end)
+                i = end
+            else:
+                i = _string_end(text, i, c)
+        elif c in "[{":
+            depth += 1
+            if depth > deepest:
+                deepest = depth
+                if deepest > limit:
+                    return deepest, line
+        else:
+            depth = max(0, depth - 1)
+
+
+def _string_end(text: str, i: int, quote: str) -> int:
+    """Index after the string that starts at ``i`` (after its opening ``quote``); a basic
+    string's backslash escapes the next character; a one-line string ends at its line's end."""
+    n = len(text)
+    basic = quote[0] == '"'
+    while i < n:
+        j = text.find(quote, i)
+        nl = text.find("\n", i) if len(quote) == 1 else -1
+        if j < 0 or (0 <= nl < j):
+            return nl if nl >= 0 else n  # unterminated: the parser says so
+        if basic:
+            k = j - 1
+            slashes = 0
+            while k >= i and text[k] == "\\":
+                slashes += 1
+                k -= 1
+            if slashes % 2:
+                i = j + 1
+                continue
+        return j + len(quote)
+    return n
+
+
 def read_toml(path: str | Path, what: str, error: type[ConfigError] | None = None) -> dict[str, Any]:
     """The TOML file at ``path`` as a dict; ``error`` (default :class:`ConfigError`) with one
     line naming ``what`` (``"config file"``, ``"skin description"``, ...) and the path when
-    it is a directory, missing, unreadable, not UTF-8 or not valid TOML."""
+    it is a directory, missing, unreadable, not UTF-8, not valid TOML, larger than
+    :data:`MAX_TOML_BYTES` or nested deeper than :data:`MAX_TOML_DEPTH`."""
     err = ConfigError if error is None else error
     p = Path(path)
     if p.is_dir():
@@ -608,15 +677,57 @@ def read_toml(path: str | Path, what: str, error: type[ConfigError] | None = Non
     if not p.exists():
         raise err(f"{what} {p} does not exist")
     try:
-        text = p.read_text(encoding="utf-8")
+        with open(p, "rb") as fh:
+            raw = fh.read(MAX_TOML_BYTES + 1)
     except OSError as e:
         raise err(f"cannot read {what} {p}: {e.strerror or e}") from None
+    if len(raw) > MAX_TOML_BYTES:
+        raise err(f"{what} {p} is larger than {MAX_TOML_BYTES >> 20} MiB: not one of ours")
+    try:
+        text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise err(f"{p} is not valid TOML: not UTF-8 text") from None
+    deepest, line = toml_depth(text)
+    if deepest > MAX_TOML_DEPTH:
+        raise err(f"{p}: line {line}: arrays or tables nested more than {MAX_TOML_DEPTH} deep: "
+                  f"not a {what}")
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise err(f"{p} is not valid TOML: {' '.join(str(e).split())}") from None
+    except RecursionError:  # not reached after the depth check; kept as a net
+        raise err(f"{p}: nested too deep: not a {what}") from None
+
+
+#: The three kinds of TOML file the commands take, by what each is given with.
+FILE_KINDS = {
+    "parameters": "a parameter file (tables such as [skin], [sensor], [detector]: the model and the "
+                  "boards as the lab knows them; give it with --config)",
+    "layout": "a skin's layout file (links, loops, patches: where the patches lie; give it with --skin)",
+    "sweep": "a sweep file ([sweep], [keys]: designs to simulate; give it to `thermoskin sweep`)",
+}
+
+
+def file_kind(data: dict[str, Any]) -> str | None:
+    """Which of :data:`FILE_KINDS` a parsed TOML file is, by its top-level tables; None if it
+    has none of their marks (an empty file, or a file of none of these kinds)."""
+    if "sweep" in data or "keys" in data:
+        return "sweep"
+    if {"links", "loops", "patches"} & set(data):
+        return "layout"
+    if set(data) & set(_SECTION_TYPES):
+        return "parameters"
+    return None
+
+
+def check_kind(path: str | Path, data: dict[str, Any], want: str,
+               error: type[ConfigError] | None = None) -> None:
+    """One line when the file at ``path`` is another kind than ``want`` (a layout given where a
+    parameter file goes said "unknown table [name]"; the two were both called SKIN.toml)."""
+    kind = file_kind(data)
+    if kind is not None and kind != want:
+        err = ConfigError if error is None else error
+        raise err(f"{path} is {FILE_KINDS[kind]}, not {FILE_KINDS[want].split(' (')[0]} as this option takes")
 
 
 def load_config(path: str | Path | None = None, preset: str = "paper") -> Config:
@@ -627,8 +738,23 @@ def load_config(path: str | Path | None = None, preset: str = "paper") -> Config
     if path is None:
         return cfg
     p = Path(path)
-    data = read_toml(p, "config file")
+    data = read_toml(p, "parameter file")
+    check_kind(p, data, "parameters")
     return _merge(cfg, data, source=str(p))
+
+
+#: Significant digits a written config keeps: a fitted or measured value's last bits are noise
+#: (a log's median step of 0.10000000000012221 s is 0.1 s), and 12 digits are 1e-12 of it.
+TOML_DIGITS = 12
+
+
+def toml_number(x: float) -> str:
+    """A float as a config file writes it: rounded to :data:`TOML_DIGITS` significant digits,
+    in the shortest form that reads back as that float (``nan``, ``inf``, ``-inf`` as TOML spells them)."""
+    x = float(x)
+    if not math.isfinite(x):
+        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    return repr(float(f"{x:.{TOML_DIGITS}g}"))
 
 
 def to_toml(cfg: Config) -> str:
@@ -646,7 +772,9 @@ def to_toml(cfg: Config) -> str:
             elif isinstance(value, bool):
                 text = "true" if value else "false"
             elif isinstance(value, tuple | list):
-                text = "[" + ", ".join(repr(float(x)) for x in value) + "]"
+                text = "[" + ", ".join(toml_number(x) for x in value) + "]"
+            elif isinstance(value, float):
+                text = toml_number(value)
             else:
                 text = repr(value)
             unit = f.metadata.get("unit", "")

@@ -9,6 +9,10 @@ as missing, a directory, or unreadable.
 
 Every problem raises :class:`PathError` (a ``ValueError``) with one line naming the
 option, the path and the reason.
+
+One writer per output (:func:`lock_output`): a command takes an exclusive lock on each of its
+outputs before any work, on a file ``.NAME.lock`` beside it that holds the holder's process
+id; a second command writing the same path is refused with one line naming that process.
 """
 
 from __future__ import annotations
@@ -16,13 +20,29 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
+import time
 from collections.abc import Iterable
 from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: no locks (one writer per output is then the user's to keep)
+    fcntl = None  # type: ignore[assignment]
 
 #: Extensions of a log (``logio``).
 LOG_SUFFIXES = (".csv", ".parquet")
 #: Extensions matplotlib's Agg canvas writes.
 PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".webp", ".tif", ".tiff", ".eps", ".ps")
+
+
+def shown(text: str) -> str:
+    """``text`` (a title holding a file name) as any font can show it: bytes of a name that the
+    locale could not decode (Python's escapes for them, lone surrogates) as U+FFFD."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    return text
 
 
 class PathError(ValueError):
@@ -152,3 +172,100 @@ class Replaced:
                 else:
                     os.replace(a, p)
         self.aside = []
+
+
+def lock_file(path: Path) -> Path:
+    """The file whose lock stands for the output ``path``: ``.NAME.lock`` beside it."""
+    p = Path(path)
+    return p.with_name(f".{p.name}.lock")
+
+
+class OutputLock:
+    """An exclusive lock on one output (:func:`lock_output`); :meth:`release` frees it, removes
+    its lock file and the folders made for it that are still empty."""
+
+    def __init__(self, path: Path, fd: int, made: list[Path]) -> None:
+        self.path = path
+        self.fd = fd
+        self.made = made
+
+    def release(self) -> None:
+        if self.fd < 0:
+            return
+        with contextlib.suppress(OSError):  # removed while held: an acquirer that opened it
+            os.unlink(self.path)            # before finds another file there and tries again
+        os.close(self.fd)
+        self.fd = -1
+        for d in reversed(self.made):
+            with contextlib.suppress(OSError):
+                d.rmdir()  # only if empty: what the command wrote there stays
+        self.made = []
+
+
+def _holder(fd: int) -> str:
+    """What the holder of the lock on ``fd`` wrote in it (its pid and command), read for up to
+    0.2 s (a holder writes it just after it locks)."""
+    for _ in range(20):
+        with contextlib.suppress(OSError):
+            text = os.pread(fd, 200, 0).decode("utf-8", "replace").strip()
+            if text:
+                pid, _, what = text.partition(" ")
+                return f"{what or 'thermoskin'} (pid {pid})"
+        time.sleep(0.01)
+    return "another thermoskin command (pid unknown)"
+
+
+def lock_output(path: Path, option: str, what: str = "file",
+                command: str = "thermoskin") -> OutputLock | None:
+    """Take the exclusive lock on the output ``path`` (its lock file :func:`lock_file`, made with
+    its missing folders), writing this process's id and ``command`` in it; :class:`PathError`
+    naming the holder if another process holds it. None where the OS has no such locks."""
+    if fcntl is None:
+        return None
+    p = Path(path)
+    folder = p.parent if str(p.parent) else Path(".")
+    made: list[Path] = []
+    missing = []
+    q = folder
+    while not q.exists() and q.parent != q:
+        missing.append(q)
+        q = q.parent
+    lp = lock_file(p)
+    try:
+        for d in reversed(missing):
+            try:
+                d.mkdir()
+                made.append(d)
+            except FileExistsError:
+                pass
+        for _ in range(100):
+            fd = os.open(lp, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = _holder(fd)
+                os.close(fd)
+                raise PathError(f"{option} {p}: another process is writing this {what}: {holder}; "
+                                "wait for it to end, or give another path") from None
+            try:  # the file locked may have been removed by its last holder meanwhile
+                same = os.fstat(fd).st_ino == os.stat(lp).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        else:  # pragma: no cover (a lock file removed under us a hundred times)
+            raise PathError(f"{option} {p}: cannot lock {lp}")
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()} {command}\n".encode("utf-8", "replace"), 0)
+    except OSError as e:
+        for d in reversed(made):
+            with contextlib.suppress(OSError):
+                d.rmdir()
+        raise PathError(f"{option} {p}: cannot lock it ({lp}: {e.strerror or e})") from None
+    except BaseException:
+        for d in reversed(made):
+            with contextlib.suppress(OSError):
+                d.rmdir()
+        raise
+    return OutputLock(lp, fd, made)

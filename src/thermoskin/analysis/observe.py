@@ -33,6 +33,7 @@ from thermoskin.estimation.freshness import (
 )
 from thermoskin.estimation.learnt import Learnt, notices
 from thermoskin.logio.plausible import Cleaned, clean_log
+from thermoskin.logio.units import Units
 from thermoskin.params import Config
 from thermoskin.touch.characterise import Characteriser
 
@@ -175,6 +176,7 @@ def _prepared(chunks: Iterable[dict[str, NDArray[np.float64]]], cfg: Config, fre
 def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg: Config,
                  progress: Callable[[int, int | None], None] | None = None, *,
                  characterise: bool = True, compiling: Callable[[], None] | None = None,
+                 units: Units | None = None,
                  on_first: Callable[[Learnt], None] | None = None) -> StreamResult:
     """:func:`observe` streamed from a log file to another (CSV or Parquet each), in chunks:
     memory does not grow with the log's length. The output holds every input column, the
@@ -185,12 +187,14 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
     False leaves the events' character fields empty. ``compiling``: the kernel is not compiled
     yet (a cold cache), so it is compiled only once the first chunk has passed every check
     (a bad log is one error, not a compile first), and ``compiling()`` is called just before;
-    otherwise the kernel is loaded while the first chunk is read. ``on_first``: given what the
-    estimator has learnt of the sensors by the end of the first chunk (262 144 rows, or the whole
-    of a shorter log), its one-finger SNR included: said at the start."""
+    otherwise the kernel is loaded while the first chunk is read. ``units``: the log's units
+    (:class:`~thermoskin.logio.units.Units`: converted to seconds and °C as read, or checked).
+    ``on_first``: given what the estimator has learnt of the sensors by the end of the first
+    chunk (262 144 rows, or the whole of a shorter log), its one-finger SNR included: said at
+    the start."""
     from thermoskin.logio import LogReader, LogWriter, WriteBehind, prefetch
 
-    with LogReader(path, required=INPUT_COLUMNS, live=True, one_patch=True) as reader:
+    with LogReader(path, required=INPUT_COLUMNS, live=True, one_patch=True, units=units) as reader:
         names = list(reader.names)
         live = [k for k in OUTPUT_COLUMNS if k in names]
         out_names = [f"{k}_live" if k in live else k for k in names] + list(OUTPUT_COLUMNS)

@@ -41,6 +41,9 @@ class _Commands(click.Group):
     that is not a number) are one line and exit 2, as every other user error."""
 
     def main(self, *args: Any, **kwargs: Any) -> Any:  # type: ignore[override]
+        from thermoskin.cli.terminal import degrade_to_ascii
+
+        degrade_to_ascii()  # an ASCII-only locale: "µs" written "us", never an encoding error
         if kwargs.get("standalone_mode", True) is False:  # a caller handling click's errors
             return super().main(*args, **kwargs)
         try:
@@ -49,8 +52,10 @@ class _Commands(click.Group):
             if isinstance(e, _NO_ARGS):  # `thermoskin` alone: the help, as click gives it
                 e.show()
                 sys.exit(e.exit_code)
+            from thermoskin.cli.terminal import one_line
+
             where = e.ctx.command_path if e.ctx is not None else "thermoskin"
-            msg = " ".join(e.format_message().split())
+            msg = one_line(e.format_message())
             click.echo(f"thermoskin: error: {msg} (see {where} --help)", err=True)
             sys.exit(2)
         except click.ClickException as e:

@@ -50,10 +50,13 @@ def _user_errors(fn: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         from thermoskin.logio import LogError
 
+        held = len(_LOCKS)
         try:
             return fn(*args, **kwargs)
         except (ConfigError, LogError, PathError, UserError) as e:
-            msg = " ".join(str(e).split())  # one line, whatever the message held
+            from thermoskin.cli.terminal import one_line
+
+            msg = one_line(str(e))  # one line of at most 400 characters, whatever the message held
             click.echo(f"thermoskin: error: {msg}", err=True)
             sys.exit(2)
         except KeyboardInterrupt:
@@ -66,6 +69,9 @@ def _user_errors(fn: F) -> F:
             click.echo(f"thermoskin: error: {where}{e.strerror} (the file system); what was "
                        "written before is kept", err=True)
             sys.exit(2)
+        finally:  # the command's outputs are free again (its lock files gone)
+            while len(_LOCKS) > held:
+                _LOCKS.pop().release()
 
     return wrapper  # type: ignore[return-value]
 
@@ -86,16 +92,29 @@ def _config(path: Path | None, preset: str = "paper") -> Config:
 TABLE_ROWS = 40
 
 
+#: The output locks the command running now holds (:func:`_outputs`), released as it ends.
+_LOCKS: list[Any] = []
+
+
 def _outputs(*items: tuple[str, Path | None, Any, str], inputs: tuple[Path, ...] = ()) -> None:
     """Check every output path before any work: ``(option, path, suffixes or None, what)``; no
-    two at the same path, and none one of the ``inputs`` (writing it would destroy what is read)."""
-    from thermoskin.paths import check_output, distinct, not_an_input
+    two at the same path, and none one of the ``inputs`` (writing it would destroy what is read);
+    then lock each (:func:`thermoskin.paths.lock_output`: one writer per output, a second
+    command on the same path refused with the holder's pid) until the command ends."""
+    from thermoskin.paths import check_output, distinct, lock_output, not_an_input
 
     for option, path, suffixes, what in items:
         if path is not None:
             check_output(path, option, suffixes, what)
             not_an_input(path, option, what, inputs)
     distinct(*((option, path) for option, path, _, _ in items))
+    ctx = click.get_current_context(silent=True)
+    command = f"thermoskin {ctx.info_name}" if ctx is not None else "thermoskin"
+    for option, path, _, what in items:
+        if path is not None:
+            lock = lock_output(path, option, what, command)
+            if lock is not None:
+                _LOCKS.append(lock)
 
 
 def _check_loop(cfg: Config) -> None:
@@ -278,8 +297,28 @@ def _write_events(path: Path | None, events: list[ContactEvent]) -> None:
         raise UserError(f"cannot write {path}: {e.strerror or e}") from None
 
 
+def _units_options(fn: F) -> F:
+    """``--time-unit s|ms|us`` and ``--temp-unit C|K``: the units of a log read (default: seconds
+    and °C, a log that looks like another unit refused; :mod:`thermoskin.logio.units`)."""
+    fn = click.option("--temp-unit", "temp_unit", type=click.Choice(["C", "K"]), default=None,
+                      help="The log's temperatures are in C (degrees Celsius) or K (kelvin, converted). "
+                           "Default: C, and a log whose T columns look like kelvin is refused.")(fn)
+    return click.option("--time-unit", "time_unit", type=click.Choice(["s", "ms", "us"]), default=None,
+                        help="The log's t is in s, ms or us (converted to s). Default: s, and a log "
+                             "whose t looks like ms or us (a step of 0.1-10 whole tenths, ...) is "
+                             "refused.")(fn)  # type: ignore[return-value]
+
+
+def _units(time_unit: str | None, temp_unit: str | None) -> Any:
+    """:class:`~thermoskin.logio.units.Units` of the two options."""
+    from thermoskin.logio.units import Units
+
+    return Units(time_unit, temp_unit)
+
+
 CONFIG_OPT = click.option("--config", "config_path", type=click.Path(path_type=Path),
-                          default=None, help="TOML file overriding the paper's Table I preset.")
+                          default=None, help="PARAMS.toml, a parameter file: its tables override the "
+                                            "paper's Table I preset (examples/params.toml).")
 
 
 def _read_log(path: Path, required: Any) -> dict[str, Any]:
@@ -356,17 +395,28 @@ def _live_options(fn: F) -> F:
                            "before starting.")(fn)
     fn = click.option("--live-rate", "live_rate", type=float, default=100.0, show_default=True,
                       help="With --live: signals decimated to this rate, Hz of the loop clock.")(fn)
+    fn = click.option("--live-allow-origin", "live_allow_origin", multiple=True, metavar="ORIGIN",
+                      help="With --live: also serve web pages of this origin (a hosted viewer, e.g. "
+                           "https://app.foxglove.dev; * for any). Without it only the live page and "
+                           "clients that send no Origin (Foxglove desktop, Lichtblick, scripts) are "
+                           "served; other pages get 403.")(fn)
     return click.option("--live", "live_addr", is_flag=False, flag_value=DEFAULT_ADDRESS, default=None,
                         metavar="[HOST:]PORT",
                         help=f"Serve the topics live over the Foxglove WebSocket protocol (default "
                              f"{DEFAULT_ADDRESS}) and a live page on PORT+1.")(fn)  # type: ignore[return-value]
 
 
-def _live_address(addr: str, rate: float, wait: float) -> tuple[str, int]:
-    """``--live``'s ``(host, port)``, and ``--live-rate``, ``--live-wait`` checked: a user error of
-    one line, before the command compiles or starts anything (``run`` checks them at once)."""
+def _live_address(addr: str, rate: float, wait: float, origins: tuple[str, ...] = ()) -> tuple[str, int]:
+    """``--live``'s ``(host, port)``, and ``--live-rate``, ``--live-wait``, ``--live-allow-origin``
+    checked: a user error of one line, before the command compiles or starts anything (``run``
+    checks them at once)."""
     from thermoskin.live import LiveError, parse_address
+    from thermoskin.live.gate import allowed_origins
 
+    try:
+        allowed_origins(origins)
+    except ValueError as e:
+        raise UserError(str(e)) from None
     if not (rate > 0 and math.isfinite(rate)):
         raise UserError(f"--live-rate {rate}: must be > 0 Hz")
     if not (wait >= 0 and math.isfinite(wait)):
@@ -378,13 +428,17 @@ def _live_address(addr: str, rate: float, wait: float) -> tuple[str, int]:
 
 
 def _start_live(addr: str, rate: float, wait: float, cfg: Any,
-                view: str = "layout docs/foxglove-layout.json", **kw: Any) -> Any:
-    """The live server at ``addr`` (one-line errors), its addresses printed; waits for a viewer.
-    ``view``: how to look at it in Foxglove; ``kw``: a skin's ``topics`` and ``params`` (``LiveServer``)."""
+                view: str = "layout docs/foxglove-layout.json", *, origins: tuple[str, ...] = (),
+                stop: Callable[[], bool] | None = None, **kw: Any) -> Any:
+    """The live server at ``addr`` (one-line errors), its addresses printed; waits for a viewer
+    (a wait that ``stop``, a signal's stop request, ends). ``view``: how to look at it in
+    Foxglove; ``origins``: ``--live-allow-origin``; ``kw``: a skin's ``topics`` and ``params``
+    (``LiveServer``)."""
     from thermoskin.live import LiveError, LiveServer
 
     try:
-        live = LiveServer(*_live_address(addr, rate, wait), config=cfg, rate=rate, **kw)
+        live = LiveServer(*_live_address(addr, rate, wait, origins), config=cfg, rate=rate,
+                          allow_origins=origins, stop=stop, **kw)
     except LiveError as e:
         raise UserError(str(e)) from None
     console.print(f"[bold]live[/]: Foxglove WebSocket {live.ws_url} (Foxglove or Lichtblick: open "
@@ -392,7 +446,7 @@ def _start_live(addr: str, rate: float, wait: float, cfg: Any,
                   f"{live.page_url}; signals at {rate:g} Hz")
     if wait > 0:
         console.print(f"[bold]live[/]: waiting up to {wait:g} s for a viewer")
-        if not live.wait_for_client(wait):
+        if not live.wait_for_client(wait, stop):
             console.print("[bold]live[/]: no viewer yet; starting")
     return live
 

@@ -65,35 +65,51 @@ def identify(log_csv: Path, output_toml: Path, t_model: float | None) -> None:
 
 @main.command()
 @click.argument("log_path", type=click.Path(path_type=Path))
-@click.option("--config", "--skin", "config_path", type=click.Path(path_type=Path), default=None,
-              help="The skin's config (TOML): the starting values and those held. --skin: a "
-                   "single patch's skin file.")
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
+              help="PARAMS.toml, a parameter file: its [skin] values start the fit and hold what is "
+                   "not fitted (default: the paper's Table I).")
+@click.option("--skin", "layout_path", type=click.Path(path_type=Path), default=None, hidden=True)
 @click.option("-o", "--output", "output_toml", type=click.Path(path_type=Path), required=True,
-              help="FITTED.toml: the config with the fitted [skin] values (intervals as comments); "
+              help="FITTED.toml: the config with the fitted [skin] and [sensor] values (intervals as "
+                   "comments); "
                    "the fit figure goes beside it as FITTED.png.")
 @click.option("--params", default=None,
               help="Comma-separated parameters to fit (default: C_g,R_g,R_aw,R_ag,R_w_flowing,"
-                   "R_w_stopped; C_w holds the heat scale).")
+                   "R_w_stopped and the offsets of the two channels other than the reference; C_w "
+                   "holds the heat scale). Also: offset_T_w, offset_T_p, offset_T_a, lag_T_w, lag_T_a.")
+@click.option("--lags", default=None,
+              help="Also fit these sensors' lags: T_w, T_a or T_w,T_a (a pipe sensor's lag shows at "
+                   "the pump's switching, an air sensor's only where the air changes).")
+@click.option("--reference", type=click.Choice(["T_w", "T_p", "T_a"]), default="T_w", show_default=True,
+              help="The channel whose offset is held at its config value: only the differences "
+                   "between the channels' offsets reach the readings.")
 @click.option("--truth", "truth_path", type=click.Path(path_type=Path), default=None,
               help="The config a simulated log was made with: adds the true values to the table.")
 @click.option("--contact-column", default="contact", show_default=True,
               help="Column flagging touches; its rows (padded) are left out if the log has it.")
 @click.option("--t-fit", "t_fit", type=float, default=None,
-              help="Fit block means of up to this many seconds (faster; biased where the pump "
-                   "chatters) instead of every sample (default).")
+              help="Fit block means of up to this many seconds (default 0.01; the reading the pump "
+                   "switched on a block of its own); 0: every sample.")
 @_user_errors
 def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, params: str | None,
-              truth_path: Path | None, contact_column: str, t_fit: float | None) -> None:
-    """Fit the skin's network parameters and R_w to a recorded log (docs/calibration.md).
+              lags: str | None, reference: str, truth_path: Path | None, contact_column: str,
+              t_fit: float | None, layout_path: Path | None = None) -> None:
+    """Fit the skin's network parameters, R_w and the sensors' offsets (and lags, --lags) to a
+    recorded log (docs/calibration.md).
 
     LOG_PATH (CSV or Parquet) has t,T_w,T_p,v,T_a, uniformly sampled, no touch (or a
-    contact column). Least squares on the network's prediction of T_w from T_p, v, T_a;
-    95 % intervals from the Jacobian at the optimum; what the log cannot determine is held
-    at the config's value and said so.
+    contact column; a fresh column gives the boards' conversions). Least squares on the
+    network's prediction of the T_w reading from the T_p, v, T_a readings; 95 % intervals
+    from the Jacobian at the optimum; what the log cannot determine is held at the config's
+    value and said so, and a parameter that runs to a bound is a finding in the table.
     """
     from thermoskin.fit import calibrate as cal_mod
     from thermoskin.logio import read_log
     from thermoskin.plots.calibration import plot_fit
+
+    if layout_path is not None:  # --skin was once another name of --config here
+        raise UserError("calibrate fits one patch's parameters: give its parameter file with --config "
+                        "(--skin names a skin's layout file, which calibrate does not take)")
 
     _outputs(("-o", output_toml, (".toml",), "fitted config"),
              ("-o", output_toml.with_suffix(".png"), (".png",), "fit figure"), inputs=(log_path,))
@@ -101,10 +117,17 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
         raise UserError(f"--t-fit {t_fit} must be >= 0 s (0: every sample)")
     cfg = _config(config_path)
     truth = _config(truth_path) if truth_path is not None else None
-    names = cal_mod.DEFAULT_PARAMS if params is None else tuple(
+    names = cal_mod.default_params(reference) if params is None else tuple(
         p.strip() for p in params.split(",") if p.strip())
+    if lags is not None:
+        chans = [c.strip() for c in lags.split(",") if c.strip()]
+        bad = [c for c in chans if f"lag_{c}" not in cal_mod.LAGS]
+        if bad or not chans:
+            raise UserError(f"--lags {lags}: give T_w, T_a or T_w,T_a (the tank sensor's lag is not "
+                            "in the model)")
+        names = (*names, *(f"lag_{c}" for c in chans))
     log = read_log(log_path, required=cal_mod.COLUMNS, one_patch=True,
-                   keep=(*cal_mod.COLUMNS, "contact", contact_column))
+                   keep=(*cal_mod.COLUMNS, "contact", "fresh", contact_column))
     if contact_column != "contact" and contact_column not in log:
         raise UserError(f"--contact-column {contact_column}: {log_path} has no such column")
     status = err_console.status("calibrating", spinner="dots") if err_console.is_terminal else None
@@ -117,7 +140,7 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
         status.start()
     try:
         res = cal_mod.calibrate(log, cfg, names, t_fit=cal_mod.T_FIT if t_fit is None else t_fit,
-                                contact=log.get(contact_column), progress=progress)
+                                contact=log.get(contact_column), reference=reference, progress=progress)
     except cal_mod.CalibrationError as e:
         raise UserError(f"{log_path}: {e}") from None
     finally:
@@ -125,21 +148,24 @@ def calibrate(log_path: Path, config_path: Path | None, output_toml: Path, param
             status.stop()
     v_on = res.blocks.v_modes[res.blocks.v_modes > 0]
     true = cal_mod.prior_values(truth, float(np.median(v_on)) if v_on.size else None) if truth else None
-    table = Table(title=f"Skin parameters fitted to {log_path}")
+    table = Table(title=f"Skin and sensor parameters fitted to {log_path}")
     for col in ("parameter", "prior", "estimate", "95 % interval", *(("true", "in") if true else ()),
                 "status"):
         table.add_column(col, justify="left" if col in ("parameter", "status") else "right")
     for p in res.requested:
         lo, hi = res.interval(p)
-        ok = math.isfinite(lo) and hi / lo < 1e6
+        ok = math.isfinite(lo) and math.isfinite(hi) and (cal_mod.kind(p) == "offset"
+                                                          or hi / max(lo, 1e-300) < 1e6)
         row = [f"{p} ({cal_mod.UNITS[p]})", f"{res.prior_values[p]:.4g}", f"{res.estimate[p]:.4g}",
                f"[{lo:.4g}, {hi:.4g}]" if ok else "none"]
         if true:
             row += [f"{true[p]:.4g}", ("yes" if lo <= true[p] <= hi else "no") if ok else "-"]
         table.add_row(*row, res.status(p))
     console.print(table)
+    for p, why in res.findings.items():
+        console.print(f"finding: {p} {why}", markup=False)
     if len(res.names) > 1:
-        corr = Table(title="Correlation of the fitted ln p")
+        corr = Table(title="Correlation of the fitted ln p (offsets: b)")
         corr.add_column("")
         for p in res.names:
             corr.add_column(p, justify="right")

@@ -23,6 +23,8 @@ from thermoskin.cli.common import (
     _outputs,
     _progress_bar,
     _starts_itself,
+    _units,
+    _units_options,
     _user_errors,
     _write_events,
     console,
@@ -43,24 +45,29 @@ from thermoskin.params import Config
 @EVENTS_OPT
 @CONFIG_OPT
 @click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
-              help="A skin of many patches (TOML): INPUT is its long-format log (t,patch,T_w,T_p,v,T_a,"
-                   "...); every patch is estimated with its inlet water (the cross-talk of shared water "
-                   "removed); events gain patch,position,position_sd; the layout with the contacts is "
+              help="LAYOUT.toml, a skin of many patches' layout file (examples/forearm.toml): INPUT "
+                   "is its long-format log (t,patch,T_w,T_p,v,T_a,...); every patch is estimated "
+                   "with its inlet water (the cross-talk of shared water removed); events gain "
+                   "patch,position,position_sd; the layout with the contacts is "
                    "drawn beside the output (OUTPUT.png).")
 @click.option("--groups", "groups_path", type=click.Path(path_type=Path), default=None,
               help="With --skin: also write the body contacts (events on neighbouring patches "
                    "overlapping in time), one row each.")
+@_units_options
 @_user_errors
 @_starts_itself
 def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
-            config_path: Path | None, skin_path: Path | None = None, groups_path: Path | None = None) -> None:
+            config_path: Path | None, skin_path: Path | None = None, groups_path: Path | None = None,
+            time_unit: str | None = None, temp_unit: str | None = None) -> None:
     """Estimate the touch heat flow and detect contacts in a recorded log.
 
     INPUT_CSV (CSV or Parquet) has at least the columns t,T_w,T_p,v,T_a (s, °C, °C, m/s, °C),
     uniformly sampled at 50 Hz to 1 kHz. Each thermocouple's update rate is read from the
     log (its `fresh` column if it has one, else runs of repeated readings); T_w_cmd and drive
     are used if present, as the loop used them, so a log written by `thermoskin run` gives the
-    live run's estimates and contacts again. NaN samples are held over (`gap`).
+    live run's estimates and contacts again. NaN samples are held over (`gap`). A log in
+    milliseconds or kelvin is read with --time-unit ms, --temp-unit K (the output in s and °C);
+    one that looks like them without is refused.
     """
     from thermoskin.analysis.observe import observe_file
     from thermoskin.estimation.freshness import CHANNELS
@@ -70,8 +77,9 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
     _outputs(("-o", output_csv, LOG_SUFFIXES, "log"), ("--events", events_path, (".csv",), "events file"),
              ("--groups", groups_path, (".csv",), "groups file"), inputs=(input_csv,))
     cfg = _config(config_path)
+    units = _units(time_unit, temp_unit)
     if skin_path is not None:
-        _observe_skin(input_csv, output_csv, events_path, groups_path, skin_path, cfg)
+        _observe_skin(input_csv, output_csv, events_path, groups_path, skin_path, cfg, units)
         return
     if groups_path is not None:
         raise UserError("--groups needs --skin (a skin of many patches)")
@@ -102,7 +110,8 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
 
         res = observe_file(input_csv, output_csv, cfg, progress=progress,
                            characterise=events_path is not None,  # what touched: for the events file
-                           compiling=None if note is None else compiling, on_first=first)
+                           compiling=None if note is None else compiling, units=units,
+                           on_first=first)
     _write_events(events_path, res.events)
     t_s = res.t_s
     for w in res.warnings:
@@ -128,7 +137,7 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
 
 
 def _observe_skin(input_path: Path, output: Path, events_path: Path | None, groups_path: Path | None,
-                  skin_path: Path, cfg: Config) -> None:
+                  skin_path: Path, cfg: Config, units: Any = None) -> None:
     """``observe --skin``: every patch of a skin over its long-format log (``skin_observe``),
     streamed (:func:`~thermoskin.skin.observe.observe_skin_file`)."""
     startup.resume()  # a progress of its own (pass 2), after a pass that checks the log
@@ -141,7 +150,7 @@ def _observe_skin(input_path: Path, output: Path, events_path: Path | None, grou
         obs = observe_skin_file(input_path, skin, output,  # checked whole before the compile note
                                 compiling=_compile_note(skin_kernels(skin, plant=False),
                                                         "the patches' estimators"),
-                                progress=lambda f: bar.update(task, completed=f))
+                                progress=lambda f: bar.update(task, completed=f), units=units)
     for w in obs.warnings:
         click.echo(f"thermoskin: warning: {input_path}: {w}", err=True)
     _skin_report(skin, obs.events, output.with_suffix(".png"), events_path, groups_path,
@@ -195,8 +204,10 @@ def _skin_report(skin: Any, events: list[Any], picture: Path, events_path: Path 
 @click.option("-o", "--output", "output", type=click.Path(path_type=Path), default=None,
               help="The plot (.png, .pdf or .svg; default: beside the log, LOG.png).")
 @click.option("--title", default=None, help="Title (default: the log's file name).")
+@_units_options
 @_user_errors
-def plot(log_path: Path, output: Path | None, title: str | None) -> None:
+def plot(log_path: Path, output: Path | None, title: str | None, time_unit: str | None = None,
+         temp_unit: str | None = None) -> None:
     """Plot a log (`thermoskin run`, `observe` or `simulate`): its temperatures, estimates,
     truth and commands, with the contacts of its `contact` column shaded.
 
@@ -213,7 +224,8 @@ def plot(log_path: Path, output: Path | None, title: str | None) -> None:
     t_first = t_last = math.nan
     rows = contacts = 0
     on = False  # in a contact at the end of the last chunk
-    with LogReader(log_path, required=("t",), live=True, one_patch=True) as reader:
+    with LogReader(log_path, required=("t",), live=True, one_patch=True,
+                   units=_units(time_unit, temp_unit)) as reader:
         for chunk in reader:  # in chunks: the plot's envelope, whatever the log's length
             t = chunk["t"]
             if digest is None:

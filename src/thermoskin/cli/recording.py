@@ -18,6 +18,7 @@ from thermoskin.cli.common import (
     _config,
     _live_address,
     _live_options,
+    _note_compile,
     _outputs,
     _start_live,
     _user_errors,
@@ -95,7 +96,8 @@ def _recording_warnings(report: Any) -> None:
               help="With --live: play at this factor of real time (default 1).")
 @_user_errors
 def replay(recording: Path, output: Path | None, config_path: Path | None, live_addr: str | None,
-           live_rate: float, live_wait: float, speed: float | None) -> None:
+           live_rate: float, live_wait: float, speed: float | None,
+           live_allow_origin: tuple[str, ...] = ()) -> None:
     """Re-run the observer and the detector on a recording; compare with the live estimates.
 
     Exits with code 1 if the replayed q_i_hat or contact differ from the recorded ones
@@ -114,15 +116,16 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
     if speed is not None and not (speed > 0 and math.isfinite(speed)):
         raise UserError(f"--speed {speed}: must be > 0")
     if live_addr is not None:  # a bad address: its one line, before the replay writes anything
-        _live_address(live_addr, live_rate, live_wait)
+        _live_address(live_addr, live_rate, live_wait, live_allow_origin)
     from thermoskin.paths import LOG_SUFFIXES
 
     _outputs(("-o", output, LOG_SUFFIXES, "log"))
     _recording(recording)
     if output is None:
-        _replay_live(recording, live_addr, live_rate, live_wait, speed or 1.0)
+        _replay_live(recording, live_addr, live_rate, live_wait, speed or 1.0, live_allow_origin)
         return
     cfg = _config(config_path) if config_path is not None else None
+    _note_compile("estimation/kernel.run")  # the estimator over each block (TouchEstimator.feed)
     info: dict[str, Any] = {}
     cmp: dict[str, Any] = {}
 
@@ -151,12 +154,13 @@ def replay(recording: Path, output: Path | None, config_path: Path | None, live_
                   f"{cmp['contact_mismatches']} contact mismatches); wrote {output}")
     _recording_warnings(info["report"])
     if live_addr is not None:
-        _replay_live(recording, live_addr, live_rate, live_wait, speed or 1.0)
+        _replay_live(recording, live_addr, live_rate, live_wait, speed or 1.0, live_allow_origin)
     if not cmp["agrees"] and cfg is None:
         sys.exit(1)
 
 
-def _replay_live(recording: Path, addr: str, rate: float, wait: float, speed: float) -> None:
+def _replay_live(recording: Path, addr: str, rate: float, wait: float, speed: float,
+                 origins: tuple[str, ...] = ()) -> None:
     """Play ``recording`` into a live server at ``speed`` times real time."""
     from thermoskin.live import play
     from thermoskin.live.replay import recorded_topics
@@ -170,14 +174,24 @@ def _replay_live(recording: Path, addr: str, rate: float, wait: float, speed: fl
         raise UserError(str(e)) from None
     if not topics:
         raise UserError(f"{recording}: no channel recorded (nothing to play)")
-    live = _start_live(addr, rate, wait, None, topics=topics)
+    from thermoskin.runtime.stopping import StopRequest
+
+    stop = StopRequest().install()  # SIGINT, SIGTERM, SIGHUP: the play ends, the server closes
     try:
-        console.print(f"[bold]live[/]: playing {recording} at {speed:g}x")
-        res = play(recording, live, speed)
-    except RecordingError as e:
-        raise UserError(str(e)) from None
+        live = _start_live(addr, rate, wait, None, topics=topics, origins=origins, stop=stop.is_set)
+        try:
+            console.print(f"[bold]live[/]: playing {recording} at {speed:g}x")
+            res = play(recording, live, speed, stop=stop.is_set)
+        except RecordingError as e:
+            raise UserError(str(e)) from None
+        finally:
+            live.close()
     finally:
-        live.close()
+        stop.restore()
     cut = "" if res["complete"] else " (the recording was cut short: played what it holds)"
     console.print(f"played {res['sent']} messages ({res['skipped']} signal samples decimated away) "
                   f"from t = {res['t_first']:.3f} to {res['t_last']:.3f} s in {res['wall_s']:.1f} s{cut}")
+    if stop.is_set():
+        click.echo(f"thermoskin: {'stopped by ' + stop.name if stop.signum else 'interrupted'}: the "
+                   "replay into the live server ended", err=True)
+        sys.exit(stop.exit_code)

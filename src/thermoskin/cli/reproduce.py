@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from thermoskin.cli.app import main
-from thermoskin.cli.common import UserError, _progress_bar, _user_errors, console
+from thermoskin.cli.common import UserError, _note_compile, _progress_bar, _user_errors, console
 
 
 @main.command()
@@ -31,4 +31,5 @@ def reproduce(out_dir: Path, only: str | None) -> None:
         if unknown or not figs:
             raise UserError(f"--only {only!r}: unknown figure(s) {', '.join(unknown) or '(none)'}"
                             f" (known: {', '.join(FIGURES)})")
+    _note_compile(("estimation/kernel.step", "estimation/kernel.finish"))
     run_reproduce(out_dir, figs, console=console, progress=_progress_bar)

@@ -9,6 +9,7 @@ import contextlib
 import math
 import os
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -47,6 +48,9 @@ from thermoskin.cli.observe import _skin_report
 from thermoskin.estimation.events import ContactEvent
 from thermoskin.params import Config
 
+#: Samples a paced ``run --skin`` steps between two looks at the wall clock (0.1 s at 1 kHz).
+PACED_BLOCK = 100
+
 #: Seconds the closed loop gets to bring the skin from ambient to its command before the
 #: scenario's touches begin.
 SETTLE_S = 10.0
@@ -66,8 +70,10 @@ SETTLE_S = 10.0
 @click.option("--device", default="sim", show_default=True,
               help="sim (the simulated skin in this process) or serial://PATH (a device or "
                    "`thermoskin device-emulator` speaking docs/protocol.md).")
-@click.option("--realtime", is_flag=True,
-              help="Pace the simulated skin at wall-clock speed in the fixed-rate loop process.")
+@click.option("--realtime/--no-realtime", default=None,
+              help="Pace the simulated skin at wall-clock speed (one patch: in the fixed-rate loop "
+                   "process); the default with --live, so that a viewer sees the run as it goes. "
+                   "--no-realtime: as fast as it computes.")
 @click.option("--record", "record_path", type=click.Path(path_type=Path), default=None,
               help="Record every signal, command, event and the parameters to this MCAP file.")
 @click.option("--probe", "probe_amp", type=float, default=None, metavar="K",
@@ -76,7 +82,8 @@ SETTLE_S = 10.0
                    "that the toucher's conductance and temperature separate (docs/characterise.md).")
 @_live_options
 @click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
-              help="Run a whole skin of many patches (TOML) in closed loop on the simulated device "
+              help="Run a whole skin of many patches (LAYOUT.toml, its layout file: examples/forearm.toml) "
+                   "in closed loop on the simulated device "
                    "(scenario default: multi): every patch estimated and its contacts printed as the run "
                    "goes; --live and --record serve / record per-patch topics and a scene (docs/live.md); "
                    "the long-format log, events with patch,position,position_sd, the body contacts "
@@ -87,9 +94,10 @@ SETTLE_S = 10.0
 @_user_errors
 def run(scenario: str, duration: float | None, setpoint: float | None,
         config_path: Path | None, log_path: Path, plot_path: Path | None, events_path: Path | None,
-        device: str, realtime: bool, record_path: Path | None, probe_amp: float | None,
+        device: str, realtime: bool | None, record_path: Path | None, probe_amp: float | None,
         live_addr: str | None, live_rate: float, live_wait: float, skin_path: Path | None = None,
-        groups_path: Path | None = None, ideal_sensors: bool = False) -> None:
+        groups_path: Path | None = None, live_allow_origin: tuple[str, ...] = (),
+        ideal_sensors: bool = False) -> None:
     """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
 
     From ambient, the MPC and the inner loop bring T_w to its command while the observer
@@ -115,14 +123,17 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     from thermoskin.runtime.stopping import StopRequest
 
     if live_addr is not None:  # a bad address: its one line, before any compile notice
-        _live_address(live_addr, live_rate, live_wait)
+        _live_address(live_addr, live_rate, live_wait, live_allow_origin)
+    if realtime is None:  # a live view watches the run at its own pace; a run alone goes flat out
+        realtime = live_addr is not None and device == "sim"
     if skin_path is not None:
-        single_only = (device != "sim", realtime, setpoint is not None, probe_amp is not None)
+        single_only = (device != "sim", setpoint is not None, probe_amp is not None)
         if any(single_only):
-            raise UserError("--skin runs the simulated skin in this process: --device, --realtime, "
-                            "--setpoint and --probe are for the single patch")
+            raise UserError("--skin runs the simulated skin in this process: --device, --setpoint and "
+                            "--probe are for the single patch")
         _run_skin(skin_path, None if scenario == "fingers" else scenario, duration, config_path, log_path,
-                  plot_path, events_path, groups_path, record_path, live_addr, live_rate, live_wait)
+                  plot_path, events_path, groups_path, record_path, live_addr, live_rate, live_wait,
+                  paced=realtime, live_origins=live_allow_origin)
         return
     if groups_path is not None:
         raise UserError("--groups needs --skin (a skin of many patches)")
@@ -204,10 +215,12 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             if live_addr is not None:
                 from thermoskin.live import Fanout
 
-                recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg))
+                recorder = Fanout(recorder, _start_live(live_addr, live_rate, live_wait, cfg,
+                                                        origins=live_allow_origin, stop=stop.is_set))
             if recorder is not None:
                 recorder.event(0.0, "run-start", device=device, scenario=sc.name,
-                               realtime=bool(realtime or serial))
+                               realtime=bool(realtime or serial),
+                               estimator_inputs="device" if serial else "commands")
             try:
                 runlog = RunLog(log_path, names)
             except OSError as e:
@@ -286,7 +299,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 console.print("what: the scenario's fingers are the paper's simple finger (a body held "
                               "at its temperature), which the characteriser, made for people and "
                               "objects as they are, may call an object; --scenario touchers has both "
-                              "(README: What touched the skin)")
+                              "(docs/characterise.md)")
         stopped = bool(summary.get("interrupted"))
         if n > 1 and not res.fault:
             if serial:
@@ -390,13 +403,14 @@ def _close_log(runlog: Any, path: Path) -> None:
 def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, config_path: Path | None,
               log_path: Path, plot_path: Path | None, events_path: Path | None,
               groups_path: Path | None, record_path: Path | None = None, live_addr: str | None = None,
-              live_rate: float = 100.0, live_wait: float = 0.0) -> None:
+              live_rate: float = 100.0, live_wait: float = 0.0, paced: bool = False,
+              live_origins: tuple[str, ...] = ()) -> None:
     """``run --skin``: the whole skin in closed loop (one controller per water loop,
     ``runtime/skin_loop.py``), every patch estimated and its contacts detected block by block as
     the loop goes (``skin_observe.SkinEstimator``), printed as they come and served live / recorded
     (``runtime/skin_topics.py``); at the end the positions and body contacts from the log
     (``observe_skin_file``, streamed, which gives the live contacts again), the layout picture
-    beside the log."""
+    beside the log. ``paced``: at wall-clock speed (``--realtime``, the default with ``--live``)."""
     from thermoskin.paths import LOG_SUFFIXES
     from thermoskin.sim.skin_scenarios import skin_scenario
     from thermoskin.skin.layout import load_skin
@@ -418,7 +432,8 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
         raise UserError(str(e).strip("'\"")) from None
     console.print(f"[bold]thermoskin run --skin[/]: {skin.name} ({len(skin.patches)} patches on "
                   f"{len(skin.loops)} loops) in closed loop on the simulated skin, scenario '{sc.name}' "
-                  f"({len(sc.contacts)} contacts), {sc.duration:g} s; every patch estimated as it goes")
+                  f"({len(sc.contacts)} contacts), {sc.duration:g} s"
+                  + (" at wall-clock speed" if paced else "") + "; every patch estimated as it goes")
     from thermoskin.runtime.stopping import StopRequest
 
     period = skin.cfg.sensor.period_T_w  # the simulated boards'
@@ -433,7 +448,7 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
     stop = StopRequest().install()
     try:
         _run_skin_loop(skin, sc, cfg, est, stop, log_path, plot_path, events_path, groups_path,
-                       record_path, live_addr, live_rate, live_wait)
+                       record_path, live_addr, live_rate, live_wait, paced, live_origins)
     finally:
         previous.close(wrote=has_rows(log_path))  # no sample on disk: the earlier files back
         stop.restore()
@@ -445,14 +460,16 @@ def _run_skin(skin_path: Path, scenario: str | None, duration: float | None, con
 
 def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_path: Path, plot_path: Path,
                    events_path: Path | None, groups_path: Path | None, record_path: Path | None,
-                   live_addr: str | None, live_rate: float, live_wait: float) -> None:
-    """The body of ``run --skin`` (:func:`_run_skin`) under its stop request."""
+                   live_addr: str | None, live_rate: float, live_wait: float, paced: bool = False,
+                   live_origins: tuple[str, ...] = ()) -> None:
+    """The body of ``run --skin`` (:func:`_run_skin`) under its stop request; ``paced``: each
+    block of :data:`PACED_BLOCK` samples waits for its end on the wall clock."""
     from thermoskin.estimation.events import EventsStream
     from thermoskin.live.skin_topics import figures
     from thermoskin.runtime.skin_loop import run_skin
     from thermoskin.skin.observe import SKIN_EVENT_COLUMNS, SkinEvent, observe_skin_file
 
-    sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait)
+    sinks = _skin_sinks(skin, cfg, record_path, live_addr, live_rate, live_wait, live_origins, stop)
     P = len(skin.patches)
     names = [p.name for p in skin.patches]
     width = max(len(n) for n in names)
@@ -469,6 +486,7 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
                 sink.publish(topic, t, m)
         with _progress_bar("running") as bar:
             task = bar.add_task("closed loop", total=1.0)
+            wall0 = time.monotonic()
 
             def on_block(block: dict[str, Any]) -> None:
                 m = len(block["t"]) // P
@@ -492,10 +510,14 @@ def _run_skin_loop(skin: Any, sc: Any, cfg: Config, est: Any, stop: Any, log_pat
                 for sink, msgs in sinks:
                     for topic, tt, msg in msgs.messages(t, cols, b):
                         sink.publish(topic, tt, msg)
+                if paced:  # the block's last sample is due at its time on the wall clock
+                    ahead = wall0 + float(t[-1]) - time.monotonic()
+                    if ahead > 0.0 and not stop.is_set():
+                        time.sleep(ahead)  # a block's worth at most: a signal's stop waits no longer
 
             try:
                 res = run_skin(skin, sc, log_path, progress=lambda f: bar.update(task, completed=f),
-                               on_block=on_block, stop=stop)
+                               on_block=on_block, stop=stop, **({"block": PACED_BLOCK} if paced else {}))
             except OSError as e:
                 raise UserError(f"cannot write {log_path}: {e.strerror or e}") from None
         t_end = max(res.n - 1, 0) * cfg.sampling.t_s
@@ -545,7 +567,8 @@ class _RecorderSink:
 
 
 def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str | None, live_rate: float,
-                live_wait: float) -> list[tuple[Any, Any]]:
+                live_wait: float, live_origins: tuple[str, ...] = (),
+                stop: Any = None) -> list[tuple[Any, Any]]:
     """The recording (every sample) and the live server (decimated) of a skin's run, each with its
     :class:`~thermoskin.live.skin_topics.SkinMessages`."""
     from thermoskin.live.skin_topics import SkinMessages, layout, skin_topics
@@ -564,6 +587,7 @@ def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str
     if live_addr is not None:
         try:
             live = _start_live(live_addr, live_rate, live_wait, cfg, topics=topics, params=params,
+                               origins=live_origins, stop=None if stop is None else stop.is_set,
                                view="a 3D panel on /skin/scene, plots of /patch/NAME/estimate.dq_i_hat")
         except BaseException:
             for s, _ in sinks:
@@ -571,6 +595,10 @@ def _skin_sinks(skin: Any, cfg: Config, record_path: Path | None, live_addr: str
             raise
         sinks.append((live, SkinMessages(skin, live_rate)))
     return sinks
+
+
+LATE_S = 0.05
+"""A sample handled later than this after its nominal arrival counts as late (the link timeout)."""
 
 
 def _loop_figures(res: Any, n: int) -> None:
@@ -586,18 +614,33 @@ def _loop_figures(res: Any, n: int) -> None:
                   f"{tm['lost_rows']:.0f} rows lost; priority {summary.get('priority', '?')}")
     if "link" in summary:
         ln = summary["link"]
+        late = summary.get("late_counts", {})
         console.print(f"[bold]link[/]: {ln['frames']} frames, {ln['corrupted']} corrupted, "
-                      f"{ln['lost']} lost, {ln['repeated']} repeated")
+                      f"{ln['lost']} lost, {ln['repeated']} repeated; {late.get('device', 0)} frames "
+                      f"late from the device, {late.get('host', 0)} samples handled more than "
+                      f"{LATE_S * 1e3:g} ms late")
+        if (late.get("host", 0) or ln["lost"]) and not res.fault:  # a fault: its own line says
+            click.echo(f"thermoskin: warning: the link fell behind: {late.get('device', 0)} frames the "
+                       f"device sent late, {late.get('host', 0)} samples this host handled more than "
+                       f"{LATE_S * 1e3:g} ms late (longest {g['late_max_us'] / 1e3:.0f} ms), "
+                       f"{ln['lost']} frames lost, {tm['overruns']:.0f} loop overruns: the estimates "
+                       "and contacts follow the device's clock and the outputs it applied, the control "
+                       "acted late; a busy host (give the loop real-time priority: docs/runtime.md)",
+                       err=True)
 
 
 def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[str, Any]], None],
                     stop: Any, on_event: Callable[[ContactEvent], None] | None = None) -> Any:
     """The fixed-rate loop process; contacts and faults printed as they come."""
+    from thermoskin.devices.protocol import ST_OVERRUN
     from thermoskin.runtime.realtime import LoopSpec, run_realtime
 
     state = {"contact": 0, "t_prev": -math.inf}
+    late = {"device": 0, "host": 0}
 
     def on_rows(block: dict[str, Any]) -> None:
+        late["device"] += int(np.count_nonzero(block["status"].astype(np.int64) & ST_OVERRUN))
+        late["host"] += int(np.count_nonzero(block["late"] > LATE_S))
         c = block["contact"]
         f = block["fault"]
         t = block["t"]
@@ -612,6 +655,7 @@ def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[
 
     spec = LoopSpec(cfg, sc, device=device, duration=sc.duration)
     res = run_realtime(spec, on_rows=on_rows, stop=stop, on_event=on_event, keep=False)
+    res.summary["late_counts"] = late
     err = res.summary.get("error")
     if err:
         if res.summary.get("device_error"):

@@ -31,16 +31,21 @@ from thermoskin.params import Config
 
 @main.command()
 def scenarios() -> None:
-    """List the named simulation scenarios."""
+    """List the named simulation scenarios: a patch's (`run`, `simulate`; on a skin of many
+    patches, `--skin`, they touch its first patch) and a skin's (`--skin` only)."""
     from thermoskin.sim.scenarios import SCENARIOS
+    from thermoskin.sim.skin_scenarios import SKIN_SCENARIOS
 
     table = Table(title="Scenarios")
-    for col in ("name", "duration s", "touches", "pump", "description"):
+    for col in ("name", "for", "duration s", "touches", "pump", "description"):
         table.add_column(col)
     for sc in SCENARIOS.values():
-        table.add_row(sc.name, f"{sc.duration:g}", str(len(sc.touches)), sc.pump, sc.description)
-    table.add_row(EXCITATION, "600", "0", "off", "the Peltier tank under a rich drive, for "
+        table.add_row(sc.name, "patch, skin", f"{sc.duration:g}", str(len(sc.touches)), sc.pump,
+                      sc.description)
+    table.add_row(EXCITATION, "patch", "600", "0", "off", "the Peltier tank under a rich drive, for "
                   "`thermoskin identify` (simulate only)")
+    for name, description in SKIN_SCENARIOS.items():
+        table.add_row(name, "skin", "per skin", "per skin", "logic", f"{description} (--skin only)")
     console.print(table)
 
 
@@ -52,7 +57,8 @@ def scenarios() -> None:
 @click.option("-o", "--output", "output_csv", type=click.Path(path_type=Path), required=True,
               help="Log CSV (measured columns and the simulator's truth q_i, T_g).")
 @click.option("--skin", "skin_path", type=click.Path(path_type=Path), default=None,
-              help="A skin of many patches (TOML, see examples/forearm.toml): simulated in closed loop, "
+              help="LAYOUT.toml, a skin of many patches' layout file (examples/forearm.toml): simulated "
+                   "in closed loop, "
                    "one controller per water loop; the log has one row per sample and patch: "
                    "t,patch,T_w,T_p,v,T_a[,T_w2..],q_i,contact_true,position_true,fresh.")
 @IDEAL_SENSORS_OPT
@@ -122,7 +128,9 @@ def _simulate_skin(skin_path: Path, scenario: str, duration: float | None, cfg: 
             raise UserError(str(e)) from None
         except OSError as e:
             raise UserError(f"cannot write {output}: {e.strerror or e}") from None
-    names = ", ".join(f"{p.index} {p.name}" for p in skin.patches)
+    from thermoskin.logio.common import listing
+
+    names = listing([f"{p.index} {p.name}" for p in skin.patches], 20)  # 10 000 names are not read
     console.print(f"simulated {sc.duration:g} s of '{sc.name}' on {skin.name} ({len(skin.patches)} patches "
                   f"on {len(skin.loops)} loops, {len(sc.contacts)} contacts) at "
                   f"{res.realtime_factor:.0f}x real time; {res.n * len(skin.patches)} rows; patch: {names}; "

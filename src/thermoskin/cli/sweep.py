@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from thermoskin.cli.app import main
-from thermoskin.cli.common import UserError, _note_compile, _user_errors, console, err_console
+from thermoskin.cli.common import UserError, _note_compile, _outputs, _user_errors, console, err_console
 
 
 @main.command()
@@ -26,11 +26,10 @@ def sweep(sweep_toml: Path, output: Path, dask_address: str | None) -> None:
 
     Rows are written as chunks finish; a rerun skips the points already written.
     """
-    from thermoskin.paths import check_output
     from thermoskin.sweep.run import run_sweep
     from thermoskin.sweep.spec import load_sweep
 
-    check_output(output, "-o", (".parquet",), "results file")
+    _outputs(("-o", output, (".parquet",), "results file"))  # locked: its parts are this sweep's
     if dask_address is not None and not dask_address.strip():
         raise UserError("--dask: give a scheduler address (tcp://host:8786) or 'local'")
     sw = load_sweep(sweep_toml)
@@ -56,9 +55,9 @@ def sweep(sweep_toml: Path, output: Path, dask_address: str | None) -> None:
 @_user_errors
 def sweep_plot(results: Path, output: Path, metrics: tuple[str, ...]) -> None:
     """Heat maps (two keys) or parallel coordinates of metrics against a sweep's keys."""
-    from thermoskin.paths import check_output
     from thermoskin.plots.sweep import plot_results
 
-    check_output(output, "-o", (".png", ".pdf", ".svg"), "plot")
-    plot_results(results, output, list(metrics) or None)
+    _outputs(("-o", output, (".png", ".pdf", ".svg"), "plot"))
+    for line in plot_results(results, output, list(metrics) or None):
+        err_console.print(f"thermoskin: note: {line}")
     console.print(f"plot written to {output}")

@@ -5,8 +5,11 @@
 thermoskin.devices.emulator``) opens a pty pair, makes ``PATH`` a symbolic link to the
 slave side (a stale link is replaced, the link is removed on exit; a link another emulator
 serves, known by the lock it holds on the file ``.LINK.lock`` beside it, is refused) and waits
-for a HELLO. Its clock starts at the first HELLO; from then on, every ``t_s`` (1 ms, paced
-by the wall clock with absolute deadlines) it
+for a HELLO. Each host's HELLO (a new session id in its ``seq``) starts a fresh session: the
+scenario, the device clock and the truth file from zero; the session's own HELLO repeated
+restarts nothing; another host's is refused (``STATUS_BUSY``) while a session is on, until its
+host's SAFE or a second of its silence (``SESSION_TIMEOUT``). In a session, every ``t_s``
+(1 ms, paced by the wall clock with absolute deadlines from the HELLO) it
 
 1. measures: the thermocouple boards of the simulated plant read ``T_w, T_p, T_a``
    (``sim.sensors``: each converts every ``tc_period``, default 0.1 s, a MAX31856-class
@@ -30,7 +33,7 @@ Until the first COMMAND after a HELLO, and while no COMMAND came for ``command_t
 s (the watchdog), the device holds drive 0 and the pump off. SAFE latches the same
 until the next HELLO.
 
-Faults, ``KIND@SECONDS`` since the host connected:
+Faults, ``KIND@SECONDS`` since the session's start (again in each session):
 
 - ``tc-open``: ``T_w`` reads NaN with ``ST_OPEN_W`` set; one FAULT(F_TC_OPEN) is sent.
 - ``nan-burst``: every channel reads NaN from then on (no flag: the host must notice).
@@ -70,6 +73,8 @@ from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import DEFAULT_SCENARIO, SCENARIOS, Scenario, get_scenario
 
 FAULT_KINDS = ("tc-open", "nan-burst", "overtemp", "serial-drop", "tc-stuck")
+SESSION_TIMEOUT = 1.0
+"""The host's silence (s) that ends its session; until then another host's HELLO is refused."""
 OVERTEMP_C = 45.0
 """``T_p`` reading under the ``overtemp`` fault, °C."""
 _FORCED = {"tc-open": proto.CH_W, "nan-burst": proto.CH_W | proto.CH_P | proto.CH_A,
@@ -117,7 +122,7 @@ class DeviceCore:
     def __init__(self, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec] = (),
                  tc_period: float | None = 0.1, command_timeout: float = 0.5,
                  device_id: int = DEVICE_ID, jitter: float | None = None,
-                 lab_boards: bool = False) -> None:
+                 session_timeout: float = SESSION_TIMEOUT, lab_boards: bool = False) -> None:
         sensor: dict[str, float] = {}
         if tc_period is not None:
             sensor.update(period_T_w=tc_period, period_T_p=tc_period, period_T_a=tc_period)
@@ -132,6 +137,8 @@ class DeviceCore:
         self.tc_period = max(s.period_T_w, s.period_T_p, s.period_T_a) or self.t_s
         """The longest conversion period of the boards (reported in HELLO_ACK), s."""
         self.command_timeout = float(command_timeout)
+        self.session_timeout = float(session_timeout)
+        """The host's silence (s) after which its session is over (the device idles until a HELLO)."""
         self.device_id = device_id
         from thermoskin.sim.boards import lab_boards as draw
 
@@ -142,7 +149,16 @@ class DeviceCore:
         self.tank = self.plant.tank
         self.sensors = self.plant.sensors
         self.connected = False
+        """A session is on: SAMPLEs go out every ``t_s``."""
+        self.session_id: int | None = None
+        """The host's session id (its HELLO's ``seq``) while a session is on."""
+        self.sessions = 0
+        """Sessions started (each a HELLO of a new id): the caller restarts its clock and truth."""
+        self.refused = 0
+        """HELLOs refused because another host's session was on."""
         self.k = 0
+        self.k_host = 0
+        """``k`` at the host's last message of this session."""
         self.seq = 0
         self.t_safe = math.nan
         """Device time (s) from which a SAFE held drive 0 and pump off; NaN before any."""
@@ -172,6 +188,8 @@ class DeviceCore:
     def on_message(self, msg: proto.Message) -> list[proto.Message]:
         """Apply one host message; return the replies."""
         t = msg.TYPE
+        if self.connected and t != proto.T_HELLO:
+            self.k_host = self.k
         if t == proto.T_COMMAND:
             if self.connected and not self.safe_latched:
                 d = msg.drive  # type: ignore[union-attr]
@@ -182,23 +200,59 @@ class DeviceCore:
                 self.k_cmd = self.k
             return []
         if t == proto.T_SAFE:
-            if not self.safe_latched and self.t_safe != self.t_safe:
-                self.t_safe = self.t
-            self.safe_latched = True
+            if self.connected:
+                if not self.safe_latched and self.t_safe != self.t_safe:
+                    self.t_safe = self.t
+                self.safe_latched = True
             return []
         if t == proto.T_HELLO:
-            ok = msg.version == proto.PROTOCOL_VERSION  # type: ignore[union-attr]
-            ack = proto.HelloAck(self._next_seq(), proto.PROTOCOL_VERSION,
-                             proto.STATUS_OK if ok else proto.STATUS_BAD_VERSION, self.device_id,
-                             round(self.t_s * 1e6), round(self.tc_period * 1e6))
-            if ok:
-                self.safe_latched = False
-                self.t_safe = math.nan
-                self.k_cmd = -1
-                self.cmd_drive = self.cmd_v = 0.0
-                self.connected = True
-            return [ack]
+            return [self._hello(msg)]  # type: ignore[arg-type]
         return []
+
+    def _hello(self, msg: proto.Hello) -> proto.HelloAck:
+        """A HELLO: the session's own repeated (answered again, nothing restarts), another
+        host's while a session is on (refused: ``STATUS_BUSY``), or a new session (the
+        scenario, the device clock and the caller's truth restart at zero)."""
+        status = proto.STATUS_OK
+        if msg.version != proto.PROTOCOL_VERSION:
+            status = proto.STATUS_BAD_VERSION
+        elif self.connected and msg.seq == self.session_id:
+            self.k_host = self.k
+        elif self.live:
+            status = proto.STATUS_BUSY
+            self.refused += 1
+        else:
+            self.start_session(msg.seq)
+        return proto.HelloAck(self._next_seq(), proto.PROTOCOL_VERSION, status, self.device_id,
+                              round(self.t_s * 1e6), round(self.tc_period * 1e6))
+
+    @property
+    def live(self) -> bool:
+        """A session that another host's HELLO may not take over: on, not ended by a SAFE, its
+        host heard from within ``session_timeout``."""
+        return (self.connected and not self.safe_latched
+                and (self.k - self.k_host) * self.t_s <= self.session_timeout)
+
+    def start_session(self, session_id: int) -> None:
+        """A fresh session: the scenario from its start (the plant in its initial state), the
+        device clock at zero, no command yet, faults again from their times."""
+        self._reset_physics()
+        self.k = self.k_host = 0
+        self.t_safe = math.nan
+        self.session_id = session_id
+        self.connected = True
+        self.sessions += 1
+
+    def end_session(self) -> None:
+        """The host is gone: outputs off, no more SAMPLEs until a HELLO."""
+        self.connected = False
+        self.session_id = None
+        self.drive = self.v = 0.0
+
+    @property
+    def host_silent(self) -> bool:
+        """The session's host has said nothing for ``session_timeout``: its session is over."""
+        return self.connected and (self.k - self.k_host) * self.t_s > self.session_timeout
 
     @property
     def t(self) -> float:
@@ -293,10 +347,15 @@ class TruthWriter:
     ``t`` is the sample's device time (``t_us`` of its SAMPLE, s since the HELLO), which the
     host logs as its ``t``; ``contact_true`` 0/1, ``q_i`` W (the touch's heat into the
     sheet, contact applied from ``t`` on), ``n_fingers``, ``T_g`` °C. Rows are formatted as
-    they come and written and flushed every ``flush_s`` (wall clock) and on :meth:`close`.
+    they come and handed every ``flush_s`` (wall clock, :meth:`maybe_flush`) to a thread of
+    their own, which writes and flushes them: a write the disk holds up (a machine writing
+    much else) never holds up the device's samples. :meth:`flush`, :meth:`restart` and
+    :meth:`close` wait for what was handed over; ``rows`` counts the rows written.
     """
 
     def __init__(self, path: str | os.PathLike[str], flush_s: float = 0.5) -> None:
+        import queue
+
         self.path = Path(path)
         self._f = self.path.open("w", encoding="ascii", newline="\n")
         self._f.write(",".join(TRUTH_COLUMNS) + "\n")
@@ -305,28 +364,71 @@ class TruthWriter:
         self.flush_s = float(flush_s)
         self._t_flush = time.monotonic()
         self.rows = 0
+        self._q: queue.SimpleQueue[tuple[str, int] | None] = queue.SimpleQueue()
+        self._done = threading.Condition()
+        self._handed = 0
+        self._written = 0
+        self._thread: threading.Thread | None = None
+
+    def _write_loop(self) -> None:
+        while (item := self._q.get()) is not None:
+            text, n = item
+            self._f.write(text)
+            self._f.flush()
+            with self._done:
+                self.rows += n
+                self._written += 1
+                self._done.notify_all()
+
+    def _hand_off(self, now: float | None) -> None:
+        if self._rows:
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._write_loop, name="truth-writer", daemon=True)
+                self._thread.start()
+            self._handed += 1
+            self._q.put(("".join(self._rows), len(self._rows)))
+            self._rows.clear()
+        self._t_flush = time.monotonic() if now is None else now
+
+    def _wait(self) -> None:
+        with self._done:
+            self._done.wait_for(lambda: self._written >= self._handed)
+
+    def restart(self) -> None:
+        """A new session: the file holds its header alone again (the rows of the session before
+        are dropped, as its host's log is another file)."""
+        self._rows.clear()
+        self._wait()
+        self._f.seek(0)
+        self._f.truncate()
+        self._f.write(",".join(TRUTH_COLUMNS) + "\n")
+        self._f.flush()
+        self.rows = 0
 
     def add(self, t: float, contact: int, q_i: float, n_fingers: int, T_g: float) -> None:
         """One sample's row (formatted now, written at the next flush)."""
         self._rows.append(f"{t:.6f},{contact},{q_i:.9g},{n_fingers},{T_g:.9g}\n")
 
     def maybe_flush(self, now: float) -> None:
-        """Write and flush if ``flush_s`` passed since the last flush (``now``: monotonic, s)."""
+        """Hand the rows to the writer if ``flush_s`` passed since the last time (``now``:
+        monotonic, s)."""
         if now - self._t_flush >= self.flush_s:
-            self.flush(now)
+            self._hand_off(now)
 
     def flush(self, now: float | None = None) -> None:
-        if self._rows:
-            self._f.write("".join(self._rows))
-            self.rows += len(self._rows)
-            self._rows.clear()
+        """Every row so far written and flushed (waits for the writer)."""
+        self._hand_off(now)
+        self._wait()
         self._f.flush()
-        self._t_flush = time.monotonic() if now is None else now
 
     def close(self) -> None:
         """Every row so far to the file, then close it."""
         if not self._f.closed:
             self.flush()
+            if self._thread is not None:
+                self._q.put(None)
+                self._thread.join()
+                self._thread = None
             self._f.close()
 
 
@@ -363,7 +465,7 @@ class PtyEmulator:
         self.ready = threading.Event()
         """Set once the link exists."""
         self.connected = threading.Event()
-        """Set at the first HELLO."""
+        """Set at the first session's HELLO."""
         self.overruns = 0
         self.dropped_frames = 0
         self.lost_samples = 0
@@ -373,6 +475,7 @@ class PtyEmulator:
         self.lateness = np.zeros(100_000)
         self.n_late = 0
         self._out = bytearray()
+        self._t0 = 0.0
         self._master = -1
         self._slave = -1
         self._lock = -1  # held on .LINK.lock while the link is ours
@@ -447,12 +550,15 @@ class PtyEmulator:
         for msg in self.decoder.feed(data):
             if silent:
                 continue
-            # queued samples are kept at a HELLO (the host ignores those before its HELLO_ACK):
-            # a HELLO repeated by a host whose first one was answered late drops nothing
-            if msg.TYPE == proto.T_HELLO and not self.connected.is_set():
-                self._t0 = time.monotonic()
+            n = core.sessions
+            replies = core.on_message(msg)
+            if core.sessions != n:  # a new session: its clock starts now; what the session
+                self._t0 = time.monotonic()  # before left unsent is not this host's
+                self._out.clear()
                 self.connected.set()
-            for reply in core.on_message(msg):
+            # a HELLO repeated by the session's host (its first answered late) restarts
+            # nothing and drops nothing: the host ignores samples before its HELLO_ACK
+            for reply in replies:
                 self._send(reply)
         self._flush()
 
@@ -485,29 +591,49 @@ class PtyEmulator:
             self.close_link()
 
     def serve(self) -> None:
-        """Wait for the first HELLO, then run the paced sample loop until :meth:`stop`."""
+        """Run until :meth:`stop`: idle until a HELLO starts a session, then one SAMPLE every
+        ``t_s`` against absolute deadlines from the HELLO; a new session (another HELLO, once
+        the one before has ended) restarts the clock and the truth; a session whose host fell
+        silent for ``core.session_timeout`` ends, and the emulator idles again."""
+        gc.collect()
+        gc.freeze()  # the start-up heap is never traversed again
+        # and no collection pauses a session: what a sample allocates (messages, frames, rows)
+        # holds no reference cycle, so reference counting frees it
+        gc.disable()
+        try:
+            self._serve()
+        finally:
+            gc.enable()
+
+    def _serve(self) -> None:
         core = self.core
         t_s = core.t_s
         master = self._master
         stop = self._stop
-        gc.collect()
-        gc.freeze()  # the start-up heap is never traversed again: collections stay short
-        while not stop.is_set() and not self.connected.is_set():
-            r, _, _ = select.select([master], [], [], 0.05)
-            if r:
-                self._read()
-        if stop.is_set():
-            return
-        if self.rt_priority > 0:
-            from thermoskin.devices.sched import set_fifo
-
-            self.priority = set_fifo(self.rt_priority)
-        t0 = self._t0
-        k = 0
         truth = self.truth
         lat = self.lateness
         n_lat = lat.size
+        session = core.sessions
+        t0 = 0.0
+        k = 0
+        fifo = False
         while not stop.is_set():
+            if core.sessions != session:  # a HELLO started a session: clock and truth from zero
+                session = core.sessions
+                t0 = self._t0
+                k = 0
+                if truth is not None:
+                    truth.restart()
+                if not fifo and self.rt_priority > 0:
+                    from thermoskin.devices.sched import set_fifo
+
+                    self.priority = set_fifo(self.rt_priority)
+                    fifo = True
+            if not core.connected:  # no session: wait for a HELLO
+                r, _, _ = select.select([master], [], [], 0.05)
+                if r:
+                    self._read()
+                continue
             deadline = t0 + k * t_s
             while True:
                 now = time.monotonic()
@@ -517,6 +643,10 @@ class PtyEmulator:
                 r, _, _ = select.select([master], [], [], left)
                 if r:
                     self._read()
+                    if core.sessions != session or not core.connected:
+                        break
+            if core.sessions != session or not core.connected:
+                continue
             late = now - deadline
             lat[self.n_late % n_lat] = late
             self.n_late += 1
@@ -538,6 +668,11 @@ class PtyEmulator:
                     truth.maybe_flush(now)
             k += 1
             self._read()
+            if core.host_silent:  # its host is gone (killed, unplugged): the session ends
+                core.end_session()
+                self._out.clear()
+                if truth is not None:
+                    truth.flush()
 
     def timing(self) -> dict[str, float]:
         """Lateness of the samples against their deadlines (the last 100 000): mean, p50, p99,
@@ -553,10 +688,25 @@ class PtyEmulator:
                 "dropped_frames": float(self.dropped_frames)}
 
 
+def check_options(scenario: str, faults: Sequence[str], tc_period: float | None, jitter: float | None,
+                  watchdog: float | None = None) -> tuple[Scenario, list[FaultSpec]]:
+    """The scenario and the faults of the emulator's options; ValueError (KeyError for the
+    scenario) naming the option and the problem."""
+    sc = get_scenario(scenario)
+    specs = [FaultSpec.parse(f) for f in faults]
+    if tc_period is not None and not (tc_period > 0 and math.isfinite(tc_period)):
+        raise ValueError(f"--tc-period {tc_period} s must be > 0")
+    if jitter is not None and not (jitter >= 0 and math.isfinite(jitter)):
+        raise ValueError(f"--jitter {jitter} s must be >= 0")
+    if watchdog is not None and not (0.002 <= watchdog <= 60.0):
+        raise ValueError(f"--watchdog {watchdog} s must be within [0.002, 60] s")
+    return sc, specs
+
+
 def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = (),
          tc_period: float | None = None, cfg: Config | None = None, verbose: bool = True,
          jitter: float | None = None, truth: str | os.PathLike[str] | None = None,
-         rt_priority: int = 40, ideal_sensors: bool = False) -> int:
+         rt_priority: int = 40, watchdog: float | None = None, ideal_sensors: bool = False) -> int:
     """Run the emulator until SIGINT/SIGTERM; 0 on a clean stop, 2 on bad arguments or link.
 
     ``rt_priority``: the ``SCHED_FIFO`` priority asked for once the host connects (0: none;
@@ -565,21 +715,18 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
     ``tc_period`` (s) sets the three boards' conversion periods; ``None``: the config's
     ``[sensor]`` periods if any is set, else 0.1 s. ``jitter`` (s): their jitter (``None``:
     the config's). ``truth``: a CSV file for the truth (:class:`TruthWriter`), complete up
-    to the last sample sent when the emulator stops. The boards are a lab's, drawn from
-    ``[sensor]`` seed (``sim.boards``), unless ``ideal_sensors`` (then exactly ``[sensor]``).
+    to the last sample sent when the emulator stops. ``watchdog`` (s): the command watchdog
+    (default 0.5 s). The boards are a lab's, drawn from ``[sensor]`` seed (``sim.boards``),
+    unless ``ideal_sensors`` (then exactly ``[sensor]``).
     """
     cfg = cfg or Config()
     s = cfg.sensor
     if tc_period is None and not (s.period_T_w or s.period_T_p or s.period_T_a):
         tc_period = 0.1
     try:
-        sc = get_scenario(scenario)
-        specs = [FaultSpec.parse(f) for f in faults]
-        if tc_period is not None and not (tc_period > 0 and math.isfinite(tc_period)):
-            raise ValueError(f"--tc-period {tc_period} s must be > 0")
-        if jitter is not None and not (jitter >= 0 and math.isfinite(jitter)):
-            raise ValueError(f"--jitter {jitter} s must be >= 0")
+        sc, specs = check_options(scenario, faults, tc_period, jitter, watchdog)
         core = DeviceCore(cfg, sc, specs, tc_period=tc_period, jitter=jitter,
+                          command_timeout=0.5 if watchdog is None else watchdog,
                           lab_boards=not ideal_sensors)
     except (KeyError, ValueError) as e:
         print(f"device-emulator: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
@@ -636,6 +783,9 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
                       "p99 {p99_us:.0f} µs, max (longest stall) {max_us:.0f} µs; {overruns:.0f} samples "
                       "sent late (> 50 ms), {lost_samples:.0f} lost, {dropped_frames:.0f} frames "
                       "dropped; priority {priority}".format(**tm, priority=emu.priority), file=sys.stderr)
+                if core.sessions > 1 or core.refused:
+                    print(f"device-emulator: {core.sessions} sessions; {core.refused} HELLOs of a second "
+                          "host refused while a session was on", file=sys.stderr)
                 if core.t_safe == core.t_safe:
                     print(f"device-emulator: SAFE from the host took effect at t = {core.t_safe:.3f} s",
                           file=sys.stderr)

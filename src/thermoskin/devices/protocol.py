@@ -62,12 +62,19 @@ ST_NO_COMMAND = 0x0080
 # HELLO_ACK.status
 STATUS_OK = 0
 STATUS_BAD_VERSION = 1
+STATUS_BUSY = 2
+"""Another host's session is on: this HELLO starts none (docs/protocol.md, Session and timing)."""
 
 # FAULT.code
 F_TC_OPEN = 1
 F_OVERTEMP = 2
 F_INTERNAL = 3
-FAULT_NAMES = {F_TC_OPEN: "tc-open", F_OVERTEMP: "overtemp", F_INTERNAL: "internal"}
+F_TC_RANGE = 4
+"""A converter's range or over/under-voltage fault (MAX31856 ``TCRANGE``, ``CJRANGE``, ``OVUV``)."""
+F_WATCHDOG = 5
+"""No COMMAND within the device's watchdog time: it went to its safe state by itself."""
+FAULT_NAMES = {F_TC_OPEN: "tc-open", F_OVERTEMP: "overtemp", F_INTERNAL: "internal",
+               F_TC_RANGE: "tc-range", F_WATCHDOG: "watchdog"}
 
 _HEAD = struct.Struct("<BI")
 

@@ -9,6 +9,13 @@ frames counted and skipped); waiting uses ``select`` on the port's file descript
 The link counts as lost when no sample arrived for ``link_timeout`` s; any error on the
 open port (a read or write that fails: the device unplugged, its emulator killed, EIO)
 raises :class:`LinkError`, which the loop takes as a link fault at once.
+
+**Sessions.** The port is opened for this host alone (an advisory lock, ``flock``, as
+pyserial's ``exclusive``): a second ``thermoskin run`` on the same port is told so at once.
+Each :meth:`open` starts a session of its own: its HELLOs carry a random session id in their
+``seq``, so that the device answers a repeated HELLO of this session without restarting it,
+starts a fresh session (clock at zero) for a new id, and refuses another host's HELLO while
+a session is on (``HELLO_ACK`` status ``STATUS_BUSY``: :class:`DeviceError`, one line).
 """
 
 from __future__ import annotations
@@ -67,14 +74,28 @@ class SerialDevice:
         self._fd: int | None = None
         self._seq = 0
         self._t_last = math.nan
+        self.session_id = 0
+        """This host's session id (its HELLOs' ``seq``), new at each :meth:`open`."""
+        self.extra_acks = 0
+        """HELLO_ACKs after the session's first (a late answer to a repeated HELLO): ignored."""
 
     # -- connection ------------------------------------------------------------------------
     def open(self) -> None:
-        """Open the port and handshake; :class:`DeviceError` names the port and the problem."""
+        """Open the port and handshake (a new session); :class:`DeviceError` names the port and
+        the problem."""
+        if self._ser is not None:  # open again: this host's session before ends first
+            self.close()
         try:
             self._ser = serial.serial_for_url(self.port, baudrate=self.baudrate, timeout=0,
-                                              write_timeout=WRITE_TIMEOUT_S)
+                                              write_timeout=WRITE_TIMEOUT_S, do_not_open=True)
+            if hasattr(self._ser, "exclusive"):
+                self._ser.exclusive = True  # one host per port (flock); URLs have no such thing
+            self._ser.open()
         except (serial.SerialException, OSError, ValueError) as e:
+            self._ser = None
+            if "exclusively lock" in str(e):
+                raise DeviceError(f"{self.port} is in use by another program (another thermoskin run?): "
+                                  "one host at a time") from None
             raise DeviceError(f"cannot open {self.port}: {e}") from None
         try:
             self._fd = self._ser.fileno()
@@ -86,6 +107,7 @@ class SerialDevice:
         self.tracker.reset()
         self._queue.clear()
         self.ack = None
+        self.session_id = int.from_bytes(os.urandom(4), "little") or 1
         deadline = time.monotonic() + self.handshake_timeout
         next_hello = 0.0
         while self.ack is None:
@@ -95,10 +117,16 @@ class SerialDevice:
                 raise DeviceError(f"no HELLO_ACK from {self.port} within {self.handshake_timeout:g} s "
                                   "(is the device or the emulator running?)")
             if now >= next_hello:
-                self._send(proto.Hello(0, proto.PROTOCOL_VERSION, round(self.t_s * 1e6)), leading_zero=True)
+                self._send(proto.Hello(self.session_id, proto.PROTOCOL_VERSION, round(self.t_s * 1e6)),
+                           leading_zero=True)
                 next_hello = now + self.retry
             self._wait(min(next_hello, deadline) - now)
             self._pump_bytes()
+        if self.ack.status == proto.STATUS_BUSY:
+            self._close_port()
+            raise DeviceError(f"the device at {self.port} is in a session with another host and "
+                              "refused this one; stop that host first (its session ends a second "
+                              "after it goes silent)")
         if self.ack.status != proto.STATUS_OK or self.ack.version != proto.PROTOCOL_VERSION:
             self._close_port()
             raise DeviceError(f"{self.port} speaks protocol version {self.ack.version} "
@@ -179,6 +207,11 @@ class SerialDevice:
         self._seq = (self._seq + 1) % proto.SEQ_MOD
         self._send(proto.Command(self._seq, d, vv))
 
+    def keepalive(self) -> None:
+        """This session's HELLO again: a host that sends no COMMAND (it only listens) keeps its
+        session on this way (the device ends a session whose host is silent for a second)."""
+        self._send(proto.Hello(self.session_id, proto.PROTOCOL_VERSION, round(self.t_s * 1e6)))
+
     def safe(self) -> None:
         """Send SAFE (drive 0, pump off, latched in the device until the next HELLO)."""
         self._seq = (self._seq + 1) % proto.SEQ_MOD
@@ -249,8 +282,11 @@ class SerialDevice:
                     continue  # left over from before this session's HELLO_ACK
                 self._on_sample(msg, now)  # type: ignore[arg-type]
             elif t == proto.T_HELLO_ACK:
-                self.ack = msg  # type: ignore[assignment]
-                self._seq = 0
+                if self.ack is None:
+                    self.ack = msg  # type: ignore[assignment]
+                    self._seq = self.session_id  # this side's frames count on from its HELLO's
+                else:  # a repeated HELLO's late answer (or one meant for another host)
+                    self.extra_acks += 1
             elif t == proto.T_FAULT:
                 self.faults.append((now, msg))  # type: ignore[arg-type]
 

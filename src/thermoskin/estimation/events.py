@@ -189,5 +189,8 @@ def write_events(path: str | os.PathLike[str], events: Sequence[ContactEvent]) -
             arrays = [pa.array([x or None for x in cols[k].tolist()], type=pa.string()) if k in TEXT_COLUMNS
                       else pa.array(cols[k], type=pa.float64(), mask=~np.isfinite(cols[k]))
                       for k in EVENT_COLUMNS]
-            pq.write_table(pa.Table.from_arrays(arrays, names=list(EVENT_COLUMNS)), tmp)
+            from thermoskin.atomic import arrow_target
+
+            with arrow_target(tmp, "wb") as f:
+                pq.write_table(pa.Table.from_arrays(arrays, names=list(EVENT_COLUMNS)), f)
     return p

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from thermoskin.experiments.analysis import SETTLE_BAND_K, SMOOTH_S, STEADY_S
-from thermoskin.experiments.scenarios import PERIOD_S, SETTLE_S, T_A, TOUCH_S
+from thermoskin.experiments.scenarios import PERIOD_S, SETTLE_S, T_A, T_W_CMD, TOUCH_S
 from thermoskin.physics.finger import PERSONS
 
 TABLE_I = """\
@@ -32,18 +32,34 @@ reproduction is compared with the paper's *statements and trends*, not with its 
 
 
 def _f(x: float | None, scale: float = 1.0, nd: int = 1) -> str:
-    return "n/a" if x is None else f"{x * scale:.{nd}f}"
+    """A number of the report; ``—`` where there is none (a table's note says why)."""
+    return "—" if x is None else f"{x * scale:.{nd}f}"
+
+
+def _baseline(res: dict[str, dict[str, Any]]) -> str:
+    """The no-touch level of eq. 8's estimate: measured on the one-finger run where it was run
+    (figs. 12, 15, 18 and 19 run it), else what the correction alone gives at the set-point."""
+    q = res.get("f1", {}).get("stats", {}).get("baseline_q_i_hat_W")
+    if q is not None:
+        return f"{q:.2f} W"
+    return (f"{(T_W_CMD - T_A) / 1.0:.2f} W at the {T_W_CMD:g} °C set-point in {T_A:g} °C air (the one-finger "
+            "run of figs. 12 and 15 measures it)")
 
 
 def _contact_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> list[str]:
     out = ["| case | mean Δq̂ (mW) | peak Δq̂ (mW) | rise per contact (mW) | true q_i (mW) | detected | "
            "detector mean / peak Δq̂ (mW) |",
            "|---|---|---|---|---|---|---|"]
+    missing = False
     for name, s in rows:
+        missing |= any(s.get(k) is None for k in ("mean_dq_W", "mean_dq_sem_W", "peak_dq_W", "rise_dq_W",
+                                                    "detector_mean_dq_W", "detector_peak_dq_W"))
         out.append(f"| {name} | {_f(s['mean_dq_W'], 1e3)} ± {_f(s['mean_dq_sem_W'], 1e3)} | "
                    f"{_f(s['peak_dq_W'], 1e3)} | {_f(s['rise_dq_W'], 1e3)} | {_f(s['true_q_i_W'], 1e3, 0)} | "
                    f"{s['detected']}/{s['contacts']} (+{s['false_alarms']} false) | "
                    f"{_f(s['detector_mean_dq_W'], 1e3)} / {_f(s['detector_peak_dq_W'], 1e3)} |")
+    if missing:
+        out += ["", "— : none (a single contact has no spread; an undetected one no detector level)."]
     return out
 
 
@@ -59,8 +75,7 @@ def write_report(path: Path, figs: Sequence[str], paths: dict[str, Path], summar
           f"{PERIOD_S:g} s, each {TOUCH_S:g} s long.", "",
           "**Heat flow numbers.** The paper plots `q̂_i`, eq. 8 plus `q_ag` computed with `T_w` in place of "
           "the unmeasured `T_g`. With `R_ag = 1 K/W` that correction is `(T_w - T_a)/R_ag` ≈ "
-          f"{_f(summary.get('fingers', {}).get('1', {}).get('baseline_q_i_hat_W'), 1, 2)} W with no touch and "
-          "moves by 1 W per kelvin of `T_w`, so `q̂_i`'s absolute level is a bias of the correction, not "
+          + _baseline(res) + " with no touch and moves by 1 W per kelvin of `T_w`, so `q̂_i`'s absolute level is a bias of the correction, not "
           "heat from a finger, and thermocouple noise passes straight into it. What a touch does is the "
           "*change* Δq̂ from the no-touch baseline: the observer's `dq_i_hat` (the estimate minus what eq. 8 "
           "gives with no touch for the measured temperatures) minus its mean over the 3 s before the first "
@@ -178,6 +193,6 @@ def write_report(path: Path, figs: Sequence[str], paths: dict[str, Path], summar
               "`C_w`); the observer's model accounts for that, but at the restart the lumped model and the "
               "cooled pipe profile differ for ~0.1 s (the clipped dip in (b)). The detector, tuned on the "
               "running pump, misses most stopped-pump and off-thermocouple contacts: the detection figures "
-              "of the README are for touches at the thermocouple.", ""]
+              "of docs/detection.md are for touches at the thermocouple.", ""]
     path.write_text("\n".join(L), encoding="utf-8")
     return path

@@ -50,6 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thermoskin.logio import LogError, read_log
+from thermoskin.params import toml_number
 
 Array = NDArray[np.float64]
 
@@ -147,9 +148,7 @@ class ArxModel:
         """The model as a configuration file that ``thermoskin run --config`` accepts: a
         ``[peltier_model]`` table (:class:`~thermoskin.params.PeltierModelParams`) whose
         ``use = "feedforward"`` makes the inner loop add the model's steady-state drive."""
-        def num(x: float) -> str:
-            return repr(float(x)) if math.isfinite(x) else ("nan" if math.isnan(x) else
-                                                            ("inf" if x > 0 else "-inf"))
+        num = toml_number  # rounded: the log's median step carries its clock's last bits
 
         def arr(x: Array) -> str:
             return "[" + ", ".join(num(v) for v in x) + "]"
@@ -417,7 +416,8 @@ def identify(log: Mapping[str, ArrayLike] | str | os.PathLike[str], *, t_model: 
     if min(na_max, nb_max) < 1 or nk_max < nk_min or nk_min < 0:
         raise IdentifyError("orders: need na_max >= 1, nb_max >= 1, 0 <= nk_min <= nk_max")
     t, y_full, u_full, ta_full = _check_log(log, with_T_a)
-    t_s_log = float(np.median(np.diff(t)))
+    # the median step, to a config's digits: a clock's last bits are not the log's rate
+    t_s_log = float(toml_number(float(np.median(np.diff(t)))))
     if orders is None:
         lag = max(na_max, nk_max + nb_max - 1, 1)
     else:

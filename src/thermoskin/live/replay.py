@@ -36,15 +36,21 @@ def recorded_topics(path: str | PathLike[str]) -> dict[str, tuple[str, Any]]:
     return out
 
 
+#: Longest sleep between two looks at the stop request, s.
+STOP_POLL_S = 0.05
+
+
 def play(path: str | PathLike[str], live: LiveServer, speed: float = 1.0, *,
          clock: Callable[[], float] = time.monotonic,
-         sleep: Callable[[float], None] = time.sleep) -> dict[str, Any]:
+         sleep: Callable[[float], None] = time.sleep,
+         stop: Callable[[], bool] | None = None) -> dict[str, Any]:
     """Play ``path`` into ``live`` at ``speed`` times real time; figures of what was sent.
 
     The recorded payloads go out as they are (JSON or protobuf), at their log time (the loop
     clock). Returns ``sent`` (messages), ``skipped`` (signals dropped by decimation),
-    ``t_first``, ``t_last`` (loop clock, s), ``wall_s`` and ``complete`` (the file's footer
-    was read and nothing was damaged).
+    ``t_first``, ``t_last`` (loop clock, s), ``wall_s``, ``complete`` (the file's footer
+    was read and nothing was damaged) and ``stopped`` (``stop()`` turned true: looked at
+    before every message and at least every :data:`STOP_POLL_S` s of a wait).
     """
     if not (speed > 0 and math.isfinite(speed)):
         raise ValueError(f"--speed {speed}: must be > 0 and finite")
@@ -59,9 +65,15 @@ def play(path: str | PathLike[str], live: LiveServer, speed: float = 1.0, *,
     sent = skipped = 0
     t_first = t_last = math.nan
     wall0 = math.nan
+    stopped = False
     sc = scan_messages(p)
     for batch in sc.batches():
+        if stopped:
+            break
         for topic, _, log_ns, payload in batch:
+            if stop is not None and stop():
+                stopped = True
+                break
             if topic not in live.channels:
                 continue
             t = log_ns * 1e-9
@@ -74,12 +86,17 @@ def play(path: str | PathLike[str], live: LiveServer, speed: float = 1.0, *,
                     continue
             if math.isnan(wall0):
                 wall0, t_first = clock(), t
-            delay = wall0 + (t - t_first) / speed - clock()
-            if delay > 0.001:
-                sleep(delay)
+            due = wall0 + (t - t_first) / speed
+            while (delay := due - clock()) > 0.001:
+                if stop is not None and stop():
+                    stopped = True
+                    break
+                sleep(min(delay, STOP_POLL_S) if stop is not None else delay)
+            if stopped:
+                break
             live.publish(topic, t, bytes(payload))
             sent += 1
             t_last = t
     wall = clock() - wall0 if sent else 0.0
     return {"sent": sent, "skipped": skipped, "t_first": t_first, "t_last": t_last, "wall_s": wall,
-            "complete": bool(sc.report.complete)}
+            "complete": bool(sc.report.complete), "stopped": stopped}

@@ -10,19 +10,23 @@ subscriber (latched). A skin's run serves its own topics (``topics``,
 :mod:`thermoskin.live.skin_topics`), the scene as protobuf (``foxglove.SceneUpdate``).
 
 The WebSocket is served by ``foxglove-sdk`` (its subprotocol is ``foxglove.sdk.v1``, the
-Foxglove WebSocket protocol v1 under its current name). The page (``page.html``, one
-file, no external resource) is served over HTTP on ``port + 1``; it speaks the same
-protocol to the WebSocket.
+Foxglove WebSocket protocol v1 under its current name) behind :class:`~thermoskin.live.gate.Gate`,
+which checks each connection's ``Origin`` and drops a client that stops reading, so that a
+stalled viewer never holds a run (:mod:`thermoskin.live.gate`). The page (``page.html``, one
+file, no external resource) is served over HTTP on ``port + 1`` under the same ``Origin`` rule;
+it speaks the same protocol to the WebSocket. :meth:`LiveServer.close` is bounded (at most
+:data:`CLOSE_S` s after its ``linger``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import socket
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
 from typing import Any
@@ -30,6 +34,7 @@ from typing import Any
 import foxglove
 
 from thermoskin.live.address import LiveError, url_host
+from thermoskin.live.gate import Gate, OriginRule, forbidden, private_loopback
 from thermoskin.live.messages import RowMessages, clean
 from thermoskin.runtime.record import TOPIC_SCHEMAS
 
@@ -39,6 +44,23 @@ BACKLOG = 1 << 16
 #: Seconds after a subscription before the latched ``/params`` is sent again (the SDK may
 #: call back before the client's subscription is in place).
 LATCH_DELAY_S = 0.05
+#: Seconds :meth:`LiveServer.close` may take to stop the servers (after its ``linger``).
+CLOSE_S = 0.5
+#: Seconds a page request may take to arrive before its connection is closed.
+PAGE_TIMEOUT_S = 5.0
+
+
+def _quiet_sdk() -> None:
+    """foxglove-sdk's log lines (a viewer that went away: "Error receiving from client ...") are
+    not the user's business and would break a command's one-line messages: kept off stderr
+    unless logging was set up (then they go where it says)."""
+    log = logging.getLogger("foxglove")
+    if not log.handlers and not logging.getLogger().handlers:
+        log.addHandler(logging.NullHandler())
+        log.propagate = False
+
+
+_quiet_sdk()
 
 
 def page_html() -> bytes:
@@ -61,6 +83,7 @@ class _Listener:
 
 class _PageHandler(BaseHTTPRequestHandler):
     server_version = "thermoskin-live"
+    timeout = PAGE_TIMEOUT_S  # a client that sends nothing does not hold a thread for ever
 
     def do_GET(self) -> None:
         self._send(head=False)
@@ -69,6 +92,12 @@ class _PageHandler(BaseHTTPRequestHandler):
         self._send(head=True)
 
     def _send(self, head: bool) -> None:
+        origins = self.headers.get_all("Origin") or []
+        rule: OriginRule = self.server.rule  # type: ignore[attr-defined]
+        if len(origins) > 1 or not rule.allows(origins[0] if origins else None):
+            self.connection.sendall(forbidden(", ".join(origins)))
+            self.close_connection = True
+            return
         path = self.path.split("?", 1)[0]
         if path not in ("/", "/index.html"):
             self.send_error(404, "only / is served here")
@@ -89,9 +118,10 @@ class _PageHandler(BaseHTTPRequestHandler):
 class _PageServer(ThreadingHTTPServer):
     daemon_threads = True
 
-    def __init__(self, host: str, port: int, page: bytes) -> None:
+    def __init__(self, host: str, port: int, page: bytes, rule: OriginRule) -> None:
         self.address_family = socket.AF_INET6 if ":" in host else socket.AF_INET
         self.page = page
+        self.rule = rule
         super().__init__((host, port), _PageHandler)
 
 
@@ -125,14 +155,23 @@ class LiveServer:
     (``params``: more fields of that message, e.g. a skin's layout);
     ``rate`` (Hz of the loop clock) is what :meth:`write_rows` decimates signals to;
     ``topics`` (topic: schema, a JSON schema or a ``foxglove.Schema``) replaces the recording's
-    topics (a skin's run, :func:`~thermoskin.live.skin_topics.skin_topics`).
+    topics (a skin's run, :func:`~thermoskin.live.skin_topics.skin_topics`);
+    ``allow_origins``: origins served besides the page's own and clients with no ``Origin``
+    (``--live-allow-origin``, :class:`~thermoskin.live.gate.OriginRule`); ``stop``: a signal's stop
+    request (``is_set``): once true, :meth:`close` does not linger.
     Raises :class:`~thermoskin.live.address.LiveError` if a port cannot be bound.
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8765, *, config: Any = None,
                  rate: float = 100.0, page: bool = True, name: str = "thermoskin",
-                 topics: Mapping[str, Any] | None = None, params: Mapping[str, Any] | None = None) -> None:
+                 topics: Mapping[str, Any] | None = None, params: Mapping[str, Any] | None = None,
+                 allow_origins: tuple[str, ...] = (), stop: Callable[[], bool] | None = None) -> None:
         self.host, self.port = host, port
+        self._stop = stop
+        try:
+            self.rule = OriginRule(host, port + 1, tuple(allow_origins))
+        except ValueError as e:
+            raise LiveError(str(e)) from None
         self.rows = RowMessages(rate)
         self.published = 0
         self._lock = threading.Lock()
@@ -143,25 +182,32 @@ class LiveServer:
         self._http: _PageServer | None = None
         self.context = foxglove.Context()
         where = f"--live {url_host(host)}:{port}"
+        inner = private_loopback()  # the SDK's server, reached only through the gate
         try:
-            self._ws = foxglove.start_server(name=name, host=host, port=port, context=self.context,
+            self._ws = foxglove.start_server(name=name, host=inner, port=0, context=self.context,
                                              server_listener=_Listener(self),
                                              message_backlog_size=BACKLOG,
                                              session_id=str(time.time_ns()))
         except RuntimeError as e:
             raise LiveError(f"{where}: cannot serve the WebSocket there ({_reason(e)})") from None
+        try:
+            self.gate = Gate(host, port, (inner, self._ws.port), self.rule)
+        except OSError as e:
+            _stop_bounded(self._ws.stop, CLOSE_S)
+            raise LiveError(f"{where}: cannot serve the WebSocket there ({e.strerror or e})") from None
         self.topics = dict(TOPIC_SCHEMAS if topics is None else topics)
         self.channels = {topic: _channel(topic, schema, self.context)
                          for topic, schema in self.topics.items()}
         if page:
             try:
-                self._http = _PageServer(host, port + 1, page_html())
+                self._http = _PageServer(host, port + 1, page_html(), self.rule)
             except OSError as e:
-                self._ws.stop()
+                self.gate.close()
+                _stop_bounded(self._ws.stop, CLOSE_S)
                 raise LiveError(f"{where}: cannot serve the page on port {port + 1} "
                                 f"({e.strerror or e})") from None
-            threading.Thread(target=self._http.serve_forever, name="thermoskin-live-page",
-                             daemon=True).start()
+            threading.Thread(target=self._http.serve_forever, kwargs={"poll_interval": 0.1},
+                             name="thermoskin-live-page", daemon=True).start()
         if config is not None:
             self.publish("/params", 0.0, {"config": _config_object(config), **(params or {})})
 
@@ -229,33 +275,52 @@ class LiveServer:
         if latched is not None and not self._closed:
             self.channels[topic].base.log(*latched)
 
-    def wait_for_client(self, timeout: float) -> bool:
+    def wait_for_client(self, timeout: float, stop: Callable[[], bool] | None = None) -> bool:
         """Wait up to ``timeout`` s for a first subscription (and a little more for the rest of
-        the client's subscriptions); true if one came."""
-        if self._first_sub.wait(timeout):
-            time.sleep(0.25)
-            return True
-        return False
+        the client's subscriptions); true if one came. ``stop``: looked at every 50 ms, ends the
+        wait when true (a signal's stop request)."""
+        t_end = time.monotonic() + timeout
+        while (left := t_end - time.monotonic()) > 0:
+            if self._first_sub.wait(min(left, 0.05)):
+                time.sleep(0.25)
+                return True
+            if stop is not None and stop():
+                return False
+        return self._first_sub.is_set()
 
     def close(self, linger: float = 0.5) -> None:
-        """Let the last messages go out (``linger`` s), then stop both servers."""
+        """Let the last messages go out (``linger`` s), then stop both servers, in at most
+        :data:`CLOSE_S` s more whatever the clients do: the gate drops every connection (so the
+        SDK waits for none), and the SDK's and the page server's stops are waited for that long."""
         if self._closed:
             return
-        if linger > 0:
+        if linger > 0 and not (self._stop is not None and self._stop()):
             time.sleep(linger)
         self._closed = True
+        t_end = time.monotonic() + CLOSE_S
         for timer in self._timers:
             timer.cancel()
-        self._ws.stop()
+        self.gate.close(timeout=CLOSE_S / 2)
+        _stop_bounded(self._ws.stop, max(0.0, t_end - time.monotonic()))
         if self._http is not None:
-            self._http.shutdown()
-            self._http.server_close()
+            http = self._http
+            _stop_bounded(http.shutdown, max(0.0, t_end - time.monotonic()))
+            http.server_close()
 
     def __enter__(self) -> LiveServer:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close(linger=0)
+
+
+def _stop_bounded(stop: Any, timeout: float) -> bool:
+    """Call ``stop`` in a thread of its own and wait at most ``timeout`` s for it; whether it ended
+    (one that did not carries on in its daemon thread and does not hold the process's exit)."""
+    th = threading.Thread(target=stop, name="thermoskin-live-stop", daemon=True)
+    th.start()
+    th.join(timeout)
+    return not th.is_alive()
 
 
 def _reason(e: Exception) -> str:

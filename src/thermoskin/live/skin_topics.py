@@ -1,6 +1,6 @@
 """A skin's topics, live and recorded: per-patch signals, contact events with their patch, a scene.
 
-``thermoskin run --skin SKIN.toml`` with ``--live`` and/or ``--record`` sends the same topics to
+``thermoskin run --skin LAYOUT.toml`` with ``--live`` and/or ``--record`` sends the same topics to
 the Foxglove WebSocket and to the MCAP recording (one :class:`SkinMessages` each; the live one
 decimated to ``--live-rate``, the recording's every sample)::
 

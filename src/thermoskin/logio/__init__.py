@@ -48,6 +48,7 @@ from thermoskin.logio.common import (
 )
 from thermoskin.logio.overlap import WriteBehind, prefetch
 from thermoskin.logio.stream import LogReader, LogWriter
+from thermoskin.logio.units import Units
 
 __all__ = [
     "CHUNK_ROWS",
@@ -58,6 +59,7 @@ __all__ = [
     "LogError",
     "LogReader",
     "LogWriter",
+    "Units",
     "WriteBehind",
     "check_time",
     "has_rows",
@@ -84,6 +86,7 @@ def read_log(
     live: bool = False,
     one_patch: bool = False,
     keep: Iterable[str] | None = None,
+    units: Units | None = None,
 ) -> dict[str, Array]:
     """Read a whole log into ``{column: float64 array}`` (in the file's column order).
 
@@ -94,11 +97,12 @@ def read_log(
     whose writer was killed). ``one_patch=True`` refuses a skin's long-format log (a
     ``patch`` column: one row per sample and patch) with one line saying so. ``keep``: hold
     only these columns (every column is still read and checked, a chunk at a time; a command
-    that needs three columns of a wide log then holds three, not all of them). Raises
-    :class:`LogError` on any user error. See :class:`LogReader` for long logs.
+    that needs three columns of a wide log then holds three, not all of them). ``units``:
+    :class:`~thermoskin.logio.units.Units` (:class:`LogReader`). Raises :class:`LogError` on any
+    user error. See :class:`LogReader` for long logs.
     """
     with LogReader(path, required, nan_columns, uniform=uniform, live=live,
-                   one_patch=one_patch) as reader:
+                   one_patch=one_patch, units=units) as reader:
         if keep is None:
             chunks = list(reader)
             names = reader.names
@@ -128,8 +132,11 @@ def has_rows(path: str | os.PathLike[str]) -> bool:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
+    from thermoskin.atomic import arrow_target
+
     try:
-        return pq.ParquetFile(p).metadata.num_rows > 0
+        with arrow_target(p) as f:
+            return pq.ParquetFile(f).metadata.num_rows > 0
     except (pa.ArrowInvalid, OSError):
         return False
 

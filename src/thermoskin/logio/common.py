@@ -29,6 +29,24 @@ UNIFORM_RTOL = 0.01
 CHUNK_ROWS = 262_144
 #: Log formats by file extension.
 FORMATS: dict[str, str] = {".csv": "csv", ".parquet": "parquet"}
+#: Most columns a log may have (a log of this project has a few dozen; an export of a recording,
+#: every topic's fields: about 60). More is refused before the names are read.
+MAX_COLUMNS = 4096
+#: Longest CSV header line, bytes (4096 names of 256 characters).
+MAX_HEADER_BYTES = 1 << 20
+#: Bytes a CSV field may take on a row: a float64 in its shortest form takes 24 at most, with
+#: its comma 25; five times that for blanks, quotes and other writers' forms.
+FIELD_BYTES = 128
+#: Shortest line-length limit, bytes.
+MIN_LINE_BYTES = 1 << 16
+
+
+def max_line_bytes(n_columns: int) -> int:
+    """The longest data line a CSV log of ``n_columns`` columns may have (bytes): five times what
+    its numbers take written in full, at least :data:`MIN_LINE_BYTES`. A longer line is refused
+    before it is split into fields, so memory before that error stays within a small multiple
+    of a row's size (a 40 MB row took 7 GB before its error, and a minute)."""
+    return max(MIN_LINE_BYTES, FIELD_BYTES * n_columns)
 
 
 class LogError(ValueError):
@@ -76,18 +94,28 @@ def check_names(names: list[str], where: str) -> None:
 def missing_columns(path: Path, names: list[str], required: object, where: str) -> None:
     """Raise :class:`LogError` if a required column (``t`` always) is missing."""
     req = list(dict.fromkeys(["t", *required]))  # type: ignore[misc]
-    missing = [n for n in req if n not in names]
+    have = set(names)
+    missing = [n for n in req if n not in have]
     if missing:
         raise LogError(
-            f"{path}: {where}missing required column(s) {', '.join(missing)}; "
-            f"columns found: {', '.join(names)}"
+            f"{path}: {where}missing required column(s) {listing(missing)}; "
+            f"columns found: {listing(names)}"
         )
 
 
 def short(value: object, limit: int = 40) -> str:
     """Repr of a value, shortened so that the message stays one line."""
+    if isinstance(value, str | bytes) and len(value) > 4 * limit:
+        value = value[: 4 * limit]  # a huge field: only its start is ever shown
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 4] + "...'"
+
+
+def listing(names: list[str], limit: int = 12) -> str:
+    """``names`` joined by commas, at most ``limit`` of them (each shortened) and how many more."""
+    shown = [n if len(n) <= 40 else n[:36] + "..." for n in names[:limit]]
+    more = f" and {len(names) - limit} more" if len(names) > limit else ""
+    return ", ".join(shown) + more
 
 
 def first_bad_value(cols: list[Array], allow: list[bool]) -> tuple[int, int] | None:

@@ -32,12 +32,16 @@ import numpy as np
 
 from thermoskin.logio.common import (
     FLAG_COLUMNS,
+    MAX_COLUMNS,
+    MAX_HEADER_BYTES,
     NAN_STRINGS,
     Array,
     LogError,
     arrow_float64,
     first_bad_value,
     is_number,
+    listing,
+    max_line_bytes,
     parse_value,
     short,
     writable,
@@ -62,6 +66,12 @@ def _utf8_error(path: Path, lineno: int, raw: bytes, exc: UnicodeDecodeError) ->
 
 def parse_header(path: Path, raw: bytes) -> list[str]:
     """Column names from the header line (bytes, BOM and line end included), with its checks."""
+    if len(raw) > MAX_HEADER_BYTES:
+        raise LogError(f"{path}: line 1: the header is longer than {MAX_HEADER_BYTES} bytes (at most "
+                       f"{MAX_COLUMNS} columns): not a log")
+    n_cols = raw.count(b",") + 1
+    if n_cols > MAX_COLUMNS and b'"' not in raw:
+        raise LogError(f"{path}: line 1: {n_cols} columns, more than a log may have ({MAX_COLUMNS})")
     try:
         line = raw.removeprefix(_BOM).decode("utf-8").rstrip("\r\n")
     except UnicodeDecodeError as exc:
@@ -70,6 +80,8 @@ def parse_header(path: Path, raw: bytes) -> list[str]:
         names = [n.strip() for n in next(csv.reader([line]))]
     except (csv.Error, StopIteration) as exc:
         raise LogError(f"{path}: line 1: cannot parse the header row: {short(line)}") from exc
+    if len(names) > MAX_COLUMNS:
+        raise LogError(f"{path}: line 1: {len(names)} columns, more than a log may have ({MAX_COLUMNS})")
     if all(is_number(n) for n in names):
         raise LogError(f"{path}: line 1: no header row (first line looks like data: {short(line)})")
     for k, n in enumerate(names, start=1):
@@ -77,7 +89,7 @@ def parse_header(path: Path, raw: bytes) -> list[str]:
             raise LogError(f"{path}: line 1: column {k} has an empty name (header {short(line)})")
     dups = [n for n, c in Counter(names).items() if c > 1]
     if dups:
-        raise LogError(f"{path}: line 1: duplicate column name(s): {', '.join(dups)}")
+        raise LogError(f"{path}: line 1: duplicate column name(s): {listing(dups)}")
     return names
 
 
@@ -97,16 +109,19 @@ class CsvSource:
         self.live = live
         self._fh: BinaryIO = open(path, "rb")  # noqa: SIM115 (closed by close())
         try:
-            header = self._fh.readline()
+            header = self._fh.readline(MAX_HEADER_BYTES + 1)  # a line without end is not read whole
             if not header.strip(_BLANK) and _only_blanks(self._fh):
                 raise LogError(f"{path}: empty file")
-            if live and not header.endswith(b"\n"):
+            if live and not header.endswith(b"\n") and len(header) <= MAX_HEADER_BYTES:
                 raise LogError(f"{path}: no complete header line yet (live log still being started?)")
             self.names = parse_header(path, header)
         except BaseException:
             self._fh.close()
             raise
         self.n_rows: int | None = None
+        #: The longest data line accepted (:func:`~thermoskin.logio.common.max_line_bytes`).
+        self.max_line = max_line_bytes(len(self.names))
+        self._line = 2  # the file line of the next block's first line
 
     def close(self) -> None:
         self._fh.close()
@@ -128,7 +143,9 @@ class CsvSource:
                     yield memoryview(buf)[:end]
                 return
             cut = buf.rfind(b"\n") + 1
-            if cut == 0:  # a line longer than the block: read on
+            if cut == 0:  # a line longer than the block: read on, up to the longest a row may be
+                if len(buf) > self.max_line:
+                    raise self.too_long(self._line, len(buf))
                 rest = buf
                 continue
             # blank lines at the end are held back (if the file ends there, they are harmless)
@@ -137,10 +154,19 @@ class CsvSource:
             rest = buf[end:]
             if not end:
                 continue
+            if len(buf) - end > self.max_line:  # what is held back: blank lines, or a line too long
+                raise self.too_long(self._line + buf.count(b"\n", 0, end), len(buf) - end)
+            self._line += buf.count(b"\n", 0, end)
             yield memoryview(buf)[:end]
             sample = min(end, 1 << 20)  # the line length at the block's end sizes the next one
             lines = buf.count(b"\n", end - sample, end)
             size = max(1 << 16, int(chunk_rows * sample / max(lines, 1)))
+
+
+    def too_long(self, line: int, n: int) -> LogError:
+        """The error of a line of at least ``n`` bytes from file line ``line`` on."""
+        return LogError(f"{self.path}: line {line}: a line of {n} bytes or more, longer than a row of "
+                        f"{len(self.names)} numbers can be ({self.max_line} bytes at most): not a log row")
 
 
 def _content_end(buf: bytes, stop: int) -> int:
@@ -206,9 +232,13 @@ def _scan_lines(
 ) -> Array:
     """Slow line-by-line parse (rows x columns); raises :class:`LogError` at the first bad line."""
     ncol = len(names)
+    longest = max_line_bytes(ncol)
     out = np.empty((len(lines), ncol), dtype=np.float64)
     for i, raw in enumerate(lines):
         lineno = first_line + i
+        if len(raw) > longest:  # not split into its fields (millions of them): refused as it is
+            raise LogError(f"{path}: line {lineno}: a line of {len(raw)} bytes, longer than a row of {ncol} "
+                           f"numbers can be ({longest} bytes at most): not a log row")
         try:
             line = raw.decode("utf-8").rstrip("\r")
         except UnicodeDecodeError as exc:

@@ -7,7 +7,8 @@ be readable while it grows or after a crash. Errors in a Parquet log name the da
 (1-based), there being no text lines.
 
 Columns are written as float64 (flags too: exact for integers up to 2**53, and Parquet's
-dictionary and run-length encodings store them compactly); reading accepts any integer,
+dictionary and run-length encodings store them compactly), but for :data:`INTEGER_COLUMNS`
+(a skin's ``patch``: an index, int64 in the file's schema); reading accepts any integer,
 float or boolean column, and reads a null as NaN where NaN is allowed.
 """
 
@@ -20,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.logio.common import Array, LogError, arrow_float64, short, writable
+from thermoskin.logio.common import MAX_COLUMNS, Array, LogError, arrow_float64, listing, short, writable
 
 #: Rows per row group (8 columns: 16 MiB before compression).
 ROW_GROUP_ROWS = 262_144
@@ -62,13 +63,20 @@ class ParquetSource:
     def __init__(self, path: Path) -> None:
         import pyarrow.parquet as pq
 
+        from thermoskin.atomic import arrow_name
+
         self.path = path
+        name = arrow_name(path)
+        self._fh = None if name is not None else open(path, "rb")  # noqa: SIM115 (closed by close())
         try:
             # pre_buffer (pyarrow's default) keeps every row group read so far: memory would
             # grow with the log's length
-            self._file = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
+            self._file = pq.ParquetFile(name if name is not None else self._fh, pre_buffer=False,
+                                        buffer_size=1 << 20)
             schema = self._file.schema_arrow
         except _arrow_errors() as exc:
+            if self._fh is not None:
+                self._fh.close()
             raise LogError(
                 f"{path}: not a readable Parquet file ({_first_line(exc)}); "
                 "a Parquet log is readable only once its writer has closed it"
@@ -87,16 +95,21 @@ class ParquetSource:
         path = self.path
         if not self.names:
             raise LogError(f"{path}: empty file (no columns)")
+        if len(self.names) > MAX_COLUMNS:
+            raise LogError(f"{path}: {len(self.names)} columns, more than a log may have ({MAX_COLUMNS})")
         dups = [n for n, c in Counter(self.names).items() if c > 1]
         if dups:
-            raise LogError(f"{path}: duplicate column name(s): {', '.join(dups)}")
+            raise LogError(f"{path}: duplicate column name(s): {listing(dups)}")
         for field in schema:
             ty = field.type
             if not (pa.types.is_integer(ty) or pa.types.is_floating(ty) or pa.types.is_boolean(ty)):
-                raise LogError(f"{path}: column {field.name!r} has type {ty}, expected numbers")
+                raise LogError(f"{path}: column {short(field.name)} has type {short(str(ty), 60)[1:-1]}, "
+                               "expected numbers")
 
     def close(self) -> None:
         self._file.close()
+        if self._fh is not None:
+            self._fh.close()
 
     def batches(self, chunk_rows: int) -> Iterator[tuple[list[Array], list[np.ndarray | None]]]:
         """Float64 columns (nulls as NaN) per batch, with each column's null mask (None if no null)."""
@@ -137,6 +150,29 @@ def bad_value_message(path: Path, row: int, name: str, value: float, is_null: bo
     return f"{path}: row {row + 1}, column {name!r}: {what}{hint}"
 
 
+#: Columns written as int64: a skin's long-format log's patch index.
+INTEGER_COLUMNS = frozenset({"patch"})
+
+
+def _arrow_type(name: str) -> Any:
+    import pyarrow as pa
+
+    return pa.int64() if name in INTEGER_COLUMNS else pa.float64()
+
+
+def _as_stored(name: str, a: Any) -> np.ndarray:
+    """A chunk of column ``name`` as its stored dtype (an integer column's values checked whole)."""
+    if name not in INTEGER_COLUMNS:
+        return np.asarray(a, dtype=np.float64)
+    x = np.asarray(a)
+    if x.dtype.kind in "iub":
+        return x.astype(np.int64, copy=False)
+    out = x.astype(np.int64)
+    if not np.array_equal(out, x):
+        raise ValueError(f"column {name!r} holds a value that is not a whole number")
+    return out
+
+
 class ParquetSink:
     """Appends chunks to a Parquet file, one row group per ``row_group_rows`` rows."""
 
@@ -146,23 +182,29 @@ class ParquetSink:
         self.path = path
         self.names = names
         self.row_group_rows = row_group_rows
-        self._schema = pa.schema([(n, pa.float64()) for n in names])
+        self._schema = pa.schema([(n, _arrow_type(n)) for n in names])
         self._writer: Any = None  # opened with the first row group, its encodings chosen on it
+        self._fh: Any = None
         self._buf: list[list[np.ndarray]] = []
         self._rows = 0
 
     def _open(self, first: list[np.ndarray] | None) -> Any:
         import pyarrow.parquet as pq
 
+        from thermoskin.atomic import arrow_name
+
         few = [n for n, c in zip(self.names, first, strict=True) if few_values(c)] if first else self.names
+        name = arrow_name(self.path)
+        if name is None:  # a name pyarrow cannot take (module doc of thermoskin.atomic)
+            self._fh = open(self.path, "wb")  # noqa: SIM115 (closed by close())
         return pq.ParquetWriter(
-            self.path, self._schema, compression=COMPRESSION, use_dictionary=few,
+            name if name is not None else self._fh, self._schema, compression=COMPRESSION, use_dictionary=few,
             use_byte_stream_split=[n for n in self.names if n not in few],
             dictionary_pagesize_limit=DICTIONARY_PAGE_BYTES,
         )
 
     def write(self, cols: list[np.ndarray]) -> None:
-        self._buf.append([np.asarray(a, dtype=np.float64) for a in cols])
+        self._buf.append([_as_stored(n, a) for n, a in zip(self.names, cols, strict=True)])
         self._rows += len(cols[0])
         if self._rows >= self.row_group_rows:
             self.flush()
@@ -175,10 +217,10 @@ class ParquetSink:
             return
         cols = [np.concatenate([c[j] for c in self._buf]) for j in range(len(self.names))]
         self._buf, self._rows = [], 0
-        # zero-copy views of the float64 buffers (``pa.array`` would import pandas to check for it)
+        # zero-copy views of the buffers (``pa.array`` would import pandas to check for it)
         n = len(cols[0])
-        arrays = [pa.Array.from_buffers(pa.float64(), n, [None, pa.py_buffer(np.ascontiguousarray(c))])
-                  for c in cols]
+        arrays = [pa.Array.from_buffers(_arrow_type(name), n, [None, pa.py_buffer(np.ascontiguousarray(c))])
+                  for name, c in zip(self.names, cols, strict=True)]
         table = pa.Table.from_arrays(arrays, schema=self._schema)
         if self._writer is None:
             self._writer = self._open(cols)
@@ -188,4 +230,8 @@ class ParquetSink:
         self.flush()
         if self._writer is None:  # no row: the schema alone
             self._writer = self._open(None)
-        self._writer.close()
+        try:
+            self._writer.close()
+        finally:
+            if self._fh is not None:
+                self._fh.close()

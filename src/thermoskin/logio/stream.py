@@ -35,6 +35,7 @@ from thermoskin.logio.common import (
 )
 from thermoskin.logio.csvlog import CsvSource, parse_block, write_all, write_rows
 from thermoskin.logio.parquetlog import ROW_GROUP_ROWS, ParquetSink, ParquetSource, bad_value_message
+from thermoskin.logio.units import Units
 
 #: A CSV writer hands its buffered rows to the OS after this many seconds or rows.
 FLUSH_S = 1.0
@@ -69,6 +70,9 @@ class LogReader:
     ``check(cols, row)``: the caller's own check of each chunk (``row``: the log's row of its
     first), run before the time's (a skin's patches out of order would otherwise show as a
     sample whose rows have different times). ``rtol``: the uniform sampling's tolerance.
+    ``units``: the units of ``t`` and the ``T_*`` columns (:class:`~thermoskin.logio.units.Units`):
+    each chunk is given in seconds and °C, and where a unit is not said, a first chunk that
+    looks like another is refused with one line naming it; None: read as they are, unchecked.
 
     Attributes: ``names`` (column order of the file), ``n_rows`` (Parquet: from the footer;
     CSV: None until read to the end), ``rows`` (rows given so far), ``t_s`` (the first
@@ -88,6 +92,7 @@ class LogReader:
         rows_per_sample: int = 1,
         check: Callable[[list[Array], int], None] | None = None,
         rtol: float = UNIFORM_RTOL,
+        units: Units | None = None,
     ) -> None:
         self.path = p = Path(path)
         self.format = log_format(p)
@@ -97,6 +102,7 @@ class LogReader:
             raise ValueError(f"LogReader: rows_per_sample must be >= 1, got {rows_per_sample}")
         self.rows_per_sample = rows_per_sample
         self._check, self.rtol = check, rtol
+        self.units = units
         _check_file(p)
         self.chunk_rows = chunk_rows
         self.uniform = uniform
@@ -115,7 +121,7 @@ class LogReader:
             missing_columns(p, self.names, required, "line 1: " if self.format == "csv" else "")
             if one_patch and "patch" in self.names:
                 raise LogError(f"{p}: a skin's log (its 'patch' column: one row per sample and "
-                               "patch), not one patch's: observe reads it with --skin SKIN.toml")
+                               "patch), not one patch's: observe reads it with --skin LAYOUT.toml")
         except LogError:
             self.close()
             raise
@@ -160,6 +166,10 @@ class LogReader:
         carry: list[Array] | None = None  # rows of a sample the chunk cut (rows_per_sample > 1)
         try:
             for cols in self._checked():
+                if self.units is not None:
+                    if self.rows == 0 and carry is None:
+                        self.units.check(self.path, self.names, cols, self.rows_per_sample)
+                    cols = self.units.convert(self.names, cols)
                 if self.rows_per_sample > 1:
                     if carry is not None:
                         cols = [np.concatenate((a, b)) for a, b in zip(carry, cols, strict=True)]

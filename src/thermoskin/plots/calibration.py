@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from thermoskin.atomic import atomic_path
+from thermoskin.paths import shown
 from thermoskin.plots.log import decimate
 
 if TYPE_CHECKING:
@@ -70,7 +71,7 @@ def plot_fit(cal: Calibration, path: str | Path, title: str = "") -> Path:
     for ax in (ax_t, ax_z, ax_r):
         ax.grid(True, alpha=0.3)
     ax_r.set_xlim(ax_t.get_xlim())
-    fig.suptitle(title or f"thermoskin calibrate: residual rms {cal.rms * 1e3:.2f} mK")
+    fig.suptitle(shown(title or f"thermoskin calibrate: residual rms {cal.rms * 1e3:.2f} mK"))
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:

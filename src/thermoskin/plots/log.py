@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thermoskin.atomic import atomic_path
+from thermoskin.paths import shown
 
 Array = NDArray[np.float64]
 
@@ -211,7 +212,7 @@ def plot_run(
     axes[-1].set_xlabel("time (s)")
     if t.size:
         axes[-1].set_xlim(float(t[0]), t_end)
-    fig.suptitle(title or "thermoskin run")
+    fig.suptitle(shown(title or "thermoskin run"))
 
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)

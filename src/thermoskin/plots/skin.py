@@ -7,6 +7,11 @@ a patch is its rectangle on that surface, its pipe an arrow from inlet to outlet
 thermocouples dots (``T_w`` filled, ``T_w2``... open); each loop's water path is a dashed
 line in the loop's colour from its tank through every patch in order and back.
 
+A large skin (more than :data:`DETAIL_PATCHES` patches) is drawn plainly, so that the picture
+takes seconds, not minutes: each loop's patches as one collection, no names, pipe arrows,
+thermocouples or tank labels, the loops' legend only for a few loops, and beyond
+:data:`DETAIL_CONTACTS` contacts, each a cross without its label.
+
 ``contacts`` are marked in red: each a mapping with ``patch`` (name or index) and
 ``position`` (m from its inlet; NaN or absent: the patch as a whole) and optionally
 ``position_sd`` (m, drawn as a bar along the pipe) and ``label``; or ``link``, ``x``, ``y`` (m,
@@ -22,9 +27,16 @@ from pathlib import Path
 from typing import Any
 
 from thermoskin.atomic import atomic_path
+from thermoskin.paths import shown
 from thermoskin.skin.layout import Skin
 
 MM = 1000.0
+#: More patches than this: the plain picture (module doc).
+DETAIL_PATCHES = 200
+#: More contacts than this: crosses without labels.
+DETAIL_CONTACTS = 200
+#: More loops than this: no legend of the loops.
+LEGEND_LOOPS = 12
 LOOP_COLOURS = ("tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:cyan", "tab:olive")
 
 
@@ -64,8 +76,12 @@ def plot_layout(skin: Skin, contacts: Iterable[Any] = (), path: str | Path | Non
     Returns the matplotlib ``Figure``.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import PolyCollection
     from matplotlib.figure import Figure
     from matplotlib.patches import Polygon, Rectangle
+
+    detail = len(skin.patches) <= DETAIL_PATCHES
+    contacts = list(contacts)
 
     fig = Figure(figsize=(10, 6.2), dpi=110)
     FigureCanvasAgg(fig)
@@ -73,7 +89,7 @@ def plot_layout(skin: Skin, contacts: Iterable[Any] = (), path: str | Path | Non
     ax.set_aspect("equal")
     ax.set_xlabel("x along the link (mm)")
     ax.set_ylabel("y around the link (mm)")
-    ax.set_title(title or f"{skin.name}: {len(skin.patches)} patches on {len(skin.loops)} water loops")
+    ax.set_title(shown(title or f"{skin.name}: {len(skin.patches)} patches on {len(skin.loops)} water loops"))
     for name, link in skin.links.items():
         x0, y0 = _xy(skin, name, 0.0, 0.0)
         ax.add_patch(Rectangle((x0, y0), link.length * MM, link.circumference * MM, facecolor="0.95",
@@ -89,12 +105,20 @@ def plot_layout(skin: Skin, contacts: Iterable[Any] = (), path: str | Path | Non
             p = skin.patches[i]
             route += [_xy(skin, p.link, *p.point_at(0.0)), _xy(skin, p.link, *p.point_at(p.length))]
         route.append(tank)
-        ax.plot([q[0] for q in route], [q[1] for q in route], ls="--", lw=0.9, color=col, alpha=0.8, zorder=1,
-                label=f"loop {lp.name}: {' > '.join(skin.patches[i].name for i in lp.patches)}")
+        label = (f"loop {lp.name}: {' > '.join(skin.patches[i].name for i in lp.patches)}"
+                 if len(skin.loops) <= LEGEND_LOOPS else None)
+        ax.plot([q[0] for q in route], [q[1] for q in route], ls="--", lw=0.9 if detail else 0.3, color=col,
+                alpha=0.8, zorder=1, label=label)
         ax.add_patch(Rectangle((tank[0] - 6, tank[1] - 6), 12, 12, facecolor=col, edgecolor="k", zorder=3))
-        ax.text(tank[0], tank[1] - 9, f"tank\n{lp.name}", ha="center", va="top", fontsize=7)
         xs += [tank[0] - 8, tank[0] + 8]
         ys += [tank[1] - 20, tank[1] + 8]
+        if not detail:  # the plain picture: the loop's patches as one collection
+            polys = [[_xy(skin, skin.patches[i].link, *c) for c in skin.patches[i].corners()]
+                     for i in lp.patches]
+            ax.add_collection(PolyCollection(polys, facecolors=col, alpha=0.35, edgecolors=col,
+                                             linewidths=0.3, zorder=2))
+            continue
+        ax.text(tank[0], tank[1] - 9, f"tank\n{lp.name}", ha="center", va="top", fontsize=7)
         for i in lp.patches:
             p = skin.patches[i]
             corners = [_xy(skin, p.link, *c) for c in p.corners()]
@@ -115,6 +139,11 @@ def plot_layout(skin: Skin, contacts: Iterable[Any] = (), path: str | Path | Non
         xs += [x0, x0 + link.length * MM]
         ys += [y0, y0 + link.circumference * MM]
     first = True
+    if len(contacts) > DETAIL_CONTACTS:  # many: crosses, one artist
+        pts = [_contact_points(skin, c)[0][-1] for c in contacts]
+        ax.plot([q[0] for q in pts], [q[1] for q in pts], marker="x", ms=5, mew=1.2, ls="none", color="red",
+                zorder=6, label=f"contact ({len(pts)})")
+        contacts = []
     for c in contacts:
         pts, label, sd, _ = _contact_points(skin, c)
         kw = {"color": "red", "zorder": 6}
@@ -136,7 +165,8 @@ def plot_layout(skin: Skin, contacts: Iterable[Any] = (), path: str | Path | Non
             ax.text(x, y - 5, label, color="red", fontsize=6.5, ha="center", va="top", zorder=7)
     ax.set_xlim(min(xs) - 5, max(xs) + 5)
     ax.set_ylim(min(ys) - 5, max(ys) + 5)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), fontsize=7, ncol=1, frameon=False)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), fontsize=7, ncol=1, frameon=False)
     fig.tight_layout()
     if path is not None:
         with atomic_path(path) as tmp:  # whole or not at all

@@ -5,6 +5,10 @@
 - one key: the metric against it (each seed a dot, the mean a line);
 - otherwise: parallel coordinates, one panel per metric: an axis per key (scaled to its
   range) and the metric last, each point a line coloured by the metric.
+
+A metric with no value in any point (a latency where no touch was detected, an SNR of a
+sweep with no touch) gets a panel that says so and why, and :func:`plot_results` returns
+that line for the command line to print.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from thermoskin.paths import shown
 from thermoskin.sweep.engine import EXTRA, METRICS
 from thermoskin.sweep.spec import SweepError
 
@@ -29,8 +34,11 @@ def read_results(path: Path) -> dict[str, np.ndarray]:
 
     if not Path(path).is_file():
         raise SweepError(f"results file {path} does not exist")
+    from thermoskin.atomic import arrow_target
+
     try:
-        t = pq.read_table(path)
+        with arrow_target(path) as src:
+            t = pq.read_table(src)
     except (pa.ArrowInvalid, OSError) as e:
         raise SweepError(f"{path} is not a Parquet file: {' '.join(str(e).split())}") from None
     if "hash" not in t.column_names or "point" not in t.column_names:
@@ -38,8 +46,17 @@ def read_results(path: Path) -> dict[str, np.ndarray]:
     return {c: np.asarray(t.column(c).to_pylist(), dtype=object) for c in t.column_names}
 
 
-def plot_results(path: Path, out: Path, metrics: list[str] | None = None, dpi: int = 110) -> None:
-    """Draw ``path``'s metrics against its keys into ``out`` (module doc)."""
+#: Why a metric can have no value in a point (it is NaN there).
+WHY_EMPTY = {"detection_rate": "no touch in the scenario",
+             "latency_median_s": "no touch detected", "latency_p90_s": "no touch detected",
+             "snr_one_finger": "no touch in the scenario to measure it on",
+             "false_alarms_per_h": "no time observed", "tracking_rms_K": "no time observed",
+             "energy_J": "no time observed"}
+
+
+def plot_results(path: Path, out: Path, metrics: list[str] | None = None, dpi: int = 110) -> list[str]:
+    """Draw ``path``'s metrics against its keys into ``out`` (module doc); one line for each
+    metric with no value in any point (its panel says the same)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -64,10 +81,20 @@ def plot_results(path: Path, out: Path, metrics: list[str] | None = None, dpi: i
     nrow = -(-n // ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol, 3.6 * nrow), squeeze=False)
     grid2 = len(keys) == 2 and all(len(np.unique(num[k])) <= 12 for k in keys)
+    empty: list[str] = []
     for i, m in enumerate(have):
         ax = axes[i // ncol][i % ncol]
         y = Y[m]
-        if grid2:
+        if not np.isfinite(y).any():
+            why = (f"{LABELS.get(m, m)}: no value in any of the {len(y)} points "
+                   f"({WHY_EMPTY.get(m, 'not measured')})")
+            empty.append(why)
+            ax.text(0.5, 0.5, why.replace(": ", ":\n", 1).replace(" (", "\n("), ha="center", va="center",
+                    fontsize=9, transform=ax.transAxes, wrap=True)
+            ax.set_title(LABELS.get(m, m), fontsize=9)
+            ax.set_xticks([])
+            ax.set_yticks([])
+        elif grid2:
             _heat(fig, ax, num[keys[0]], num[keys[1]], y, keys, LABELS.get(m, m))
         elif len(keys) == 1:
             x = num[keys[0]]
@@ -81,10 +108,11 @@ def plot_results(path: Path, out: Path, metrics: list[str] | None = None, dpi: i
             _parallel(fig, ax, [num[k] for k in keys], keys, y, LABELS.get(m, m))
     for j in range(n, nrow * ncol):
         axes[j // ncol][j % ncol].axis("off")
-    fig.suptitle(f"{Path(path).name}: {len(cols['point'])} points")
+    fig.suptitle(shown(f"{Path(path).name}: {len(cols['point'])} points"))
     fig.tight_layout()
     fig.savefig(out, dpi=dpi)
     plt.close(fig)
+    return empty
 
 
 def _numeric(x: np.ndarray) -> np.ndarray:

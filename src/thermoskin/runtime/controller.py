@@ -63,9 +63,14 @@ class SkinController:
         self._t_det = 0.0
 
     def step(self, t: float, T_w: float, T_p: float, T_a: float, T_w_cmd: float,
-             fresh: int = 7) -> None:
+             fresh: int = 7, v_applied: float | None = None, drive_applied: float | None = None) -> None:
         """One sample of measurements (``fresh``: bitmask of the channels with a new reading,
-        1 ``T_w``, 2 ``T_p``, 4 ``T_a``); sets ``v, drive, T_p_cmd, contact`` (and the blocks')."""
+        1 ``T_w``, 2 ``T_p``, 4 ``T_a``); sets ``v, drive, T_p_cmd, contact`` (and the blocks').
+
+        ``v_applied``, ``drive_applied``: what the device applies from ``t`` on, where it says so
+        (a serial device's SAMPLE): the estimator models the interval with those rather than
+        with this step's commands, which reach the device a sample or more later (many on a
+        busy host)."""
         cmd = T_w_cmd
         if self.probe is not None and self.contact:
             cmd = T_w_cmd + self.probe.offset(t - self._t_det)
@@ -78,6 +83,10 @@ class SkinController:
         self.drive = drive
         # last: the estimator models the interval to come with the pump and the drive applied
         if self.estimator is not None:
+            if v_applied is not None:
+                v = v_applied
+            if drive_applied is not None:
+                drive = drive_applied
             contact = self.estimator.step(t, T_w, T_p, v, T_a, T_w_cmd, fresh, drive)
             if contact and not self.contact:
                 self._t_det = t

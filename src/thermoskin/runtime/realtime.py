@@ -20,12 +20,14 @@ it every ~20 ms into the log columns, the recorder and the console. The loop nev
 for the parent: if the parent falls more than the ring behind, rows are lost and counted.
 
 Pacing. With the simulated skin the deadlines are ``t0 + k t_s``. With a serial device
-the device's own clock paces the samples: the deadline of a sample is ``t0 + t`` with
-``t`` its device time since the first sample and ``t0`` the host time the first sample
-arrived, so the
-lateness is the time from a sample's nominal arrival to the start of its processing
-(the device's own jitter, transport and host scheduling); the *lag* is the host's part,
-from the later of deadline and arrival to the start of processing. Samples already
+the device's own clock paces the samples: the loop sleeps to ``t0 + t`` with ``t`` the
+sample's device time since the first sample and ``t0`` the host time the first sample
+arrived; the lateness is the time from a sample's nominal arrival, ``t0_min + t`` with
+``t0_min`` the earliest arrival less its device time so far (so never negative), to the
+start of its processing (the device's own jitter, transport and host scheduling); the
+*lag* is the host's part, from its arrival to the start of processing. The estimator
+models each period with the pump velocity and drive the device reports applied over it
+(the SAMPLE's ``v``, ``drive``), which are then the log's ``v`` and ``drive``. Samples already
 queued (after a late step) are taken at once, so the loop catches up instead of running
 behind. (A device clock that drifts against the host's shows as a slow trend of the
 lateness; the emulator shares the host's clock.) An *overrun* is a step that ended more
@@ -67,7 +69,8 @@ from thermoskin.sim.scenarios import Scenario
 #: The fields of a ring row, in order: the log columns of ``closed_loop.COLUMNS`` (truth NaN
 #: on hardware), then the device's flags, the loop's timing and the fault code.
 ROW = (*COLUMNS,
-       "stale", "stuck", "status", "seq", "v_dev", "drive_dev", "late", "lag", "busy", "fault")
+       "stale", "stuck", "status", "seq", "v_dev", "drive_dev", "late", "lag", "busy", "fault",
+       "v_cmd", "drive_cmd")
 NF = len(ROW)
 _ROW = struct.Struct(f"<{NF}d")
 _HDR = struct.Struct("<qqq")  # rows written (loop), stop request (parent), reserved
@@ -91,7 +94,9 @@ class LoopSpec:
     """Busy-wait before each deadline, s (the sleep before it ends this early)."""
     rt_priority: int = 50
     """``SCHED_FIFO`` priority asked for (0: do not ask)."""
-    first_sample_timeout: float = 1.0
+    first_sample_timeout: float = 3.0
+    """The longest wait for the session's first sample after its HELLO_ACK, s (the device's
+    handshake time: a device answers, then samples at once)."""
     parent_pid: int = 0
     """The process the loop serves (set by :func:`run_realtime`); the loop stops, in the safe
     state, as soon as that process is gone (0: the parent at start-up)."""
@@ -288,11 +293,13 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
         next_deadline = t0
         try:  # any error on the link (a pulled cable, EIO, a failed write) is a link fault
             while True:
-                # ---- the sample of this step (s) is in hand; its deadline:
+                # ---- the sample of this step (s) is in hand; its nominal arrival, from the
+                # earliest arrival so far (t0_min, this sample's included): lateness >= 0
                 t_dev = s.t - t_first
-                deadline = t0 + t_dev
                 start = mono()
-                late = start - deadline
+                # the simulated skin's sample is there at its deadline; a device's when it came
+                t_avail = t0 + t_dev if is_sim else s.t_recv
+                late = start - (t0 + t_dev if is_sim else t0_min + t_dev)
                 if changes and t_dev >= changes[0]:
                     cmd = cmd_at(t_dev)
                     changes.pop(0)
@@ -310,7 +317,10 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
                     q_i_hat, dq, contact, gap = est.q_i_hat, est.dq_i_hat, 0, 1
                     T_p_cmd = ctrl.T_p_cmd
                 else:
-                    ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh)
+                    if is_sim:
+                        ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh)
+                    else:  # the estimator models the interval to come with what the device applies
+                        ctrl.step(s.t, T_w, T_p, T_a, cmd, s.fresh, s.v, s.drive)
                     drive, v = sup.gate(ctrl.drive, ctrl.v)
                     est = ctrl.estimator
                     if est.written and on_event is not None:
@@ -327,12 +337,15 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
                 if not code:
                     dev.write_command(drive, v)
                 end = mono()
-                t_avail = s.t_recv if s.t_recv > deadline else deadline
                 if end > t_avail + t_s:
                     overruns += 1
-                pack(buf, _HDR_BYTES + (k % cap) * row_bytes, s.t, s.T_w, s.T_p, v, s.T_a, cmd, T_p_cmd,
-                     drive, q_i_hat, dq, contact, gap, s.fresh, q_i, T_g, T_wt, T_pt, c_true, n_f, s.stale,
-                     s.stuck, s.status, s.seq, s.v, s.drive, late, start - t_avail, end - start, code)
+                # the log's v and drive: what the estimator modelled (a serial device's applied
+                # ones, which observe then reads back); the commands beside them
+                v_log, drive_log = (v, drive) if is_sim or code else (s.v, s.drive)
+                pack(buf, _HDR_BYTES + (k % cap) * row_bytes, s.t, s.T_w, s.T_p, v_log, s.T_a, cmd, T_p_cmd,
+                     drive_log, q_i_hat, dq, contact, gap, s.fresh, q_i, T_g, T_wt, T_pt, c_true, n_f,
+                     s.stale, s.stuck, s.status, s.seq, s.v, s.drive, late, start - t_avail, end - start,
+                     code, v, drive)
                 k += 1
                 count_pack(buf, 0, k)
                 if code or k >= n_max:
@@ -368,9 +381,10 @@ def run_loop(spec: LoopSpec, buf: Any, cap: int,
                     break
                 t_last_arrival = s.t_recv
                 # the host time of device time t_first as the earliest arrival allows (the first
-                # sample may have come late, from a backlog): for the reported safe time only;
-                # pacing keeps t0 (deadlines set by the earliest arrival made the loop wait on
-                # the link instead of sleeping to its deadline: more overruns, measured)
+                # sample may have come late, from a backlog, as after a second session's HELLO):
+                # for the lateness and the reported safe time; pacing keeps t0 (deadlines set by
+                # the earliest arrival made the loop wait on the link instead of sleeping to its
+                # deadline: more overruns, measured)
                 off = s.t_recv - (s.t - t_first)
                 if off < t0_min:
                     t0_min = off

@@ -43,7 +43,7 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
-from thermoskin.atomic import atomic_path
+from thermoskin.atomic import arrow_target, atomic_path
 from thermoskin.devices.base import Sample
 from thermoskin.runtime.mcap_scan import RecordingError, RecordingReport, ScanError, Scanner
 
@@ -840,7 +840,8 @@ def export(path_mcap: str | os.PathLike[str], out_path: str | os.PathLike[str],
     out.parent.mkdir(parents=True, exist_ok=True)
     table = pa.table({k: pa.array(v, type=pa.string() if _is_text(v) else pa.float64())
                       for k, v in cols.items()})
-    pq.write_table(table, out)
+    with arrow_target(out, "wb") as f:
+        pq.write_table(table, f)
     return out
 
 
@@ -877,7 +878,8 @@ def _export_blocks(blocks: Iterator[dict[str, Column]], out: Path, path_mcap: st
         for b in numbers():
             table = pa.table({k: pa.array(v, type=pa.float64()) for k, v in b.items()})
             if writer is None:
-                writer = stack.enter_context(pq.ParquetWriter(tmp, table.schema))
+                target = stack.enter_context(arrow_target(tmp, "wb"))
+                writer = stack.enter_context(pq.ParquetWriter(target, table.schema))
             writer.write_table(table)
     return out
 
@@ -985,7 +987,10 @@ class LoopRecorder:
         L = {k: (v.tolist() if hasattr(v, "tolist") else list(v)) for k, v in c.items()}
         nan = [math.nan] * n
         T_w, T_p, T_a = L["T_w"], L["T_p"], L["T_a"]
-        v_cmd, drive, T_w_cmd, T_p_cmd = L["v"], L["drive"], L["T_w_cmd"], L["T_p_cmd"]
+        # the commands (a fixed-rate loop's rows carry them apart from the log's v and drive,
+        # which are what the estimator modelled: a serial device's applied ones)
+        v_cmd, drive = L.get("v_cmd", L["v"]), L.get("drive_cmd", L["drive"])
+        T_w_cmd, T_p_cmd = L["T_w_cmd"], L["T_p_cmd"]
         v_dev, drive_dev = L.get("v_dev", v_cmd), L.get("drive_dev", drive)
         q, dq = L["q_i_hat"], L["dq_i_hat"]
         contact, gap = _ints(c["contact"], n), _ints(c["gap"], n)
@@ -1081,10 +1086,15 @@ def replay_blocks(path: str | os.PathLike[str], config: Any = None, info: dict[s
         if not params:
             raise RecordingError(f"{path}: no /params message; pass the configuration")
         config = config_from_params(params[0].get("config", {}))
+    # a serial run's estimator modelled what the device applied (/skin/sample's v and drive);
+    # others (and recordings from before that) the commands (/control's v_cmd and drive)
+    start = [e for e in read_mcap(path, ["/events"]).get("/events", []) if e.get("kind") == "run-start"]
+    applied = bool(start) and (start[0].get("detail") or {}).get("estimator_inputs") == "device"
+    v_name, drive_name = ("v", "drive") if applied else ("v_cmd", "control.drive")
     source = iter_columns(path, info=info, block=None if whole else BLOCK_ROWS)
     lim = limits(config.plausible)
     est = TouchEstimator(config)
-    need = ("T_w", "T_p", "T_a", "v_cmd")
+    need = ("T_w", "T_p", "T_a", v_name)
     samples = mism = 0
     max_q = max_dq = 0.0
     t_last = math.nan
@@ -1114,14 +1124,14 @@ def replay_blocks(path: str | os.PathLike[str], config: Any = None, info: dict[s
 
         t = col("t")
         inputs = {k: col(k) for k in ("T_w", "T_p", "T_a")}
-        v = col("v_cmd")
+        v = col(v_name)
         fresh = np.nan_to_num(col("fresh", 7.0), nan=7.0).astype(np.int64)
         # the readings as the loop admitted them
         admitted = dict(zip(("T_w", "T_p", "T_a"), admit_arrays(lim, inputs["T_w"], inputs["T_p"],
                                                                 inputs["T_a"]), strict=True))
-        # the commanded drive (control.drive), as the loop gave it to the estimator
+        # the drive as the loop gave it to the estimator
         res, _ = est.feed(t, admitted["T_w"], admitted["T_p"], v, admitted["T_a"], T_w_cmd=col("T_w_cmd"),
-                          fresh=fresh, drive=col("control.drive"))
+                          fresh=fresh, drive=col(drive_name))
         q_live, dq_live, c_live = col("q_i_hat"), col("dq_i_hat"), col("contact")
         max_q = max(max_q, worst(res["q_i_hat"], q_live))
         max_dq = max(max_dq, worst(res["dq_i_hat"], dq_live))

@@ -115,9 +115,11 @@ def run_skin(skin: Skin, scenario: SkinScenario, path: str | Path | None = None,
     fails: what ran is kept.
     """
     from thermoskin.logio import LogWriter
+    from thermoskin.skin.log import block_samples
 
     cfg = skin.cfg
     t_s = cfg.sampling.t_s
+    block = block_samples(len(skin.patches), block)  # rows a block: bounded whatever the skin's size
     plant = SkinPlant(skin, scenario, tank=tank, block=block)
     plant.reset(start)
     P, L, n = plant.P, plant.L, plant.n

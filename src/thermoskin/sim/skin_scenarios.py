@@ -270,8 +270,9 @@ def multi_scenario(skin: Skin, *, T_w_cmd: float = 24.0, T_a: float = 20.0, seed
                         "across a row of patches, quiet stretches", base, tuple(contacts))
 
 
-SKIN_SCENARIOS = ("multi",)
-"""Scenarios made for a skin (the single-patch ones apply too, on its first patch)."""
+SKIN_SCENARIOS = {"multi": "single touches on every patch (loop by loop, in the water's order), two at "
+                            "once on one loop, a grasp, a stroke across a row of patches, quiet stretches"}
+"""Scenarios made for a skin, with what they do (the single-patch ones apply too, on its first patch)."""
 
 
 def skin_scenario(name: str, skin: Skin, duration: float | None = None) -> SkinScenario:

@@ -9,6 +9,13 @@ m of each other. Grouping is transitive (a grasp over four patches in a row is o
 A :class:`BodyContact` has the link, the time span, the patches, the total heat flow (the sum
 of the events' mean estimated heat, W, signed) and the centre on the link: the heat-weighted
 mean of each event's point (its position along the pipe where known, else the patch's centre).
+
+**Scale.** Neighbours come from the layout (:func:`neighbours`: each link's patches in a grid
+of cells at least as wide as a patch and ``reach``, so a patch is compared with those of its
+own and the eight cells around: linear in the patches, not the ``P**2`` gaps of every pair,
+10**8 for 10 000 patches), and events are joined by a sweep over their onsets that keeps only
+those still open (:func:`group_events`, :func:`touch_kinds`): linear in the events times the
+contacts open at once, not their square.
 """
 
 from __future__ import annotations
@@ -84,9 +91,50 @@ def _overlap(ca: list[tuple[float, float]], cb: list[tuple[float, float]]) -> bo
     return True
 
 
+def _box(corners: list[tuple[float, float]]) -> tuple[float, float, float, float]:
+    xs, ys = [c[0] for c in corners], [c[1] for c in corners]
+    return min(xs), min(ys), max(xs), max(ys)
+
+
+def neighbours(skin: Skin, reach: float = REACH) -> list[frozenset[int]]:
+    """Per patch, the other patches on its link whose rectangles come within ``reach`` m of its own
+    (:func:`gap` ``<= reach``), found through a grid of each link's surface (module doc)."""
+    P = len(skin.patches)
+    out: list[set[int]] = [set() for _ in range(P)]
+    by_link: dict[str, list[int]] = {}
+    for p in skin.patches:
+        by_link.setdefault(p.link, []).append(p.index)
+    for members in by_link.values():
+        boxes = {i: _box(skin.patches[i].corners()) for i in members}
+        size = max(max(b[2] - b[0], b[3] - b[1]) for b in boxes.values()) + reach
+        size = size if size > 0 else 1.0
+        cells: dict[tuple[int, int], list[int]] = {}
+        where = {}
+        for i, (x0, y0, x1, y1) in boxes.items():
+            key = (math.floor(0.5 * (x0 + x1) / size), math.floor(0.5 * (y0 + y1) / size))
+            where[i] = key
+            cells.setdefault(key, []).append(i)
+        for a in members:
+            ax0, ay0, ax1, ay1 = boxes[a]
+            cx, cy = where[a]
+            for kx in (cx - 1, cx, cx + 1):
+                for ky in (cy - 1, cy, cy + 1):
+                    for b in cells.get((kx, ky), ()):
+                        if b <= a:
+                            continue
+                        bx0, by0, bx1, by1 = boxes[b]
+                        if bx0 - ax1 > reach or ax0 - bx1 > reach or by0 - ay1 > reach or ay0 - by1 > reach:
+                            continue  # their boxes are farther apart: so are the rectangles
+                        if gap(skin, a, b) <= reach:
+                            out[a].add(b)
+                            out[b].add(a)
+    return [frozenset(s) for s in out]
+
+
 def group_events(skin: Skin, events: list[SkinEvent], *, reach: float = REACH,
-                 slack: float = SLACK) -> list[BodyContact]:
-    """The body contacts of ``events`` (module doc), in order of onset."""
+                 slack: float = SLACK, near: list[frozenset[int]] | None = None) -> list[BodyContact]:
+    """The body contacts of ``events`` (module doc), in order of onset. ``near``: the skin's
+    :func:`neighbours` at ``reach`` where already known."""
     n = len(events)
     parent = list(range(n))
 
@@ -96,15 +144,19 @@ def group_events(skin: Skin, events: list[SkinEvent], *, reach: float = REACH,
             a = parent[a]
         return a
 
-    for a in range(n):
-        ea = events[a]
-        for b in range(a + 1, n):
+    if n > 1:
+        near = neighbours(skin, reach) if near is None else near
+        order = sorted(range(n), key=lambda i: events[i].event.onset)
+        open_: list[int] = []  # events whose release + slack is not yet behind the onsets reached
+        for b in order:
             eb = events[b]
-            if ea.event.onset > eb.event.release + slack or eb.event.onset > ea.event.release + slack:
-                continue
-            if ea.patch == eb.patch or gap(skin, ea.patch, eb.patch) > reach:
-                continue
-            parent[find(a)] = find(b)
+            onset = eb.event.onset
+            open_ = [a for a in open_ if events[a].event.release + slack >= onset]
+            nb = near[eb.patch]
+            for a in open_:  # a began first: a.onset <= b.onset <= b.release + slack
+                if events[a].patch in nb:
+                    parent[find(a)] = find(b)
+            open_.append(b)
     groups: dict[int, list[int]] = {}
     for a in range(n):
         groups.setdefault(find(a), []).append(a)
@@ -142,6 +194,7 @@ def touch_kinds(skin: Skin, events: list[SkinEvent], *, reach: float = REACH) ->
     each other on a link as neighbours)."""
     from thermoskin.touch.kinds import kinds_of
 
-    P = len(skin.patches)
-    neighbours = {a: {b for b in range(P) if b != a and gap(skin, a, b) <= reach} for a in range(P)}
-    return kinds_of([(e.patch, e.event) for e in events], neighbours)
+    if not events:
+        return []
+    near = neighbours(skin, reach)
+    return kinds_of([(e.patch, e.event) for e in events], dict(enumerate(near)))

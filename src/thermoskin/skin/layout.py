@@ -64,7 +64,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from thermoskin.params import Config, ConfigError, SkinParams, read_toml
+from thermoskin.params import Config, ConfigError, SkinParams, check_kind, read_toml
 from thermoskin.physics.spatial import SpatialParams
 
 REF_LENGTH = 0.03
@@ -318,6 +318,10 @@ def _scaled_skin(base: SkinParams, length: float, width: float, own: Mapping[str
     return dataclasses.replace(base, **{k: v for k, v in scaled.items() if k not in own})
 
 
+#: Most patches a skin may have (measured at this size: docs/skin.md, Limits).
+MAX_PATCHES = 10_000
+
+
 def parse_skin(data: Mapping[str, Any], source: str, cfg: Config | None = None) -> Skin:
     """A skin from the parsed TOML ``data`` (``source`` names it in messages); ``cfg`` the base
     config (default: the paper's). Raises :class:`ConfigError` (one line) on any bad key or value."""
@@ -361,6 +365,10 @@ def parse_skin(data: Mapping[str, Any], source: str, cfg: Config | None = None) 
         W.error("[patches]", "is missing: a skin needs at least one patch"))
     if not patches_t:
         raise W.error("[patches]", "is empty: a skin needs at least one patch")
+    if len(patches_t) > MAX_PATCHES:
+        raise W.error("[patches]", f"holds {len(patches_t)} patches, more than a skin may have "
+                      f"({MAX_PATCHES}: at that size a run takes about 2.6 GB and runs 500 times slower "
+                      "than real time on two cores, docs/skin.md, Limits); split the skin")
     raw: list[dict[str, Any]] = []
     for i, (pname, pt) in enumerate(patches_t.items()):
         key = f"patches.{pname}"
@@ -484,7 +492,9 @@ def load_skin(path: str | Path | None = None, cfg: Config | None = None) -> Skin
     """The skin described in the TOML file ``path`` (None: :func:`single_skin`) on config ``cfg``."""
     if path is None:
         return single_skin(cfg)
-    return parse_skin(read_toml(path, "skin description"), str(Path(path)), cfg)
+    data = read_toml(path, "layout file")
+    check_kind(path, data, "layout")
+    return parse_skin(data, str(Path(path)), cfg)
 
 
 SINGLE = """\

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from thermoskin.atomic import atomic_path
 from thermoskin.logio import LogError
+from thermoskin.logio.units import Units
 from thermoskin.skin.layout import Skin
 
 Array = NDArray[np.float64]
@@ -32,7 +33,17 @@ REQUIRED = ("t", "patch", "T_w", "T_p", "v", "T_a")
 TRUTH = ("q_i", "contact_true", "position_true")
 """The simulator's truth columns (kept, never used by the estimator)."""
 CHUNK_SAMPLES = 16_384
-"""Samples per block of :class:`SkinLogReader` (times the patches: rows)."""
+"""Samples per block of :class:`SkinLogReader` (times the patches: rows), at most."""
+ROWS_PER_BLOCK = 1 << 20
+"""Rows (samples times patches) a block of a skin's log holds at most, so that memory follows
+neither the log's length nor the skin's size: with 10 000 patches a block of 16 384 samples was
+1.6e8 rows, about 26 GB of columns (:func:`block_samples`)."""
+
+
+def block_samples(P: int, samples: int = CHUNK_SAMPLES) -> int:
+    """Samples of a block of a ``P``-patch skin: ``samples``, fewer where that would be more than
+    :data:`ROWS_PER_BLOCK` rows (one at least)."""
+    return max(1, min(int(samples), ROWS_PER_BLOCK // max(1, P)))
 RTOL = 1e-3
 """A skin log's sample intervals are within this share of the first block's median."""
 
@@ -74,12 +85,14 @@ class SkinLogReader:
     the column, when its block is reached. Attributes: ``names`` (the file's columns), ``t_s``
     (the first block's interval, once read), ``n`` (samples read so far)."""
 
-    def __init__(self, path: str | os.PathLike[str], skin: Skin, chunk_samples: int = CHUNK_SAMPLES) -> None:
+    def __init__(self, path: str | os.PathLike[str], skin: Skin, chunk_samples: int = CHUNK_SAMPLES,
+                 units: Units | None = None) -> None:
+        """``units``: the log's units (:class:`~thermoskin.logio.units.Units`; None: as they are)."""
         from thermoskin.logio import LogReader
 
         self.path, self.skin, self.P = Path(path), skin, len(skin.patches)
-        self._r = LogReader(path, ("t",), _nan_ok, chunk_rows=max(1, chunk_samples) * self.P,
-                            rows_per_sample=self.P, check=self._patches, rtol=RTOL)
+        self._r = LogReader(path, ("t",), _nan_ok, chunk_rows=block_samples(self.P, chunk_samples) * self.P,
+                            rows_per_sample=self.P, check=self._patches, rtol=RTOL, units=units)
         self.names: list[str] = list(self._r.names)
         missing = [c for c in REQUIRED if c not in self.names]
         if missing:

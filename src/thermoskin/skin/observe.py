@@ -1,4 +1,4 @@
-"""Estimation and detection on a skin of many patches: ``thermoskin observe LOG --skin SKIN.toml``.
+"""Estimation and detection on a skin of many patches: ``thermoskin observe LOG --skin LAYOUT.toml``.
 
 Per patch, the one-patch estimator of the compiled kernel
 (:class:`~thermoskin.estimation.patches.PatchEstimators`, one state row per patch,
@@ -64,6 +64,7 @@ from thermoskin.estimation.events import ContactEvent
 from thermoskin.estimation.freshness import CHANNEL_BITS, FreshInference, loop_t_s
 from thermoskin.estimation.model import fixed_sensors
 from thermoskin.estimation.patches import PatchEstimators
+from thermoskin.logio.units import Units
 from thermoskin.params import Config
 from thermoskin.skin.inlet import InletStream
 from thermoskin.skin.layout import NETWORK_KEYS, Skin, tc_fresh_bit
@@ -433,7 +434,8 @@ class SkinFileObservation:
 def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os.PathLike[str] | None, *,
                       locate: bool = True, chunk_samples: int = CHUNK_SAMPLES,
                       compiling: Callable[[], None] | None = None,
-                      progress: Callable[[float], None] | None = None) -> SkinFileObservation:
+                      progress: Callable[[float], None] | None = None,
+                      units: Units | None = None) -> SkinFileObservation:
     """:func:`observe_skin` on the log at ``path``, streamed: the log's columns and the estimates
     (as ``observe --skin`` writes them) go to ``output`` block by block, so memory does not grow
     with the log's length (``output`` None: a temporary file beside the log, removed at the end;
@@ -448,16 +450,18 @@ def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os
     3. ``output`` is read back for the samples each contact's position needs
        (:func:`~thermoskin.skin.position.window`: a few seconds each), which alone are kept.
 
-    The same outputs and events as :func:`observe_skin` on the whole log (tested)."""
+    The same outputs and events as :func:`observe_skin` on the whole log (tested). ``units``: the
+    log's units (:class:`~thermoskin.logio.units.Units`; the output is in seconds and °C)."""
     from thermoskin.logio import write_blocks
 
     if output is None:
         with tempfile.TemporaryDirectory(prefix=".thermoskin-observe-", dir=Path(path).parent) as d:
             return observe_skin_file(path, skin, Path(d) / "observed.parquet", locate=locate,
-                                     chunk_samples=chunk_samples, compiling=compiling, progress=progress)
+                                     chunk_samples=chunk_samples, compiling=compiling, progress=progress,
+                                     units=units)
 
     P = len(skin.patches)
-    reader = SkinLogReader(path, skin, chunk_samples)
+    reader = SkinLogReader(path, skin, chunk_samples, units)
     infer = SkinFreshInference(skin)
     counter: ReadingCounter | None = None
     t0 = t_end = math.nan
@@ -477,7 +481,7 @@ def observe_skin_file(path: str | os.PathLike[str], skin: Skin, output: str | os
 
     def estimated() -> Iterator[dict[str, Array]]:  # 2: estimated block by block, as written
         done = 0
-        for t, cols in SkinLogReader(path, skin, chunk_samples):
+        for t, cols in SkinLogReader(path, skin, chunk_samples, units):
             b = est.block(t, cols)
             extra = {f"{k}_live": cols[k] for k in live}
             extra.update({"T_in": b.T_in, **b.columns})

@@ -92,7 +92,6 @@ class PatchLocator:
         lp = skin.loops[p.loop]
         self.patch = p
         self.t_s = t_s
-        self.v_on = lp.cfg.pump.v_on
         self.flow = FlowResistance(lp.cfg.skin)
         self.ends = (p.index == lp.patches[0], p.index == lp.patches[-1])
         sp = p.spatial

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.params import Config, ConfigError, load_config, read_toml, to_toml
+from thermoskin.params import Config, ConfigError, check_kind, load_config, read_toml, to_toml
 from thermoskin.sim.scenarios import SCENARIOS
 from thermoskin.skin.layout import REF_LENGTH, REF_WIDTH, _scaled_skin
 from thermoskin.sweep.engine import EXTRA, LOOPS, METRICS, ScenarioSpec
@@ -265,6 +265,7 @@ def load_sweep(path: str | Path) -> Sweep:
     p = Path(path)
     src = str(p)
     data = read_toml(p, "sweep file", SweepError)
+    check_kind(p, data, "sweep", SweepError)
     for k in data:
         if k not in ("sweep", "scenario", "keys"):
             raise _err(src, k, "unknown table (known: sweep, scenario, keys)")

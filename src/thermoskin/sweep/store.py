@@ -18,7 +18,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from thermoskin.atomic import atomic_path
+from thermoskin.atomic import arrow_target, atomic_path
 
 
 def parts_dir(out: Path) -> Path:
@@ -35,7 +35,8 @@ def check_columns(out: Path, columns: Sequence[str]) -> None:
     files = ([out] if out.is_file() else []) + (sorted(d.glob("part-*.parquet")) if d.is_dir() else [])
     for f in files:
         try:
-            names = pq.read_schema(f).names
+            with arrow_target(f) as src:
+                names = pq.read_schema(src).names
         except (pa.ArrowInvalid, OSError):
             raise SweepError(f"-o {out}: {f} exists and is not a Parquet file; choose another "
                              "output or remove it") from None
@@ -53,7 +54,8 @@ def done_hashes(out: Path) -> set[str]:
         files += sorted(d.glob("part-*.parquet"))
     for f in files:
         try:
-            done.update(pq.read_table(f, columns=["hash"]).column("hash").to_pylist())
+            with arrow_target(f) as src:
+                done.update(pq.read_table(src, columns=["hash"]).column("hash").to_pylist())
         except (pa.ArrowInvalid, OSError, KeyError):
             continue  # not a result file of ours: it is rewritten at the merge
     return done
@@ -77,8 +79,8 @@ def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> pa.Table:
 
 
 def _write_atomic(table: pa.Table, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        pq.write_table(table, tmp)
+    with atomic_path(path) as tmp, arrow_target(tmp, "wb") as f:
+        pq.write_table(table, f)
 
 
 def write_part(out: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> Path:
@@ -99,7 +101,8 @@ def merge(out: Path, columns: Sequence[str], keep: set[str]) -> int:
     files = ([out] if out.is_file() else []) + (sorted(d.glob("part-*.parquet")) if d.is_dir() else [])
     for f in files:
         try:
-            t = pq.read_table(f)
+            with arrow_target(f) as src:
+                t = pq.read_table(src)
         except (pa.ArrowInvalid, OSError):
             continue
         if list(t.column_names) == list(columns):

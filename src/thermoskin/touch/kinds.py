@@ -74,23 +74,31 @@ def touches(contacts: Sequence[tuple[int, ContactEvent]],
     (default: any two patches may share a touch)."""
     order = sorted(range(len(contacts)), key=lambda i: contacts[i][1].onset)
     groups: list[list[int]] = []
+    group_of: dict[int, int] = {}
+    # Contacts in order of onset: one that began earlier (f.onset <= e.onset <= e.release) joins
+    # e while f.release + LINK_S >= e.onset, a test that every later contact fails once this
+    # one does. So only the contacts still open are looked at, and e joins the first group
+    # (in the order they were made) holding one of them on a neighbouring patch: the touches of
+    # a pass over every pair, in time linear in the contacts times those open at once.
+    open_: list[int] = []
     for i in order:
         p, e = contacts[i]
+        open_ = [j for j in open_ if contacts[j][1].release + LINK_S >= e.onset]
+        near = None if neighbours is None else neighbours.get(p, ())
         joined = None
-        for g in groups:
-            for j in g:
-                q, f = contacts[j]
-                if q == p or (neighbours is not None and q not in neighbours.get(p, ())):
-                    continue
-                if e.onset <= f.release + LINK_S and f.onset <= e.release + LINK_S:
-                    joined = g
-                    break
-            if joined is not None:
-                break
+        for j in open_:
+            q, f = contacts[j]
+            if q == p or (near is not None and q not in near):
+                continue
+            if f.onset <= e.release + LINK_S and (joined is None or group_of[j] < joined):
+                joined = group_of[j]
         if joined is None:
+            group_of[i] = len(groups)
             groups.append([i])
         else:
-            joined.append(i)
+            group_of[i] = joined
+            groups[joined].append(i)
+        open_.append(i)
     out: list[Touch] = []
     for g in groups:
         patches = tuple(dict.fromkeys(contacts[i][0] for i in g))
