@@ -70,7 +70,8 @@ def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_perio
         except (KeyError, ValueError) as e:
             click.echo(f"thermoskin: error: {e.args[0] if isinstance(e, KeyError) else e}", err=True)
             sys.exit(2)
-        sys.exit(firmware_main(str(link), cfg, sc, specs, tc_period, jitter, truth_path, watchdog))
+        sys.exit(firmware_main(str(link), cfg, sc, specs, tc_period, jitter, truth_path, watchdog,
+                               ideal_sensors=ideal_sensors))
     sys.exit(emulator_main(str(link), scenario, list(faults), tc_period, cfg, jitter=jitter,
                            truth=truth_path, watchdog=watchdog, ideal_sensors=ideal_sensors))
 
