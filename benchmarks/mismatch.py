@@ -21,6 +21,7 @@ Seeds from ``--seed0`` (7000): never used in tuning (the tuning seeds were 100-1
 boards, 9000-9002 for the issue's cases, 0-5 in closed loop).
 
     python benchmarks/mismatch.py [--seeds 3] [--duration 240] [--quiet-min 20] [--only a,b] [--json]
+    python benchmarks/mismatch.py --markdown RESULT.json    # the table of docs/sensors.md
 """
 
 from __future__ import annotations
@@ -180,6 +181,24 @@ def condition(m: Mismatch, seeds: list[int], duration: float, quiet_min: float) 
             "bar_met": bool(bar)}
 
 
+def markdown(res: dict[str, Any]) -> str:
+    """The table of a ``--json`` result (``docs/sensors.md``)."""
+    out = [f"Seeds {res['seeds'][0]}-{res['seeds'][-1]} (touch logs of {res['duration_s']:g} s) and "
+           f"{res['seeds'][0] + 500}-{res['seeds'][-1] + 500} (no touch, {res['quiet_min']:g} min each).",
+           "",
+           "| condition | detected | false alarms (per hour) | latency median / p90 s | one-finger SNR "
+           "| offset error max mK | lag learnt ms | bar |",
+           "|---|---|---|---|---|---|---|---|"]
+    for r in res["conditions"]:
+        out.append(f"| {r['condition']} | {r['detected']}/{r['touches']} | {r['false_alarms']} "
+                   f"({r['false_alarms_per_h']:.1f}) | {r['latency_median_s']:.2f} / "
+                   f"{r['latency_p90_s']:.2f} "
+                   f"| {r['snr_one_finger']:.1f}{' (line)' if r['snr_line'] else ''} "
+                   f"| {r['offset_err_max_K'] * 1e3:.0f} | {r['lag_learnt_median_s'] * 1e3:.0f} "
+                   f"| {'met' if r['bar_met'] else '**not met**'} |")
+    return "\n".join(out)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3, help="logs with touches per condition")
@@ -188,7 +207,13 @@ def main() -> None:
     ap.add_argument("--quiet-min", type=float, default=20.0, help="minutes of no touch per seed")
     ap.add_argument("--only", default=None, help="comma-separated substrings of condition names")
     ap.add_argument("--json", action="store_true", help="only the JSON line on stdout")
+    ap.add_argument("--markdown", default=None, metavar="RESULT.json",
+                    help="print the markdown table of a --json result and exit")
     a = ap.parse_args()
+    if a.markdown:
+        with open(a.markdown) as f:
+            print(markdown(json.loads(f.read().splitlines()[-1])))
+        return
     seeds = list(range(a.seed0, a.seed0 + a.seeds))
     grid = [m for m in GRID if a.only is None or any(s in m.name for s in a.only.split(","))]
     rows = []
