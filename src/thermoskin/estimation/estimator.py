@@ -135,6 +135,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_RHOEARLY] = 10.0
     pr[K.PR_RHO0] = 2.0
     pr[K.PR_RHOCAP] = 1e6
+    pr[K.PR_SLOWCU] = 0.25
     pr[K.PR_SLOWON] = 1.0 if (sn.offset_sd > 0 or sn.lag_sd > 0 or sn.lag_T_w > 0) else 0.0
     pr[K.PR_AIR] = min(1.0, t_s / 10.0)
     return pr

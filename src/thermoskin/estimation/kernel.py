@@ -310,7 +310,9 @@ PR_RHO0 = 96     # the dispersion before its third window
 PR_RHOCAP = 97   # ... and at most this over its first windows (a touch among them)
 PR_SLOWON = 98   # 1: the pipe thermocouple's bead and the slow states are carried (0: neither is:
                  # no lag, nothing learnt of them; the filter alone, as fast as before them)
-NPARAM = 99
+PR_SLOWCU = 99   # the slow states do not learn while an onset CUSUM is above this fraction of
+                 # its threshold (a touch's evidence building before its detection)
+NPARAM = 100
 
 
 #: Rows of the per-sample outputs (:func:`run`, :func:`run_rows`).
@@ -1396,6 +1398,19 @@ def _detect(st, pr, t, ev):
 
 
 @_inline
+def _building(st, pr):
+    """Whether the detector's evidence of an onset builds: idle, and an onset CUSUM above
+    ``PR_SLOWCU`` of the onset threshold (as the last sample left them)."""
+    if st[MODE] != IDLE:
+        return False
+    lim = pr[PR_SLOWCU] * st[HTH]
+    for j in range(NCU):  # noqa: SIM110 (a loop, not a generator, in compiled code)
+        if st[CU + 4 * j] > lim:
+            return True
+    return False
+
+
+@_inline
 def _switch_correction(st, pr, Rw, iv_old, iv, slot):
     """A log coarser than the loop: the pump switched (table row ``iv_old`` to ``iv``) somewhere
     in the last interval, not at its end; the water brought (T_p - T_w)(1/R_w,new - 1/R_w,old)
@@ -1484,6 +1499,11 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     # not while the filter settles after its start
     slow = (pr[PR_LEARN] != 0.0 and st[MODE] != INCONTACT and t - st[TREL] >= pr[PR_TSETTLE]
             and t - st[TINIT] >= pr[PR_LDELAY])
+    # nor while the detector's evidence builds (an onset CUSUM above a fraction of its
+    # threshold): the readings between a touch's onset and its detection are the touch's, and
+    # learnt they moved the lag and the offset, whose error then read as heat at each pump
+    # switch (a flood the hold during contacts kept); the window goes on without them
+    learn_slow = slow and not _building(st, pr)
     if st[READY] == 0.0:
         if gap:
             return C_CONTACT if st[MODE] == INCONTACT else 0
@@ -1520,7 +1540,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                 if st[MODE] != INCONTACT:
                     st[j] = c + pr[PR_APH] * (T_w - st[X] - c)
                 y = T_w - c
-            p = _update(st, pr, 0, y, p, _eta_w(pr, t - st[TLW]) if learn else 0.0, slow)
+            p = _update(st, pr, 0, y, p, _eta_w(pr, t - st[TLW]) if learn else 0.0, learn_slow)
             st[GAPRUN] = 0.0
             dt = t - st[TLW]
             if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is
@@ -1531,7 +1551,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         else:
             st[GAPRUN] += 1.0
         if upd_p:
-            p = _update(st, pr, 3, T_p - pr[PR_OFP] - st[BD], p, 0.0, slow)
+            p = _update(st, pr, 3, T_p - pr[PR_OFP] - st[BD], p, 0.0, learn_slow)
             st[TLP] = t
         if upd_w or upd_p:
             _p_put(st, p)

@@ -89,6 +89,7 @@ RHO_EARLY = 10.0             # in the filter's first seconds: not taken
 RHO_SETTLE = 0.5     # its windows begin this long after a release, s
 IRATE_TAU = 10.0     # the information rate's time constant, s
 SLOW_WINDOW = 0.4    # the slow states' window, s
+SLOW_HOLD_CU = 0.25  # the slow states do not learn while an onset CUSUM is above this share of h
 R_SLOT = 0.5         # the pipe reading variance's steps are gathered in slots this long, s
 FAST_READINGS = 200.0  # ... learnt from pipe readings this many a second or more
 N_SLOTS = 4          # and taken into it N_SLOTS - 1 slots late (dropped at a detection)
@@ -407,6 +408,9 @@ class ReferenceEstimator:
             self._r_slots(t)
         slow = (self.learn and self.mode != "contact" and t - self.t_rel >= self.cfg.detector.t_settle
                 and t - self.t_init >= LEARN_DELAY)
+        # nor while the detector's evidence of an onset builds (the window goes on without them)
+        learn_slow = slow and not (self.mode == "idle"
+                                   and any(c.g > SLOW_HOLD_CU * self.h for c in self.cusums))
         if not self.ready:
             if self.gap:
                 return self.contact
@@ -431,7 +435,7 @@ class ReferenceEstimator:
                         self.tpl[j] = corr + self.cfg.estimator.switch_learn * (T_w - self.x[I_TW] - corr)
                     y = T_w - corr
                 eta = min(ETA_MAX, (t - self.t_last_w) / self.cfg.estimator.tau_noise) if learn_r else 0.0
-                a, c = self._update(I_TW, y, slow, eta)
+                a, c = self._update(I_TW, y, learn_slow, eta)
                 ge, gg = ge + a, gg + c
                 self.gap_run = 0
                 dt = t - self.t_last_w
@@ -442,7 +446,7 @@ class ReferenceEstimator:
             else:
                 self.gap_run += 1
             if fresh & 2 and math.isfinite(T_p):
-                a, c = self._update(I_TP, T_p - self.b_hat, slow, 0.0)
+                a, c = self._update(I_TP, T_p - self.b_hat, learn_slow, 0.0)
                 ge, gg = ge + a, gg + c
                 self.t_last_p = t
         if iv_old is not None:
