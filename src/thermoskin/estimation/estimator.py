@@ -109,7 +109,11 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_RA0] = measurement_variance(cfg, "T_a")
     pr[K.PR_OFW], pr[K.PR_OFP], pr[K.PR_OFA] = sn.offset_T_w, sn.offset_T_p, sn.offset_T_a
     pr[K.PR_BD0] = 0.0
-    pr[K.PR_PB0] = sn.offset_sd**2
+    # the slow states learn from logs of 100 Hz and faster only: at 50 Hz the pump switches
+    # between rows and the model's misfit there looks like an offset (0.1 K learnt where there
+    # was none, the detector's evidence drowned in its uncertainty)
+    slow_ok = t_s <= K.SLOW_TS_MAX
+    pr[K.PR_PB0] = sn.offset_sd**2 if slow_ok else 0.0
     pr[K.PR_SB] = es.offset_drift
     pr[K.PR_TAUR] = es.tau_noise
     pr[K.PR_LEARN] = 1.0
@@ -119,7 +123,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_RHODB] = d.rho_deadband
     pr[K.PR_RHOSET] = 0.5
     pr[K.PR_LAG0] = sn.lag_T_w
-    pr[K.PR_PT0] = sn.lag_sd**2
+    pr[K.PR_PT0] = sn.lag_sd**2 if slow_ok else 0.0
     pr[K.PR_ST] = es.lag_drift
     pr[K.PR_TAUMAX] = max(es.lag_max, sn.lag_T_w)
     pr[K.PR_DBMAX] = 1e-3  # K a reading: 1 K/s at 1 kHz
@@ -136,7 +140,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_RHO0] = 2.0
     pr[K.PR_RHOCAP] = 1e6
     pr[K.PR_SLOWCU] = 0.25
-    pr[K.PR_SLOWON] = 1.0 if (sn.offset_sd > 0 or sn.lag_sd > 0 or sn.lag_T_w > 0) else 0.0
+    pr[K.PR_SLOWON] = 1.0 if (pr[K.PR_PB0] > 0 or pr[K.PR_PT0] > 0 or sn.lag_T_w > 0) else 0.0
     pr[K.PR_AIR] = min(1.0, t_s / 10.0)
     return pr
 

@@ -314,6 +314,11 @@ PR_SLOWCU = 99   # the slow states do not learn while an onset CUSUM is above th
                  # its threshold (a touch's evidence building before its detection)
 NPARAM = 100
 
+#: The slow states (offset, lag) are learnt from logs of this sample period or shorter only, s
+#: (100 Hz and faster): at 50 Hz the pump switches between rows, and the model's misfit there
+#: looked like an offset (0.1 K learnt where there was none).
+SLOW_TS_MAX = 0.0100001
+
 
 #: Rows of the per-sample outputs (:func:`run`, :func:`run_rows`).
 NOUT = 10
@@ -1727,10 +1732,11 @@ def _slow_window(st, pr, t):
     s²/S``, the window's least-squares estimate of the error): the learnt value was believed too
     well (a first-order filter's covariance shrinks before a lag far from its start is reached),
     and the next readings move it at once. Its covariance with the other is let go with it. At
-    most (1 K)² for the offset and ``PR_TAUMAX``² for the lag (an absurd reading's window)."""
-    for j, o, cap in ((0, PBB, 1.0), (2, PTT, pr[PR_TAUMAX] * pr[PR_TAUMAX])):
+    most (1 K)² for the offset and ``PR_TAUMAX``² for the lag (an absurd reading's window); a
+    state whose prior variance is 0 (not learnt) stays as it is."""
+    for j, o, cap, p0 in ((0, PBB, 1.0, pr[PR_PB0]), (2, PTT, pr[PR_TAUMAX] * pr[PR_TAUMAX], pr[PR_PT0])):
         a, b = st[SWIN + j], st[SWIN + j + 1]
-        if b > 0.0 and a * a > 9.0 * b:
+        if p0 > 0.0 and b > 0.0 and a * a > 9.0 * b:  # (a state not learnt is not let go)
             d = a / b
             v = d * d if d * d < cap else cap
             if v > st[o]:

@@ -90,6 +90,7 @@ RHO_SETTLE = 0.5     # its windows begin this long after a release, s
 IRATE_TAU = 10.0     # the information rate's time constant, s
 SLOW_WINDOW = 0.4    # the slow states' window, s
 SLOW_HOLD_CU = 0.25  # the slow states do not learn while an onset CUSUM is above this share of h
+SLOW_TS_MAX = 0.0100001  # ... and are learnt from logs of 100 Hz and faster only, s
 R_SLOT = 0.5         # the pipe reading variance's steps are gathered in slots this long, s
 FAST_READINGS = 200.0  # ... learnt from pipe readings this many a second or more
 N_SLOTS = 4          # and taken into it N_SLOTS - 1 slots late (dropped at a detection)
@@ -144,7 +145,9 @@ class ReferenceEstimator:
         #: the learning on (off: the re-dating's filter holds what it is given)
         self.learn = True
         self.b_hat, self.tau = 0.0, sn.lag_T_w  # the slow states: offset (K), lag (s)
-        self.P_B = np.diag([sn.offset_sd**2, sn.lag_sd**2])
+        slow_ok = self.t_s <= SLOW_TS_MAX  # (kernel: the estimator's PR_PB0, PR_PT0)
+        self.P_B = np.diag([sn.offset_sd**2, sn.lag_sd**2]) if slow_ok else np.zeros((2, 2))
+        self.slow_prior = self.P_B.diagonal() > 0  # a state with no prior is not let go
         self.window = np.zeros(4)  # the slow states' window: sum s e/S, s^2/S (offset, lag)
         self.t_window = 0.0
         self.t_init = -1e300
@@ -331,7 +334,8 @@ class ReferenceEstimator:
         tau_max = max(self.cfg.estimator.lag_max, self.cfg.sensor.lag_T_w)
         for j, k, cap in ((0, 0, 1.0), (2, 1, tau_max**2)):
             A, Bw = self.window[j], self.window[j + 1]
-            if Bw > 0 and 9 * Bw < A * A and min((A / Bw) ** 2, cap) > self.P_B[k, k]:
+            if (self.slow_prior[k] and Bw > 0 and 9 * Bw < A * A
+                    and min((A / Bw) ** 2, cap) > self.P_B[k, k]):
                 self.P_B[k, k] = min((A / Bw) ** 2, cap)
                 self.P_B[0, 1] = self.P_B[1, 0] = 0.0
         self.window[:] = 0.0
