@@ -279,3 +279,36 @@ def test_slow_states_not_learnt_while_the_evidence_builds() -> None:
         elif log["t"][k] > 1.0 and (est.st[K.BD], est.st[K.LAGT]) != before:
             moved += 1
     assert held >= 10 and moved > 1000
+
+
+def test_slow_states_learnt_from_fast_logs_only() -> None:
+    """A 50 Hz log (1 kHz readings decimated by 20, an offset of 0.2 K on T_p): the offset is not
+    learnt (its prior is 0, it stays at the configured 0); the same readings at 100 Hz learn it
+    within 20 mK. Both the kernel's parameters and the reference's prior say the same."""
+    from thermoskin.estimation.reference import ReferenceEstimator
+    from thermoskin.sim.conditions import decimate
+
+    cfg, log = _quiet(40.0, offset_T_p=0.2)
+    for factor, learns in ((20, False), (10, True)):
+        d = decimate(log, factor)
+        est = TouchEstimator(cfg, t_s=factor * cfg.sampling.t_s)
+        est.run(d["t"], d["T_w"], d["T_p"], d["v"], d["T_a"], T_w_cmd=d["T_w_cmd"])
+        ref = ReferenceEstimator(cfg, t_s=factor * cfg.sampling.t_s)
+        lt = est.learnt()
+        assert (est.pr[K.PR_PB0] > 0) == learns and bool(ref.P_B[0, 0] > 0) == learns
+        if learns:
+            assert lt.offset_p == pytest.approx(0.2, abs=0.02)
+        else:
+            assert lt.offset_p == 0.0 and lt.lag_w == 0.0
+
+
+def test_a_slow_state_not_learnt_is_not_let_go() -> None:
+    """With ``lag_sd = 0`` the lag stays at its configured value (0) on readings whose pipe
+    thermocouple lags by 0.1 s, which the windows' test would otherwise take as a reason to let
+    its variance go and learn it."""
+    cfg0, log = _quiet(30.0, lag_T_w=0.1)
+    cfg = cfg0.replace(sensor={"lag_sd": 0.0})
+    est, _ = _run(cfg, log)
+    assert est.st[K.LAGT] == 0.0 and est.st[K.PTT] == 0.0
+    est1, _ = _run(cfg0, log)
+    assert est1.learnt().lag_w > 0.05  # (learnt where it may be)
