@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from thermoskin.devices import protocol as proto
-from thermoskin.devices.emulator import OVERTEMP_C, FaultSpec, PtyEmulator, TruthWriter
+from thermoskin.devices.emulator import OVERTEMP_C, FaultSpec, PtyEmulator, TruthWriter, write_pending
 from thermoskin.params import Config
 from thermoskin.sim.boards import describe
 from thermoskin.sim.plant import SimulatedPlant
@@ -534,16 +534,7 @@ class HostUsb:
         return n
 
     def flush(self) -> None:
-        if not self.out:
-            return
-        try:
-            k = os.write(self.fd, self.out)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError:
-            self.out.clear()
-            return
-        del self.out[:k]
+        write_pending(self.fd, self.out)
 
     def wait(self, us: int) -> None:
         self.flush()
