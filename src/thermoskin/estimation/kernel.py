@@ -1733,10 +1733,15 @@ def _slow_window(st, pr, t):
     well (a first-order filter's covariance shrinks before a lag far from its start is reached),
     and the next readings move it at once. Its covariance with the other is let go with it. At
     most (1 K)² for the offset and ``PR_TAUMAX``² for the lag (an absurd reading's window); a
-    state whose prior variance is 0 (not learnt) stays as it is."""
+    state whose prior variance is 0 (not learnt) stays as it is, and so do both with a slow
+    board (fewer than ``PR_RFAST`` readings a second)."""
+    # (from fast boards only, PR_RFAST readings a second and more: a slow board's few readings a
+    # window, each holding the model's prediction over its interval, let them go again and again,
+    # the offset's sd back to 0.3-0.5 K, the dispersion never learnt, false alarms)
+    fast = st[RATE] >= pr[PR_RFAST]
     for j, o, cap, p0 in ((0, PBB, 1.0, pr[PR_PB0]), (2, PTT, pr[PR_TAUMAX] * pr[PR_TAUMAX], pr[PR_PT0])):
         a, b = st[SWIN + j], st[SWIN + j + 1]
-        if p0 > 0.0 and b > 0.0 and a * a > 9.0 * b:  # (a state not learnt is not let go)
+        if p0 > 0.0 and fast and b > 0.0 and a * a > 9.0 * b:  # (a state not learnt: not let go)
             d = a / b
             v = d * d if d * d < cap else cap
             if v > st[o]:

@@ -334,7 +334,7 @@ class ReferenceEstimator:
         tau_max = max(self.cfg.estimator.lag_max, self.cfg.sensor.lag_T_w)
         for j, k, cap in ((0, 0, 1.0), (2, 1, tau_max**2)):
             A, Bw = self.window[j], self.window[j + 1]
-            if (self.slow_prior[k] and Bw > 0 and 9 * Bw < A * A
+            if (self.slow_prior[k] and self.rate >= FAST_READINGS and Bw > 0 and 9 * Bw < A * A
                     and min((A / Bw) ** 2, cap) > self.P_B[k, k]):
                 self.P_B[k, k] = min((A / Bw) ** 2, cap)
                 self.P_B[0, 1] = self.P_B[1, 0] = 0.0
