@@ -975,3 +975,86 @@ def test_sample_time_of_two_samples() -> None:
     assert sample_time([0.0, 0.5]) == 0.5 and sample_time(np.array([[0.0, 1e-3, 2e-3]])) == 1e-3
     with pytest.raises(ValueError, match="at least 2 samples, got 1"):
         sample_time([1.0])
+
+
+# ------------------------------------------------------------- Parquet: held edges (mutation run)
+
+
+@pytest.mark.parametrize(("col", "value", "tail"), [
+    ("q_i_hat", None, "null value (NaN is allowed only in temperature and velocity columns)"),
+    ("contact", float("nan"), "NaN value (NaN is allowed only in temperature and velocity columns)"),
+    ("t", float("nan"), "NaN value (t must be a finite number on every row)"),
+    ("t", float("-inf"), "infinite value -inf (t must be a finite number on every row)"),
+    ("T_w", float("inf"), "infinite value inf"),
+])
+def test_parquet_bad_value_messages_whole(tmp_path: Path, col: str, value: object, tail: str) -> None:
+    """The whole message of a bad value, to its end: its row, column, what it is and the hint
+    (t: must be finite; NaN where it is not allowed: where it is; an infinity elsewhere: none)."""
+    table: dict[str, list[object]] = {c: [float(i) for i in range(5)] for c in HEADER.split(",")}
+    table[col][2] = value
+    p = _parquet(tmp_path, table)  # type: ignore[arg-type]
+    assert _error(p) == f"{p}: row 3, column {col!r}: {tail}"
+
+
+def test_few_values_counts_to_its_limit() -> None:
+    """A dictionary is tried for a column of at most 1024 distinct values in its sample (every row
+    of a column shorter than 2 x 4096 rows): 1024 yes, 1025 no; a column whose odd rows are all
+    distinct is not few even when its even rows are one value."""
+    from thermoskin.logio.parquetlog import few_values
+
+    assert few_values(np.arange(1024.0)) and not few_values(np.arange(1025.0))
+    odd = np.zeros(2050)
+    odd[1::2] = np.arange(1.0, 1026.0)
+    assert not few_values(odd)
+    assert few_values(np.full(100, np.nan))  # NaN one value
+
+
+def test_parquet_first_line_of_an_empty_error() -> None:
+    """An Arrow error with no text is named by its type; otherwise its first line."""
+    from thermoskin.logio.parquetlog import _first_line
+
+    assert _first_line(OSError()) == "OSError"
+    assert _first_line(ValueError("  one\ntwo")) == "one"
+
+
+def test_parquet_column_count_limit_and_duplicates(tmp_path: Path) -> None:
+    """4096 columns are a log's limit, read; 4097 refused; two columns of one name refused."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from thermoskin.logio.common import MAX_COLUMNS
+
+    assert MAX_COLUMNS == 4096
+    for n in (4096, 4097):
+        names = ["t"] + [f"c{i}" for i in range(n - 1)]
+        p = tmp_path / f"w{n}.parquet"
+        pq.write_table(pa.Table.from_arrays([pa.array([0.0, 1.0])] * n, names=names), p)
+        if n == 4096:
+            assert len(read_log(p, required=("t",))) == 4096
+        else:
+            assert f"{n} columns, more than a log may have (4096)" in _error(p, required=("t",))
+    p = tmp_path / "dup.parquet"
+    pq.write_table(pa.Table.from_arrays([pa.array([0.0, 1.0])] * 3, names=["t", "T_w", "T_w"]), p)
+    assert "duplicate column name(s): T_w" in _error(p, required=("t",))
+
+
+def test_parquet_reader_chunks_and_writer_compression(tmp_path: Path) -> None:
+    """Reading gives chunks of at most ``chunk_rows`` rows (bounded memory), 333 + 333 + 334 rows
+    of a row group of 1000; the writer compresses with zstd; an integer patch index given as
+    integers is stored as those integers."""
+    import pyarrow.parquet as pq
+
+    from thermoskin.logio import LogWriter
+
+    n = 1000
+    cols = {"t": np.arange(n) * 1e-3, "T_w": 24.0 + np.arange(n) * 1e-4}
+    p = write_log(tmp_path / "c.parquet", cols)
+    with LogReader(p, chunk_rows=333, required=("t",)) as r:
+        sizes = [len(c["t"]) for c in r]
+    assert sum(sizes) == n and max(sizes) <= 333
+    meta = pq.ParquetFile(p).metadata
+    assert {meta.row_group(0).column(i).compression for i in range(meta.num_columns)} == {"ZSTD"}
+    skin = tmp_path / "skin.parquet"
+    with LogWriter(skin, ["t", "patch"]) as w:
+        w.write({"t": np.repeat([0.0, 0.001], 3), "patch": np.tile(np.arange(3, dtype=np.int32), 2)})
+    assert pq.read_table(skin)["patch"].to_pylist() == [0, 1, 2, 0, 1, 2]
