@@ -1058,3 +1058,27 @@ def test_parquet_reader_chunks_and_writer_compression(tmp_path: Path) -> None:
     with LogWriter(skin, ["t", "patch"]) as w:
         w.write({"t": np.repeat([0.0, 0.001], 3), "patch": np.tile(np.arange(3, dtype=np.int32), 2)})
     assert pq.read_table(skin)["patch"].to_pylist() == [0, 1, 2, 0, 1, 2]
+
+
+def test_reading_a_log_does_not_import_pandas(tmp_path: Path) -> None:
+    """Reading a CSV or a Parquet log converts Arrow's columns from their buffers: pyarrow's own
+    conversion imports pandas (0.2 s a command's start-up cannot afford). In a fresh interpreter
+    (the package as imported here), after reading both, pandas is not loaded."""
+    import subprocess
+    import sys
+
+    import thermoskin
+
+    csv = tmp_path / "a.csv"
+    csv.write_text("t,T_w\n0.0,24.0\n0.001,\n0.002,24.5\n", encoding="utf-8")
+    pq = write_log(tmp_path / "a.parquet", {"t": np.arange(3) * 1e-3, "T_w": np.array([24.0, np.nan, 24.5])})
+    code = ("import sys; from thermoskin.logio import read_log\n"
+            "for p in sys.argv[1:]:\n"
+            "    log = read_log(p, required=('t',), nan_columns=('T_w',))\n"
+            "    assert log['T_w'][2] == 24.5 and log['T_w'][1] != log['T_w'][1], p\n"
+            "print('pandas' in sys.modules)")
+    env = {**os.environ, "PYTHONPATH": str(Path(thermoskin.__file__).resolve().parents[1])}
+    out = subprocess.run([sys.executable, "-c", code, str(csv), str(pq)], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "False"
