@@ -1082,3 +1082,41 @@ def test_reading_a_log_does_not_import_pandas(tmp_path: Path) -> None:
                          env=env, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip() == "False"
+
+
+def test_parquet_nulls_in_columns_arrow_converts(tmp_path: Path) -> None:
+    """Columns converted by Arrow's own cast (float16, boolean): a null in a temperature reads as
+    NaN, a null in a flag is refused as a null value at its row."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    p = tmp_path / "i.parquet"
+    T_w = pa.array(np.array([24.0, 0.0, 25.0], np.float16), mask=np.array([False, True, False]))
+    pq.write_table(pa.table({"t": [0.0, 0.5, 1.0], "T_w": T_w}), p)
+    got = read_log(p, required=("t",), nan_columns=("T_w",))
+    assert got["T_w"][0] == 24.0 and np.isnan(got["T_w"][1]) and got["T_w"][2] == 25.0
+    q = tmp_path / "f.parquet"
+    pq.write_table(pa.table({"t": [0.0, 0.5, 1.0], "contact": pa.array([False, True, None], pa.bool_())}), q)
+    assert _error(q, required=("t",)) == (f"{q}: row 3, column 'contact': null value "
+                                          "(NaN is allowed only in temperature and velocity columns)")
+
+
+def test_parquet_reading_keeps_no_row_group_it_has_read(tmp_path: Path) -> None:
+    """A Parquet log of 1.2 million rows (48 MB of float64 in 24 row groups) read chunk by chunk:
+    Arrow's memory stays under 16 MB (the row groups read are not kept: memory does not grow with
+    the log's length)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    n = 1_200_000
+    rng = np.random.default_rng(1)
+    p = tmp_path / "long.parquet"
+    table = {"t": np.arange(n) * 1e-3, "T_w": rng.normal(24, 1, n), "T_p": rng.normal(24, 1, n),
+             "v": rng.normal(0, 1, n), "T_a": rng.normal(20, 1, n)}
+    pq.write_table(pa.table(table), p, row_group_size=50_000)
+    base, peak, rows = pa.total_allocated_bytes(), 0, 0
+    with LogReader(p, chunk_rows=50_000) as r:
+        for c in r:
+            rows += len(c["t"])
+            peak = max(peak, pa.total_allocated_bytes() - base)
+    assert rows == n and peak < 16e6, peak
