@@ -1120,3 +1120,55 @@ def test_parquet_reading_keeps_no_row_group_it_has_read(tmp_path: Path) -> None:
             rows += len(c["t"])
             peak = max(peak, pa.total_allocated_bytes() - base)
     assert rows == n and peak < 16e6, peak
+
+
+# ------------------------------------------------- the shared helpers (logio.common), by hand
+
+
+def test_short_keeps_a_message_one_short_line() -> None:
+    """``short``: a value's repr up to 40 characters as it is; longer, its first 36 and ``...'``
+    (40 in all); a huge field's start only; another limit taken."""
+    from thermoskin.logio.common import short
+
+    assert short("y" * 38) == "'" + "y" * 38 + "'"  # 40 characters: whole
+    assert short("y" * 39) == "'" + "y" * 35 + "...'"  # 41: cut to 40
+    assert short("x" * 10_000) == "'" + "x" * 35 + "...'"
+    assert short(b"\xff" * 5) == repr(b"\xff" * 5)
+    assert short(1.5) == "1.5"
+    assert short("z" * 30, limit=10) == "'zzzzz...'"
+
+
+def test_parse_value_by_hand() -> None:
+    """One CSV field: a number, or why not (the words of the line's message)."""
+    import math
+
+    from thermoskin.logio.common import parse_value
+
+    assert parse_value(" 2.5 ", False) == 2.5 and parse_value("-1e-3", False) == -0.001
+    assert parse_value("", False) == "empty value" and parse_value("  ", False) == "empty value"
+    assert parse_value("1_000", False) == "non-numeric value"
+    assert parse_value("abc", False) == "non-numeric value"
+    assert parse_value("nan", False) == "NaN value" and parse_value("-nan", False) == "NaN value"
+    assert math.isnan(parse_value("-nan", True)) and math.isnan(parse_value("NA", True))  # type: ignore[arg-type]
+    assert math.isnan(parse_value("", True))  # type: ignore[arg-type]
+    assert parse_value("inf", True) == "infinite value"
+    assert parse_value("-Infinity", False) == "infinite value"
+
+
+def test_arrow_float64_from_buffers_by_hand() -> None:
+    """Arrow columns read from their buffers: slices (an offset into a longer buffer) of int16 and
+    float64 columns give just their values, nulls as NaN with their mask; an empty column is
+    empty; a type it does not convert (float16) is left to the caller (None)."""
+    import pyarrow as pa
+
+    from thermoskin.logio.common import arrow_float64
+
+    got = arrow_float64(pa.array(np.arange(10, dtype=np.int16))[2:5])
+    assert got is not None and got[0].tolist() == [2.0, 3.0, 4.0] and got[1] is None
+    col = pa.chunked_array([pa.array([1.5, None, 3.5, 4.5, None, 6.5])[1:5]])
+    vals, mask = arrow_float64(col)  # type: ignore[misc]
+    assert np.isnan(vals[0]) and vals[1:3].tolist() == [3.5, 4.5] and np.isnan(vals[3])
+    assert mask.tolist() == [True, False, False, True]
+    empty = arrow_float64(pa.array([], pa.float64()))
+    assert empty is not None and empty[0].shape == (0,) and empty[1] is None
+    assert arrow_float64(pa.array(np.ones(3, np.float16))) is None
