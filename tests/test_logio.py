@@ -1172,3 +1172,47 @@ def test_arrow_float64_from_buffers_by_hand() -> None:
     empty = arrow_float64(pa.array([], pa.float64()))
     assert empty is not None and empty[0].shape == (0,) and empty[1] is None
     assert arrow_float64(pa.array(np.ones(3, np.float16))) is None
+
+
+def test_the_line_by_line_reader_values_and_messages(tmp_path: Path) -> None:
+    """Fields the fast parsers refuse (`` NA`` with a space) send a block to the line-by-line
+    reader: a quoted field is read as its number, `` NA`` as NaN where NaN is allowed; and its
+    messages to their end: NaN-like text where NaN is not allowed (with the hint), other text
+    (without), bad text in ``t`` (with t's hint), an empty line."""
+    p = tmp_path / "slow.csv"
+    p.write_text('t,T_w,T_p,v,T_a,contact\n0.0, NA,"25.5",0.1,20,0\n0.001,24.25,"25.5",0.1,20,1\n',
+                 encoding="utf-8")
+    log = read_log(p)
+    assert np.isnan(log["T_w"][0]) and log["T_w"][1] == 24.25
+    assert log["T_p"].tolist() == [25.5, 25.5] and log["t"].tolist() == [0.0, 0.001]
+    assert log["contact"].tolist() == [0.0, 1.0] and log["T_a"].tolist() == [20.0, 20.0]
+    head = "t,T_w,T_p,v,T_a,contact\n0.0,24,25,0.1,20,0\n"
+    cases = {
+        "0.001,24,25,0.1,20, NA\n": "line 3, column 'contact': non-numeric value ' NA' "
+                                    "(NaN is allowed only in temperature and velocity columns)",
+        "0.001,24,25,0.1,20,abc\n": "line 3, column 'contact': non-numeric value 'abc'",
+        "abc,24,25,0.1,20,0\n": "line 3, column 't': non-numeric value 'abc' "
+                                "(t must be a finite number on every row)",
+        "\n0.002,24,25,0.1,20,0\n": "line 3: empty line, expected 6 fields (as in the header): ''",
+        "0.001,24,25,0.1,20,-nan\n": "line 3, column 'contact': NaN value '-nan' "
+                                      "(NaN is allowed only in temperature and velocity columns)",
+    }
+    for i, (row, want) in enumerate(cases.items()):
+        q = tmp_path / f"bad{i}.csv"
+        q.write_text(head + row, encoding="utf-8")
+        assert _error(q) == f"{q}: {want}"
+
+
+def test_the_line_by_line_reader_takes_a_line_of_64_kib_not_one_byte_more(tmp_path: Path) -> None:
+    """A line of 65 536 bytes (the limit for six columns: 64 KiB, more than 6 x 128) is read
+    (blanks before a number), one of 65 537 refused as it is."""
+    head = "t,T_w,T_p,v,T_a,contact\n0.0, NA,25,0.1,20,0\n"
+    start = "0.001,24,25,0.1,20,"
+    for n, ok in ((65536, True), (65537, False)):
+        p = tmp_path / f"l{n}.csv"
+        p.write_text(head + start + " " * (n - len(start) - 1) + "1\n", encoding="utf-8")
+        if ok:
+            assert read_log(p)["contact"].tolist() == [0.0, 1.0]
+        else:
+            assert _error(p) == (f"{p}: line 3: a line of 65537 bytes, longer than a row of 6 numbers can be "
+                                 "(65536 bytes at most): not a log row")
