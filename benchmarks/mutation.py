@@ -5,6 +5,8 @@ metrics, the events, the position or the supervisor? Prints JSON.
     pip install -e '.[test,mutation]'
     python benchmarks/mutation.py                    # every module below (about an hour on 2 cores)
     python benchmarks/mutation.py --module protocol --module plausible --workdir /tmp/mut
+    python benchmarks/mutation.py --merge a.json b.json > docs/mutation.json  # runs module by module
+    python benchmarks/mutation.py --table docs/mutation.json                  # docs/reliability.md's table
 
 For each run the script copies ``src``, ``tests``, ``examples`` and ``benchmarks/skins`` into a
 work folder (a temporary one unless ``--workdir``), writes mutmut's settings there (only the
@@ -17,15 +19,19 @@ mutant the tests fail on is *killed*; one they pass on *survived*. In the sweep'
 :func:`~thermoskin.sweep.engine.score` (the metrics) is mutated: the rest is the batched
 simulation, which ``tests/test_sweep.py`` holds to the one-point runs (minutes per mutant).
 
-The JSON: per module the mutants, killed, survived, timed out and not reached by a test, the
-survival rate (survived over the mutants the tests ran on: killed + survived + timed out),
-and each survivor's name and diff (``mutmut show``). docs/reliability.md lists the survivors
-of the last run with why each does not matter.
+The JSON: the date, the commit and the command; per module the mutants, killed, survived,
+timed out (a mutant that made a test hang: caught) and not reached by a test (``no tests``),
+the survival rate (survived over the mutants the tests ran on: killed + survived + timed out),
+and each survivor's name and diff (``mutmut show``). ``--merge`` joins the JSON of runs made
+module by module (each module with its own run's date and commit) and sums the totals;
+``--table`` prints the table of docs/reliability.md from such a JSON. docs/reliability.md lists
+the survivors of the last run with why each does not matter.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import os
 import re
@@ -126,13 +132,58 @@ def module_of(name: str) -> str:
     return "?"
 
 
+def totals(mods: list[dict[str, object]]) -> dict[str, object]:
+    """Killed, survived, timed out over ``mods`` and the survival rate (module doc)."""
+    tot = {k: sum(int(m.get(k, 0)) for m in mods) for k in ("killed", "survived", "timeout")}  # type: ignore[call-overload]
+    ran = sum(tot.values())
+    return {**tot, "survival_rate": round(tot["survived"] / ran, 4) if ran else None}
+
+
+def merge(paths: list[str]) -> dict[str, object]:
+    """One JSON from the JSON of several runs: each module as its run had it, with the run's date
+    and commit; the totals summed."""
+    out: dict[str, object] = {"modules": {}, "tool": None}
+    for p in paths:
+        run = json.loads(Path(p).read_text(encoding="utf-8"))
+        out["tool"] = run.get("tool")
+        for key, m in run["modules"].items():
+            out["modules"][key] = {**m, "date": run.get("date"), "commit": run.get("commit")}  # type: ignore[index]
+    out["total"] = totals(list(out["modules"].values()))  # type: ignore[attr-defined]
+    return out
+
+
+def table(path: str) -> str:
+    """The Markdown table of a JSON (a run's or a merge's)."""
+    d = json.loads(Path(path).read_text(encoding="utf-8"))
+    rows = ["| module | mutants | killed | survived | timed out | not reached | survival |",
+            "|---|---:|---:|---:|---:|---:|---:|"]
+    pct = lambda r: "" if r is None else f"{100 * r:.1f} %"  # noqa: E731
+    for key, m in d["modules"].items():
+        rows.append(f"| {key} | {m['mutants']} | {m.get('killed', 0)} | {m.get('survived', 0)} | "
+                    f"{m.get('timeout', 0)} | {m.get('no tests', 0)} | {pct(m['survival_rate'])} |")
+    t = d["total"]
+    n = sum(m["mutants"] for m in d["modules"].values())
+    nr = sum(m.get("no tests", 0) for m in d["modules"].values())
+    rows.append(f"| **all** | {n} | {t['killed']} | {t['survived']} | {t['timeout']} | {nr} | "
+                f"**{pct(t['survival_rate'])}** |")
+    return "\n".join(rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--module", action="append", choices=list(MODULES), help="(repeat) default: all")
     ap.add_argument("--workdir", default=None, help="work folder (emptied first; default: a temporary one)")
     ap.add_argument("--max-children", type=int, default=2)
     ap.add_argument("--keep", action="store_true", help="keep the work folder")
+    ap.add_argument("--merge", nargs="+", metavar="JSON", help="join the JSON of runs made module by module")
+    ap.add_argument("--table", metavar="JSON", help="print the Markdown table of a JSON")
     a = ap.parse_args()
+    if a.merge:
+        print(json.dumps(merge(a.merge), indent=1))
+        return
+    if a.table:
+        print(table(a.table))
+        return
     modules = a.module or list(MODULES)
     work = Path(a.workdir) if a.workdir else Path(tempfile.mkdtemp(prefix="thermoskin-mutation-"))
     try:
@@ -145,7 +196,12 @@ def main() -> None:
             m = re.match(r"\s*([\w.]+__mutmut_\d+): (.+)$", ln)
             if m:
                 status[m.group(1)] = m.group(2).strip()
-        out: dict[str, object] = {"modules": {}, "tool": mutmut(work, "--version").strip()}
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                                text=True).stdout.strip()
+        out: dict[str, object] = {
+            "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+            "commit": commit, "command": "python benchmarks/mutation.py " + " ".join(sys.argv[1:]),
+            "modules": {}, "tool": mutmut(work, "--version").strip()}
         for key in modules:
             names = [n for n in status if module_of(n) == key]
             counts: dict[str, int] = {}
@@ -157,10 +213,7 @@ def main() -> None:
             rate = round(counts.get("survived", 0) / ran, 4) if ran else None
             out["modules"][key] = {"mutants": len(names), **counts,  # type: ignore[index]
                                    "survival_rate": rate, "survivors": survivors}
-        mods = out["modules"].values()  # type: ignore[attr-defined]
-        tot = {k: sum(m.get(k, 0) for m in mods) for k in ("killed", "survived", "timeout")}
-        ran = sum(tot.values())
-        out["total"] = {**tot, "survival_rate": round(tot["survived"] / ran, 4) if ran else None}
+        out["total"] = totals(list(out["modules"].values()))  # type: ignore[attr-defined]
         print(json.dumps(out, indent=1))
     finally:
         if not (a.keep or a.workdir):
