@@ -156,3 +156,21 @@ def test_a_stream_under_an_ascii_locale_writes_utf8(tmp_path: Path) -> None:
     finally:
         locale.setlocale(locale.LC_CTYPE, old)
     assert p.read_bytes() == "onset,patch\n1.0,Handrücken\n".encode()
+
+
+def test_an_event_from_the_kernels_record() -> None:
+    """The compiled kernel's event record, fields in the ``EV_*`` order, by hand: the event with
+    those values, the sign an int; ``as_dict`` gives every field by its name."""
+    import numpy as np
+
+    from thermoskin.estimation import events as ev
+
+    layout = (ev.EV_ONSET, ev.EV_DETECTED, ev.EV_RELEASE, ev.EV_DURATION, ev.EV_SIGN, ev.EV_PEAK,
+              ev.EV_MEAN, ev.EV_ENERGY)
+    assert layout == tuple(range(8))
+    e = ContactEvent.from_kernel(np.array([3.0, 3.2, 6.0, 3.0, -1.0, -0.4, -0.3, -0.9]))
+    assert e == HOLD
+    assert isinstance(e.sign, int) and e.sign == -1
+    d = e.as_dict()
+    assert d["onset"] == 3.0 and d["detected_at"] == 3.2 and d["release"] == 6.0 and d["energy"] == -0.9
+    assert d["kind"] == "" and math.isnan(d["G_hat"])  # type: ignore[arg-type]

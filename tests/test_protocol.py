@@ -241,3 +241,17 @@ def test_frame_limit_past_one_cobs_block_and_a_tail_at_the_limit() -> None:
     assert dec.feed(b"\x00") == [] and dec.stats.oversize == 0 and dec.stats.corrupted == 1
     assert dec.feed(encode(sample(2)) + b"\x07" * 253) == [sample(2)] and dec.stats.oversize == 1
     assert dec.feed(encode(sample(3))) == [sample(3)]
+
+
+def test_reset_forgets_the_buffer_and_the_sequence_not_the_counts() -> None:
+    """``reset``: half a frame buffered is forgotten (the next whole frame decodes on its own),
+    a seq already seen is new again; the counts stay."""
+    dec = Decoder()
+    assert dec.feed(encode(sample(5))) == [sample(5)]
+    dec.feed(encode(sample(6))[:10])
+    dec.reset()
+    assert dec.feed(encode(sample(5))) == [sample(5)]  # not glued to the half, not a repeat
+    assert dec.stats.frames == 2 and dec.stats.repeated == 0 and dec.stats.corrupted == 0
+    dec.feed(encode(sample(6))[:10])
+    dec.reset()
+    assert dec.feed(encode(sample(7))[10:]) == [] and dec.stats.corrupted == 1 and dec.stats.frames == 2
