@@ -181,3 +181,10 @@ def test_a_lost_link_and_a_stop_trip_at_once_and_latch_the_first() -> None:
     assert s.code == sv.STOPPED and s.t_fault == 1.5 and math.isnan(s.value)
     assert s.detail == "stopped on request" and s.gate(0.4, 0.1) == (0.0, 0.0)
     assert s.link_error(2.0, "x") == sv.STOPPED and s.detail == "stopped on request"
+
+
+def test_the_pipe_surface_does_not_need_the_air() -> None:
+    """With the surface taken as the pipe's reading (the default), an air reading lost (NaN) or
+    absurd changes nothing: the surface is ``T_w``."""
+    s = sup()
+    assert s.surface(24.5, math.nan) == 24.5 and s.surface(24.5, math.inf) == 24.5
