@@ -1218,3 +1218,27 @@ def test_the_line_by_line_reader_takes_a_line_of_64_kib_not_one_byte_more(tmp_pa
         else:
             assert _error(p) == (f"{p}: line 3: a line of 65537 bytes, longer than a row of 6 numbers can be "
                                  "(65536 bytes at most): not a log row")
+
+
+def test_blocks_of_a_csv_read_in_small_chunks(tmp_path: Path) -> None:
+    """Read 10 rows at a time (blocks of 64 KiB): a first row of exactly 65 536 bytes (longer
+    than a block: read on) and 4 000 rows after it come back whole and in order; a line past the
+    limit after them is refused naming its own line (4 003), its blocks counted right."""
+    head = "t,T_w,T_p,v,T_a,contact\n"
+    first = "0.0,24,25,0.1,20,"
+    first += " " * (65536 - len(first) - 1) + "0\n"
+    rows = "".join(f"{k * 1e-3!r},{24 + k * 1e-4!r},25,0.1,20,{k % 2}\n" for k in range(1, 4001))
+    p = tmp_path / "b.csv"
+    p.write_text(head + first + rows, encoding="utf-8")
+    with LogReader(p, chunk_rows=10) as r:
+        got = list(r)
+    t = np.concatenate([c["t"] for c in got])
+    assert len(got) > 1 and np.array_equal(t, np.arange(4001) * 1e-3)
+    assert np.concatenate([c["contact"] for c in got]).tolist() == [0.0] + [k % 2 for k in range(1, 4001)]
+    q = tmp_path / "c.csv"
+    q.write_text(head + first + rows + "4.001," + "9" * 300_000 + "\n", encoding="utf-8")
+    with pytest.raises(LogError) as info, LogReader(q, chunk_rows=10) as r:
+        list(r)
+    msg = str(info.value)
+    assert msg.startswith(f"{q}: line 4003: a line of ") and msg.endswith(
+        "bytes or more, longer than a row of 6 numbers can be (65536 bytes at most): not a log row"), msg
