@@ -24,7 +24,10 @@ timed out (a mutant that made a test hang: caught) and not reached by a test (``
 the survival rate (survived over the mutants the tests ran on: killed + survived + timed out),
 and each survivor's name and diff (``mutmut show``). ``--merge`` joins the JSON of runs made
 module by module (each module with its own run's date and commit) and sums the totals;
-``--table`` prints the table of docs/reliability.md from such a JSON. docs/reliability.md lists
+``--table`` prints the table of docs/reliability.md from such a JSON. ``--retest`` runs the
+survivors of the run kept in ``--workdir`` again against the tests as they are now (which
+tests reach which code traced again; a mutant killed before stays killed, the tests having only
+been added to), for the tests written from a run's survivors. docs/reliability.md lists
 the survivors of the last run with why each does not matter.
 """
 
@@ -123,6 +126,16 @@ def mutmut(work: Path, *args: str, timeout: float | None = None) -> str:
     return p.stdout + p.stderr
 
 
+def statuses(work: Path) -> dict[str, str]:
+    """Each mutant's status in ``work`` (``mutmut results``)."""
+    status: dict[str, str] = {}
+    for ln in mutmut(work, "results", "--all", "true").splitlines():
+        m = re.match(r"\s*([\w.]+__mutmut_\d+): (.+)$", ln)
+        if m:
+            status[m.group(1)] = m.group(2).strip()
+    return status
+
+
 def module_of(name: str) -> str:
     """The module key of a mutant's name (``thermoskin.devices.protocol.x_cobs_encode__mutmut_3``)."""
     for key, (files, _, _) in MODULES.items():
@@ -175,6 +188,8 @@ def main() -> None:
     ap.add_argument("--workdir", default=None, help="work folder (emptied first; default: a temporary one)")
     ap.add_argument("--max-children", type=int, default=2)
     ap.add_argument("--keep", action="store_true", help="keep the work folder")
+    ap.add_argument("--retest", action="store_true",
+                    help="run the survivors of the run kept in --workdir again, against the tests now")
     ap.add_argument("--merge", nargs="+", metavar="JSON", help="join the JSON of runs made module by module")
     ap.add_argument("--table", metavar="JSON", help="print the Markdown table of a JSON")
     a = ap.parse_args()
@@ -185,23 +200,33 @@ def main() -> None:
         print(table(a.table))
         return
     modules = a.module or list(MODULES)
+    if a.retest and not (a.workdir and (Path(a.workdir) / "mutants").is_dir()):
+        ap.error("--retest needs the --workdir of an earlier run")
     work = Path(a.workdir) if a.workdir else Path(tempfile.mkdtemp(prefix="thermoskin-mutation-"))
     try:
-        prepare(work, modules)
-        log = mutmut(work, "run", "--max-children", str(a.max_children))
+        retested = None
+        if a.retest:
+            # the survivors of the run in --workdir again, against the tests as they are now
+            before = [n for n, st in statuses(work).items() if st == "survived" and module_of(n) in modules]
+            shutil.rmtree(work / "tests")
+            shutil.copytree(ROOT / "tests", work / "tests", ignore=shutil.ignore_patterns("__pycache__"))
+            # which tests reach which function, found again (mutmut would trace the new tests only)
+            (work / "mutants" / "mutmut-stats.json").unlink(missing_ok=True)
+            log = mutmut(work, "run", "--max-children", str(a.max_children), *before)
+            retested = len(before)
+        else:
+            prepare(work, modules)
+            log = mutmut(work, "run", "--max-children", str(a.max_children))
         (work / "run.log").write_text(log, encoding="utf-8")
-        listing = mutmut(work, "results", "--all", "true")
-        status: dict[str, str] = {}
-        for ln in listing.splitlines():
-            m = re.match(r"\s*([\w.]+__mutmut_\d+): (.+)$", ln)
-            if m:
-                status[m.group(1)] = m.group(2).strip()
+        status = statuses(work)
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
                                 text=True).stdout.strip()
         out: dict[str, object] = {
             "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
             "commit": commit, "command": "python benchmarks/mutation.py " + " ".join(sys.argv[1:]),
             "modules": {}, "tool": mutmut(work, "--version").strip()}
+        if retested is not None:
+            out["retested_survivors"] = retested
         for key in modules:
             names = [n for n in status if module_of(n) == key]
             counts: dict[str, int] = {}
