@@ -1242,3 +1242,41 @@ def test_blocks_of_a_csv_read_in_small_chunks(tmp_path: Path) -> None:
     msg = str(info.value)
     assert msg.startswith(f"{q}: line 4003: a line of ") and msg.endswith(
         "bytes or more, longer than a row of 6 numbers can be (65536 bytes at most): not a log row"), msg
+
+
+def test_csv_header_limits_by_hand(tmp_path: Path) -> None:
+    """A header of 4 096 columns is read, one of 4 097 refused; a header line of exactly 1 MiB
+    (4 096 names, line end included) is read; an empty name is named by its column (from 1);
+    a data line may take 128 bytes a column, 64 KiB at least."""
+    from thermoskin.logio.common import max_line_bytes
+
+    assert max_line_bytes(6) == 65536 and max_line_bytes(4096) == 128 * 4096
+    for n in (4096, 4097):
+        p = tmp_path / f"h{n}.csv"
+        names = ["t"] + [f"c{i}" for i in range(1, n)]
+        p.write_text(",".join(names) + "\n" + ",".join(["0"] * n) + "\n" + ",".join(["1"] * n) + "\n",
+                     encoding="utf-8")
+        if n == 4096:
+            assert len(read_log(p, required=("t",))) == 4096
+        else:
+            assert _error(p, required=("t",)) == f"{p}: line 1: 4097 columns, more than a log may have (4096)"
+    names = ["t"] + [f"c{i:04d}".ljust(255, "x") for i in range(1, 4095)]
+    names.append("z" * (4096 * 255 - 1 - 4094 * 255))
+    header = ",".join(names) + "\n"
+    assert len(header.encode()) == 1 << 20
+    p = tmp_path / "mib.csv"
+    p.write_text(header + ",".join(["0"] * 4096) + "\n" + ",".join(["1"] * 4096) + "\n", encoding="utf-8")
+    assert len(read_log(p, required=("t",))) == 4096
+    p = tmp_path / "empty_name.csv"
+    p.write_text("t,,T_w\n0,1,2\n1,1,2\n", encoding="utf-8")
+    assert _error(p, required=("t",)) == f"{p}: line 1: column 2 has an empty name (header 't,,T_w')"
+
+
+def test_a_csv_of_more_than_4_kib_without_a_final_line_end(tmp_path: Path) -> None:
+    """The last line of a log, longer than 4 KiB (blanks before its last field) and without its
+    line end, is read whole (its last field to its last digit)."""
+    rows = "".join(f"{k * 1e-3!r},24.5,25,0.1,20\n" for k in range(400))
+    p = tmp_path / "noend.csv"
+    p.write_text("t,T_w,T_p,v,T_a\n" + rows + "0.4,24.5,25,0.1," + " " * 5000 + "21", encoding="utf-8")
+    log = read_log(p)
+    assert len(log["t"]) == 401 and log["T_a"][-1] == 21.0 and log["T_a"][-2] == 20.0
