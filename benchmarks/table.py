@@ -150,6 +150,34 @@ ROWS: tuple[Row, ...] = (
         lambda j: f"{j['warm_up_s']['median']:g} s",
     ),
     Row(
+        "calibrate",
+        "`calibrate` of a 300 s, 1 kHz no-touch log whose thermocouples carry offsets (0.3, -0.2, 0.5 K)",
+        ("calibrate.py", "--only", "offsets", "--runs", "3", "--json"),
+        lambda j: (
+            f"median {j['offsets']['wall_s_median']:.2g} s (max {j['offsets']['wall_s_max']:.2g} s); "
+            "offsets within "
+            f"{1e3 * max(v for v in j['offsets']['offset_error_abs_max_K'].values() if v == v):.1f} mK"
+        ),
+        "≤ 15 s; offsets within 20 mK",
+        lambda j: j["offsets"]["wall_s_max"] <= 15
+        and max(v for v in j["offsets"]["offset_error_abs_max_K"].values() if v == v) <= 0.02,
+    ),
+    Row(
+        "firmware",
+        "the reference firmware's frame loop, one sample, on MicroPython's Unix port (x86-64)",
+        ("firmware_loop.py", "--runs", "5", "--json"),
+        lambda j: (
+            "p50 {:.1f} µs, p99 {:.1f} µs a sample (median of the runs); a 46-byte CRC {:.1f} µs".format(
+                *(
+                    sorted(r[k] for r in j["micropython_unix"])[len(j["micropython_unix"]) // 2]
+                    for k in ("sample_p50_us", "sample_p99_us", "crc16_46_bytes_us")
+                )
+            )
+            if isinstance(j.get("micropython_unix"), list)
+            else str(j.get("micropython_unix"))
+        ),
+    ),
+    Row(
         "sweep",
         "`thermoskin sweep examples/sweep.toml` (1000 designs of 60 s in closed loop)",
         ("sweep.py", "--runs", "3", "--json"),
@@ -197,7 +225,10 @@ def measure(row: Row) -> J:
             f"{row.key}: {row.args[0]} failed (exit {p.returncode}): "
             f"{' '.join(p.stderr.strip().splitlines()[-3:])}"
         )
-    out = json.loads(p.stdout.strip().splitlines()[-1])
+    try:
+        out = json.loads(p.stdout.strip().splitlines()[-1])
+    except json.JSONDecodeError:  # a script printing indented JSON
+        out = json.loads(p.stdout)
     return {
         "script": f"benchmarks/{' '.join(row.args)}",
         "date": when.strftime("%Y-%m-%d %H:%M UTC"),
