@@ -1280,3 +1280,26 @@ def test_a_csv_of_more_than_4_kib_without_a_final_line_end(tmp_path: Path) -> No
     p.write_text("t,T_w,T_p,v,T_a\n" + rows + "0.4,24.5,25,0.1," + " " * 5000 + "21", encoding="utf-8")
     log = read_log(p)
     assert len(log["t"]) == 401 and log["T_a"][-1] == 21.0 and log["T_a"][-2] == 20.0
+
+
+def test_column_names_and_dtypes_a_log_is_written_with() -> None:
+    """``check_names``: a name that is not a string, empty, holds a comma, quote or line break, or
+    has outer blanks is refused, a name with an X or a blank inside is not; ``as_column``: bools
+    kept, integers int64, floats float64; ``writable``: a read-only or strided array copied."""
+    from thermoskin.logio.common import as_column, check_names, writable
+
+    check_names(["t", "T_w", "a X b"], "w")
+    for bad in (1, "", "a,b", 'a"b', "a\nb", "a\rb", " a"):
+        with pytest.raises(ValueError, match="invalid column name"):
+            check_names(["t", bad], "w")  # type: ignore[list-item]
+    b = np.array([True, False])
+    assert as_column(b) is b
+    assert as_column(np.array([1, 2], np.uint8)).dtype == np.int64
+    assert as_column(np.array([1.5], np.float32)).dtype == np.float64
+    ro = np.arange(3.0)
+    ro.flags.writeable = False
+    assert writable(ro) is not ro and writable(ro).flags.writeable
+    strided = np.arange(6.0)[::2]
+    assert writable(strided) is not strided and writable(strided).flags.c_contiguous
+    ok = np.arange(3.0)
+    assert writable(ok) is ok
