@@ -1303,3 +1303,32 @@ def test_column_names_and_dtypes_a_log_is_written_with() -> None:
     assert writable(strided) is not strided and writable(strided).flags.c_contiguous
     ok = np.arange(3.0)
     assert writable(ok) is ok
+
+
+def test_where_nan_is_allowed_and_the_first_bad_value_by_hand() -> None:
+    """NaN is allowed in ``T_*``, ``v`` and ``v_*`` columns by default (not ``V_x``, not ``t``);
+    a rule given as a function is asked for every column but ``t``; the first bad value is the
+    first in reading order (row first, then column)."""
+    from thermoskin.logio.common import allow_nan, first_bad_value
+
+    names = ["t", "T_w", "v", "v_2", "V_x", "contact"]
+    assert allow_nan(names) == [False, True, True, True, False, False]
+    assert allow_nan(names, lambda n: n in ("t", "contact")) == [False, False, False, False, False, True]
+    assert allow_nan(names, ("T_w",)) == [False, True, False, False, False, False]
+    nan, inf = np.nan, np.inf
+    cols = [np.array([0.0, 1.0, 2.0]), np.array([nan, 1.0, inf]), np.array([1.0, nan, 1.0])]
+    assert first_bad_value(cols, [False, True, False]) == (1, 2)  # row 1, column 2 before row 2
+    assert first_bad_value(cols, [False, True, True]) == (2, 1)   # the infinity in T_w
+    cols = [np.array([0.0, 1.0]), np.array([1.0, inf]), np.array([1.0, nan])]
+    assert first_bad_value(cols, [False, False, False]) == (1, 1)  # a tie: the first column
+
+
+def test_check_time_non_uniform_message_by_hand() -> None:
+    """A step off the median by more than 1 %: its interval, the times around it and the
+    expected step with its tolerance; a step within the tolerance passes."""
+    from thermoskin.logio.common import check_time
+
+    k, why = check_time(np.array([0.0, 0.01, 0.02, 0.035, 0.045, 0.055]))  # type: ignore[misc]
+    assert k == 3 and why == ("non-uniform sampling: interval 0.015 s (t = 0.02 -> 0.035), expected 0.01 s "
+                              "± 1 % (read with uniform=False to accept jitter)")
+    assert check_time(np.array([0.0, 0.01, 0.02, 0.0301, 0.0401])) is None
