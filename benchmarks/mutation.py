@@ -203,6 +203,9 @@ def main() -> None:
     if a.retest and not (a.workdir and (Path(a.workdir) / "mutants").is_dir()):
         ap.error("--retest needs the --workdir of an earlier run")
     work = Path(a.workdir) if a.workdir else Path(tempfile.mkdtemp(prefix="thermoskin-mutation-"))
+    # the commit whose tests are run (taken before: the run may outlast a commit)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                            text=True).stdout.strip()
     try:
         retested = None
         if a.retest:
@@ -219,8 +222,6 @@ def main() -> None:
             log = mutmut(work, "run", "--max-children", str(a.max_children))
         (work / "run.log").write_text(log, encoding="utf-8")
         status = statuses(work)
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                                text=True).stdout.strip()
         out: dict[str, object] = {
             "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
             "commit": commit, "command": "python benchmarks/mutation.py " + " ".join(sys.argv[1:]),
