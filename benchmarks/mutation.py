@@ -27,8 +27,10 @@ module by module (each module with its own run's date and commit) and sums the t
 ``--table`` prints the table of docs/reliability.md from such a JSON. ``--retest`` runs the
 survivors of the run kept in ``--workdir`` again against the tests as they are now (which
 tests reach which code traced again; a mutant killed before stays killed, the tests having only
-been added to), for the tests written from a run's survivors. docs/reliability.md lists
-the survivors of the last run with why each does not matter.
+been added to), for the tests written from a run's survivors; ``--report`` writes the JSON of a
+kept run as it stands (one stopped before its end: the mutants not yet run again keep their
+earlier status). docs/reliability.md lists the survivors of the last run with why each does not
+matter.
 """
 
 from __future__ import annotations
@@ -190,6 +192,7 @@ def main() -> None:
     ap.add_argument("--keep", action="store_true", help="keep the work folder")
     ap.add_argument("--retest", action="store_true",
                     help="run the survivors of the run kept in --workdir again, against the tests now")
+    ap.add_argument("--report", action="store_true", help="the JSON of the run in --workdir as it stands")
     ap.add_argument("--merge", nargs="+", metavar="JSON", help="join the JSON of runs made module by module")
     ap.add_argument("--table", metavar="JSON", help="print the Markdown table of a JSON")
     a = ap.parse_args()
@@ -200,15 +203,17 @@ def main() -> None:
         print(table(a.table))
         return
     modules = a.module or list(MODULES)
-    if a.retest and not (a.workdir and (Path(a.workdir) / "mutants").is_dir()):
-        ap.error("--retest needs the --workdir of an earlier run")
+    if (a.retest or a.report) and not (a.workdir and (Path(a.workdir) / "mutants").is_dir()):
+        ap.error("--retest and --report need the --workdir of an earlier run")
     work = Path(a.workdir) if a.workdir else Path(tempfile.mkdtemp(prefix="thermoskin-mutation-"))
     # the commit whose tests are run (taken before: the run may outlast a commit)
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
                             text=True).stdout.strip()
     try:
         retested = None
-        if a.retest:
+        if a.report:
+            log = ""
+        elif a.retest:
             # the survivors of the run in --workdir again, against the tests as they are now
             before = [n for n, st in statuses(work).items() if st == "survived" and module_of(n) in modules]
             shutil.rmtree(work / "tests")
@@ -220,7 +225,8 @@ def main() -> None:
         else:
             prepare(work, modules)
             log = mutmut(work, "run", "--max-children", str(a.max_children))
-        (work / "run.log").write_text(log, encoding="utf-8")
+        if log:
+            (work / "run.log").write_text(log, encoding="utf-8")
         status = statuses(work)
         out: dict[str, object] = {
             "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
