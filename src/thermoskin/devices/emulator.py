@@ -83,6 +83,22 @@ DEVICE_ID = 0x7E57_0001
 """Device id the emulator reports in HELLO_ACK."""
 
 
+
+def write_pending(fd: int, out: bytearray) -> None:
+    """Write what the pseudo-terminal takes of ``out`` now, never waiting, and drop it from ``out``;
+    a link whose other end is gone (``OSError``) drops everything pending."""
+    if not out:
+        return
+    try:
+        n = os.write(fd, out)
+    except (BlockingIOError, InterruptedError):
+        return
+    except OSError:
+        out.clear()
+        return
+    del out[:n]
+
+
 @dataclass(frozen=True)
 class FaultSpec:
     """A fault ``kind`` injected ``t`` seconds after the host connected."""
@@ -564,16 +580,7 @@ class PtyEmulator:
         self._out += frame
 
     def _flush(self) -> None:
-        if not self._out:
-            return
-        try:
-            n = os.write(self._master, self._out)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError:
-            self._out.clear()
-            return
-        del self._out[:n]
+        write_pending(self._master, self._out)
 
     # -- loop ------------------------------------------------------------------------------
     def run(self) -> None:

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from thermoskin.devices import protocol as proto
-from thermoskin.devices.emulator import OVERTEMP_C, FaultSpec, PtyEmulator, TruthWriter
+from thermoskin.devices.emulator import OVERTEMP_C, FaultSpec, PtyEmulator, TruthWriter, write_pending
 from thermoskin.params import Config
 from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import Scenario
@@ -526,16 +526,7 @@ class HostUsb:
         return n
 
     def flush(self) -> None:
-        if not self.out:
-            return
-        try:
-            k = os.write(self.fd, self.out)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError:
-            self.out.clear()
-            return
-        del self.out[:k]
+        write_pending(self.fd, self.out)
 
     def wait(self, us: int) -> None:
         self.flush()
