@@ -5,6 +5,8 @@ metrics, the events, the position or the supervisor? Prints JSON.
     pip install -e '.[test,mutation]'
     python benchmarks/mutation.py                    # every module below (about an hour on 2 cores)
     python benchmarks/mutation.py --module protocol --module plausible --workdir /tmp/mut
+    python benchmarks/mutation.py --merge a.json b.json > docs/mutation.json  # runs module by module
+    python benchmarks/mutation.py --table docs/mutation.json                  # docs/reliability.md's table
 
 For each run the script copies ``src``, ``tests``, ``examples`` and ``benchmarks/skins`` into a
 work folder (a temporary one unless ``--workdir``), writes mutmut's settings there (only the
@@ -17,15 +19,24 @@ mutant the tests fail on is *killed*; one they pass on *survived*. In the sweep'
 :func:`~thermoskin.sweep.engine.score` (the metrics) is mutated: the rest is the batched
 simulation, which ``tests/test_sweep.py`` holds to the one-point runs (minutes per mutant).
 
-The JSON: per module the mutants, killed, survived, timed out and not reached by a test, the
-survival rate (survived over the mutants the tests ran on: killed + survived + timed out),
-and each survivor's name and diff (``mutmut show``). docs/reliability.md lists the survivors
-of the last run with why each does not matter.
+The JSON: the date, the commit and the command; per module the mutants, killed, survived,
+timed out (a mutant that made a test hang: caught) and not reached by a test (``no tests``),
+the survival rate (survived over the mutants the tests ran on: killed + survived + timed out),
+and each survivor's name and diff (``mutmut show``). ``--merge`` joins the JSON of runs made
+module by module (each module with its own run's date and commit) and sums the totals;
+``--table`` prints the table of docs/reliability.md from such a JSON. ``--retest`` runs the
+survivors of the run kept in ``--workdir`` again against the tests as they are now (which
+tests reach which code traced again; a mutant killed before stays killed, the tests having only
+been added to), for the tests written from a run's survivors; ``--report`` writes the JSON of a
+kept run as it stands (one stopped before its end: the mutants not yet run again keep their
+earlier status). docs/reliability.md lists the survivors of the last run with why each does not
+matter.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import os
 import re
@@ -117,6 +128,16 @@ def mutmut(work: Path, *args: str, timeout: float | None = None) -> str:
     return p.stdout + p.stderr
 
 
+def statuses(work: Path) -> dict[str, str]:
+    """Each mutant's status in ``work`` (``mutmut results``)."""
+    status: dict[str, str] = {}
+    for ln in mutmut(work, "results", "--all", "true").splitlines():
+        m = re.match(r"\s*([\w.]+__mutmut_\d+): (.+)$", ln)
+        if m:
+            status[m.group(1)] = m.group(2).strip()
+    return status
+
+
 def module_of(name: str) -> str:
     """The module key of a mutant's name (``thermoskin.devices.protocol.x_cobs_encode__mutmut_3``)."""
     for key, (files, _, _) in MODULES.items():
@@ -126,26 +147,93 @@ def module_of(name: str) -> str:
     return "?"
 
 
+def totals(mods: list[dict[str, object]]) -> dict[str, object]:
+    """Killed, survived, timed out over ``mods`` and the survival rate (module doc)."""
+    tot = {k: sum(int(m.get(k, 0)) for m in mods) for k in ("killed", "survived", "timeout")}  # type: ignore[call-overload]
+    ran = sum(tot.values())
+    return {**tot, "survival_rate": round(tot["survived"] / ran, 4) if ran else None}
+
+
+def merge(paths: list[str]) -> dict[str, object]:
+    """One JSON from the JSON of several runs: each module as its run had it, with the run's date
+    and commit; the totals summed."""
+    out: dict[str, object] = {"modules": {}, "tool": None}
+    for p in paths:
+        run = json.loads(Path(p).read_text(encoding="utf-8"))
+        out["tool"] = run.get("tool")
+        for key, m in run["modules"].items():
+            out["modules"][key] = {**m, "date": run.get("date"), "commit": run.get("commit")}  # type: ignore[index]
+    out["total"] = totals(list(out["modules"].values()))  # type: ignore[attr-defined]
+    return out
+
+
+def table(path: str) -> str:
+    """The Markdown table of a JSON (a run's or a merge's)."""
+    d = json.loads(Path(path).read_text(encoding="utf-8"))
+    rows = ["| module | mutants | killed | survived | timed out | not reached | survival |",
+            "|---|---:|---:|---:|---:|---:|---:|"]
+    pct = lambda r: "" if r is None else f"{100 * r:.1f} %"  # noqa: E731
+    for key, m in d["modules"].items():
+        rows.append(f"| {key} | {m['mutants']} | {m.get('killed', 0)} | {m.get('survived', 0)} | "
+                    f"{m.get('timeout', 0)} | {m.get('no tests', 0)} | {pct(m['survival_rate'])} |")
+    t = d["total"]
+    n = sum(m["mutants"] for m in d["modules"].values())
+    nr = sum(m.get("no tests", 0) for m in d["modules"].values())
+    rows.append(f"| **all** | {n} | {t['killed']} | {t['survived']} | {t['timeout']} | {nr} | "
+                f"**{pct(t['survival_rate'])}** |")
+    return "\n".join(rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--module", action="append", choices=list(MODULES), help="(repeat) default: all")
     ap.add_argument("--workdir", default=None, help="work folder (emptied first; default: a temporary one)")
     ap.add_argument("--max-children", type=int, default=2)
     ap.add_argument("--keep", action="store_true", help="keep the work folder")
+    ap.add_argument("--retest", action="store_true",
+                    help="run the survivors of the run kept in --workdir again, against the tests now")
+    ap.add_argument("--report", action="store_true", help="the JSON of the run in --workdir as it stands")
+    ap.add_argument("--merge", nargs="+", metavar="JSON", help="join the JSON of runs made module by module")
+    ap.add_argument("--table", metavar="JSON", help="print the Markdown table of a JSON")
     a = ap.parse_args()
+    if a.merge:
+        print(json.dumps(merge(a.merge), indent=1))
+        return
+    if a.table:
+        print(table(a.table))
+        return
     modules = a.module or list(MODULES)
+    if (a.retest or a.report) and not (a.workdir and (Path(a.workdir) / "mutants").is_dir()):
+        ap.error("--retest and --report need the --workdir of an earlier run")
     work = Path(a.workdir) if a.workdir else Path(tempfile.mkdtemp(prefix="thermoskin-mutation-"))
+    # the commit whose tests are run (taken before: the run may outlast a commit)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                            text=True).stdout.strip()
     try:
-        prepare(work, modules)
-        log = mutmut(work, "run", "--max-children", str(a.max_children))
-        (work / "run.log").write_text(log, encoding="utf-8")
-        listing = mutmut(work, "results", "--all", "true")
-        status: dict[str, str] = {}
-        for ln in listing.splitlines():
-            m = re.match(r"\s*([\w.]+__mutmut_\d+): (.+)$", ln)
-            if m:
-                status[m.group(1)] = m.group(2).strip()
-        out: dict[str, object] = {"modules": {}, "tool": mutmut(work, "--version").strip()}
+        retested = None
+        if a.report:
+            log = ""
+        elif a.retest:
+            # the survivors of the run in --workdir again, against the tests as they are now
+            before = [n for n, st in statuses(work).items() if st == "survived" and module_of(n) in modules]
+            shutil.rmtree(work / "tests")
+            shutil.copytree(ROOT / "tests", work / "tests", ignore=shutil.ignore_patterns("__pycache__"))
+            # which tests reach which function, found again (mutmut would trace the new tests only)
+            (work / "mutants" / "mutmut-stats.json").unlink(missing_ok=True)
+            log = mutmut(work, "run", "--max-children", str(a.max_children), *before)
+            retested = len(before)
+        else:
+            prepare(work, modules)
+            log = mutmut(work, "run", "--max-children", str(a.max_children))
+        if log:
+            (work / "run.log").write_text(log, encoding="utf-8")
+        status = statuses(work)
+        out: dict[str, object] = {
+            "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+            "commit": commit, "command": "python benchmarks/mutation.py " + " ".join(sys.argv[1:]),
+            "modules": {}, "tool": mutmut(work, "--version").strip()}
+        if retested is not None:
+            out["retested_survivors"] = retested
         for key in modules:
             names = [n for n in status if module_of(n) == key]
             counts: dict[str, int] = {}
@@ -157,10 +245,7 @@ def main() -> None:
             rate = round(counts.get("survived", 0) / ran, 4) if ran else None
             out["modules"][key] = {"mutants": len(names), **counts,  # type: ignore[index]
                                    "survival_rate": rate, "survivors": survivors}
-        mods = out["modules"].values()  # type: ignore[attr-defined]
-        tot = {k: sum(m.get(k, 0) for m in mods) for k in ("killed", "survived", "timeout")}
-        ran = sum(tot.values())
-        out["total"] = {**tot, "survival_rate": round(tot["survived"] / ran, 4) if ran else None}
+        out["total"] = totals(list(out["modules"].values()))  # type: ignore[attr-defined]
         print(json.dumps(out, indent=1))
     finally:
         if not (a.keep or a.workdir):

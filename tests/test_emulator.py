@@ -208,15 +208,20 @@ def test_watchdog_safe_and_rehandshake(start_emulator: Start) -> None:
 @pytest.mark.parametrize("kind", ["tc-open", "nan-burst", "overtemp", "serial-drop", "tc-stuck"])
 def test_fault_observed_by_host(start_emulator: Start, kind: str) -> None:
     t_f = 0.3
-    _emu, link = start_emulator(faults=(f"{kind}@{t_f}",), tc_period=0.05)
-    dev = SerialDevice(str(link), link_timeout=0.05, stuck_after=5)
-    dev.open()
-    try:
-        samples = collect(dev, 1.2 if kind != "serial-drop" else 0.8, command=(0.0, 0.141),
-                          stop_on_loss=kind == "serial-drop")
-        lost_at = time.monotonic() if kind == "serial-drop" else math.nan
-    finally:
-        dev.close()
+    for attempt in range(3):
+        _emu, link = start_emulator(faults=(f"{kind}@{t_f}",), tc_period=0.05, name=f"skin{attempt}")
+        dev = SerialDevice(str(link), link_timeout=0.05, stuck_after=5)
+        dev.open()
+        try:
+            samples = collect(dev, 1.2 if kind != "serial-drop" else 0.8, command=(0.0, 0.141),
+                              stop_on_loss=kind == "serial-drop")
+            lost_at = time.monotonic() if kind == "serial-drop" else math.nan
+        finally:
+            dev.close()
+        # the 50 ms link timeout taken before the fault: this loaded machine held the host (or
+        # the emulator) past it, which is no fault under test; tried again (at most twice)
+        if not (dev.link_lost and samples and samples[-1].t < t_f - 2e-3):
+            break
     before = [s for s in samples if s.t < t_f - 1e-9]
     assert len(before) >= 250
     assert all(math.isfinite(s.T_w) and math.isfinite(s.T_p) and s.T_p < 40 for s in before)

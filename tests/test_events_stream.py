@@ -116,3 +116,61 @@ def test_a_parquet_table_at_a_name_pyarrow_cannot_take(tmp_path: Path) -> None:
     write_events(p, [TAP, HOLD])
     with open(p, "rb") as fh:
         assert pq.read_table(fh).column("onset").to_pylist() == [1.0, 3.0]
+
+
+def test_columns_are_floats_and_text_and_an_empty_text_column_is_text_in_parquet(tmp_path: Path) -> None:
+    """``events_columns``: numbers as float64 (``sign`` given as an int too), text as ``str``; in
+    Parquet a text column that no event fills (no characterisation) is still of type string."""
+    import numpy as np
+    import pyarrow.parquet as pq
+
+    from thermoskin.estimation.events import events_columns
+
+    cols = events_columns([TAP, HOLD])
+    assert cols["sign"].dtype == np.float64 and cols["onset"].dtype == np.float64
+    assert cols["kind"].dtype.kind == "U"
+    p = tmp_path / "ev.parquet"
+    write_events(p, [TAP, HOLD])
+    schema = pq.read_schema(p)
+    assert {str(schema.field(k).type) for k in ("toucher", "material")} == {"string"}
+    assert str(schema.field("sign").type) == "double"
+
+
+def test_a_stream_under_an_ascii_locale_writes_utf8(tmp_path: Path) -> None:
+    """A skin's patch named ``Handrücken``, the process's character type the C locale's (ASCII,
+    as under ``LC_ALL=C`` with coercion and UTF-8 mode off): the streamed table is UTF-8, as the
+    whole one."""
+    import locale
+    import sys
+
+    if sys.flags.utf8_mode:
+        import pytest
+
+        pytest.skip("UTF-8 mode: every file is UTF-8 whatever the locale")
+    p = tmp_path / "ev.csv"
+    old = locale.setlocale(locale.LC_CTYPE)
+    locale.setlocale(locale.LC_CTYPE, "C")
+    try:
+        with EventsStream(p, ("onset", "patch")) as s:
+            s.add_row({"onset": 1.0, "patch": "Handrücken"})
+    finally:
+        locale.setlocale(locale.LC_CTYPE, old)
+    assert p.read_bytes() == "onset,patch\n1.0,Handrücken\n".encode()
+
+
+def test_an_event_from_the_kernels_record() -> None:
+    """The compiled kernel's event record, fields in the ``EV_*`` order, by hand: the event with
+    those values, the sign an int; ``as_dict`` gives every field by its name."""
+    import numpy as np
+
+    from thermoskin.estimation import events as ev
+
+    layout = (ev.EV_ONSET, ev.EV_DETECTED, ev.EV_RELEASE, ev.EV_DURATION, ev.EV_SIGN, ev.EV_PEAK,
+              ev.EV_MEAN, ev.EV_ENERGY)
+    assert layout == tuple(range(8))
+    e = ContactEvent.from_kernel(np.array([3.0, 3.2, 6.0, 3.0, -1.0, -0.4, -0.3, -0.9]))
+    assert e == HOLD
+    assert isinstance(e.sign, int) and e.sign == -1
+    d = e.as_dict()
+    assert d["onset"] == 3.0 and d["detected_at"] == 3.2 and d["release"] == 6.0 and d["energy"] == -0.9
+    assert d["kind"] == "" and math.isnan(d["G_hat"])  # type: ignore[arg-type]

@@ -975,3 +975,360 @@ def test_sample_time_of_two_samples() -> None:
     assert sample_time([0.0, 0.5]) == 0.5 and sample_time(np.array([[0.0, 1e-3, 2e-3]])) == 1e-3
     with pytest.raises(ValueError, match="at least 2 samples, got 1"):
         sample_time([1.0])
+
+
+# ------------------------------------------------------------- Parquet: held edges (mutation run)
+
+
+@pytest.mark.parametrize(("col", "value", "tail"), [
+    ("q_i_hat", None, "null value (NaN is allowed only in temperature and velocity columns)"),
+    ("contact", float("nan"), "NaN value (NaN is allowed only in temperature and velocity columns)"),
+    ("t", float("nan"), "NaN value (t must be a finite number on every row)"),
+    ("t", float("-inf"), "infinite value -inf (t must be a finite number on every row)"),
+    ("T_w", float("inf"), "infinite value inf"),
+])
+def test_parquet_bad_value_messages_whole(tmp_path: Path, col: str, value: object, tail: str) -> None:
+    """The whole message of a bad value, to its end: its row, column, what it is and the hint
+    (t: must be finite; NaN where it is not allowed: where it is; an infinity elsewhere: none)."""
+    table: dict[str, list[object]] = {c: [float(i) for i in range(5)] for c in HEADER.split(",")}
+    table[col][2] = value
+    p = _parquet(tmp_path, table)  # type: ignore[arg-type]
+    assert _error(p) == f"{p}: row 3, column {col!r}: {tail}"
+
+
+def test_few_values_counts_to_its_limit() -> None:
+    """A dictionary is tried for a column of at most 1024 distinct values in its sample (every row
+    of a column shorter than 2 x 4096 rows): 1024 yes, 1025 no; a column whose odd rows are all
+    distinct is not few even when its even rows are one value."""
+    from thermoskin.logio.parquetlog import few_values
+
+    assert few_values(np.arange(1024.0)) and not few_values(np.arange(1025.0))
+    odd = np.zeros(2050)
+    odd[1::2] = np.arange(1.0, 1026.0)
+    assert not few_values(odd)
+    assert few_values(np.full(100, np.nan))  # NaN one value
+
+
+def test_parquet_first_line_of_an_empty_error() -> None:
+    """An Arrow error with no text is named by its type; otherwise its first line."""
+    from thermoskin.logio.parquetlog import _first_line
+
+    assert _first_line(OSError()) == "OSError"
+    assert _first_line(ValueError("  one\ntwo")) == "one"
+
+
+def test_parquet_column_count_limit_and_duplicates(tmp_path: Path) -> None:
+    """4096 columns are a log's limit, read; 4097 refused; two columns of one name refused."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from thermoskin.logio.common import MAX_COLUMNS
+
+    assert MAX_COLUMNS == 4096
+    for n in (4096, 4097):
+        names = ["t"] + [f"c{i}" for i in range(n - 1)]
+        p = tmp_path / f"w{n}.parquet"
+        pq.write_table(pa.Table.from_arrays([pa.array([0.0, 1.0])] * n, names=names), p)
+        if n == 4096:
+            assert len(read_log(p, required=("t",))) == 4096
+        else:
+            assert f"{n} columns, more than a log may have (4096)" in _error(p, required=("t",))
+    p = tmp_path / "dup.parquet"
+    pq.write_table(pa.Table.from_arrays([pa.array([0.0, 1.0])] * 3, names=["t", "T_w", "T_w"]), p)
+    assert "duplicate column name(s): T_w" in _error(p, required=("t",))
+
+
+def test_parquet_reader_chunks_and_writer_compression(tmp_path: Path) -> None:
+    """Reading gives chunks of at most ``chunk_rows`` rows (bounded memory), 333 + 333 + 334 rows
+    of a row group of 1000; the writer compresses with zstd; an integer patch index given as
+    integers is stored as those integers."""
+    import pyarrow.parquet as pq
+
+    from thermoskin.logio import LogWriter
+
+    n = 1000
+    cols = {"t": np.arange(n) * 1e-3, "T_w": 24.0 + np.arange(n) * 1e-4}
+    p = write_log(tmp_path / "c.parquet", cols)
+    with LogReader(p, chunk_rows=333, required=("t",)) as r:
+        sizes = [len(c["t"]) for c in r]
+    assert sum(sizes) == n and max(sizes) <= 333
+    meta = pq.ParquetFile(p).metadata
+    assert {meta.row_group(0).column(i).compression for i in range(meta.num_columns)} == {"ZSTD"}
+    skin = tmp_path / "skin.parquet"
+    with LogWriter(skin, ["t", "patch"]) as w:
+        w.write({"t": np.repeat([0.0, 0.001], 3), "patch": np.tile(np.arange(3, dtype=np.int32), 2)})
+    assert pq.read_table(skin)["patch"].to_pylist() == [0, 1, 2, 0, 1, 2]
+
+
+def test_reading_a_log_does_not_import_pandas(tmp_path: Path) -> None:
+    """Reading a CSV or a Parquet log converts Arrow's columns from their buffers: pyarrow's own
+    conversion imports pandas (0.2 s a command's start-up cannot afford). In a fresh interpreter
+    (the package as imported here), after reading both, pandas is not loaded."""
+    import subprocess
+    import sys
+
+    import thermoskin
+
+    csv = tmp_path / "a.csv"
+    csv.write_text("t,T_w\n0.0,24.0\n0.001,\n0.002,24.5\n", encoding="utf-8")
+    pq = write_log(tmp_path / "a.parquet", {"t": np.arange(3) * 1e-3, "T_w": np.array([24.0, np.nan, 24.5])})
+    code = ("import sys; from thermoskin.logio import read_log\n"
+            "for p in sys.argv[1:]:\n"
+            "    log = read_log(p, required=('t',), nan_columns=('T_w',))\n"
+            "    assert log['T_w'][2] == 24.5 and log['T_w'][1] != log['T_w'][1], p\n"
+            "print('pandas' in sys.modules)")
+    for p in (csv, pq):  # here too: a mutation tool traces which tests reach which code in-process
+        assert read_log(p, required=("t",), nan_columns=("T_w",))["T_w"][2] == 24.5
+    env = {**os.environ, "PYTHONPATH": str(Path(thermoskin.__file__).resolve().parents[1])}
+    out = subprocess.run([sys.executable, "-c", code, str(csv), str(pq)], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "False"
+
+
+def test_parquet_nulls_in_columns_arrow_converts(tmp_path: Path) -> None:
+    """Columns converted by Arrow's own cast (float16, boolean): a null in a temperature reads as
+    NaN, a null in a flag is refused as a null value at its row."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    p = tmp_path / "i.parquet"
+    T_w = pa.array(np.array([24.0, 0.0, 25.0], np.float16), mask=np.array([False, True, False]))
+    pq.write_table(pa.table({"t": [0.0, 0.5, 1.0], "T_w": T_w}), p)
+    got = read_log(p, required=("t",), nan_columns=("T_w",))
+    assert got["T_w"][0] == 24.0 and np.isnan(got["T_w"][1]) and got["T_w"][2] == 25.0
+    q = tmp_path / "f.parquet"
+    pq.write_table(pa.table({"t": [0.0, 0.5, 1.0], "contact": pa.array([False, True, None], pa.bool_())}), q)
+    assert _error(q, required=("t",)) == (f"{q}: row 3, column 'contact': null value "
+                                          "(NaN is allowed only in temperature and velocity columns)")
+
+
+def test_parquet_reading_keeps_no_row_group_it_has_read(tmp_path: Path) -> None:
+    """A Parquet log of 1.2 million rows (48 MB of float64 in 24 row groups) read chunk by chunk:
+    Arrow's memory stays under 16 MB (the row groups read are not kept: memory does not grow with
+    the log's length)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    n = 1_200_000
+    rng = np.random.default_rng(1)
+    p = tmp_path / "long.parquet"
+    table = {"t": np.arange(n) * 1e-3, "T_w": rng.normal(24, 1, n), "T_p": rng.normal(24, 1, n),
+             "v": rng.normal(0, 1, n), "T_a": rng.normal(20, 1, n)}
+    pq.write_table(pa.table(table), p, row_group_size=50_000)
+    base, peak, rows = pa.total_allocated_bytes(), 0, 0
+    with LogReader(p, chunk_rows=50_000) as r:
+        for c in r:
+            rows += len(c["t"])
+            peak = max(peak, pa.total_allocated_bytes() - base)
+    assert rows == n and peak < 16e6, peak
+
+
+# ------------------------------------------------- the shared helpers (logio.common), by hand
+
+
+def test_short_keeps_a_message_one_short_line() -> None:
+    """``short``: a value's repr up to 40 characters as it is; longer, its first 36 and ``...'``
+    (40 in all); a huge field's start only; another limit taken."""
+    from thermoskin.logio.common import short
+
+    assert short("y" * 38) == "'" + "y" * 38 + "'"  # 40 characters: whole
+    assert short("y" * 39) == "'" + "y" * 35 + "...'"  # 41: cut to 40
+    assert short("x" * 10_000) == "'" + "x" * 35 + "...'"
+    assert short(b"\xff" * 5) == repr(b"\xff" * 5)
+    assert short(1.5) == "1.5"
+    assert short("z" * 30, limit=10) == "'zzzzz...'"
+
+
+def test_parse_value_by_hand() -> None:
+    """One CSV field: a number, or why not (the words of the line's message)."""
+    import math
+
+    from thermoskin.logio.common import parse_value
+
+    assert parse_value(" 2.5 ", False) == 2.5 and parse_value("-1e-3", False) == -0.001
+    assert parse_value("", False) == "empty value" and parse_value("  ", False) == "empty value"
+    assert parse_value("1_000", False) == "non-numeric value"
+    assert parse_value("abc", False) == "non-numeric value"
+    assert parse_value("nan", False) == "NaN value" and parse_value("-nan", False) == "NaN value"
+    assert math.isnan(parse_value("-nan", True)) and math.isnan(parse_value("NA", True))  # type: ignore[arg-type]
+    assert math.isnan(parse_value("", True))  # type: ignore[arg-type]
+    assert parse_value("inf", True) == "infinite value"
+    assert parse_value("-Infinity", False) == "infinite value"
+
+
+def test_arrow_float64_from_buffers_by_hand() -> None:
+    """Arrow columns read from their buffers: slices (an offset into a longer buffer) of int16 and
+    float64 columns give just their values, nulls as NaN with their mask; an empty column is
+    empty; a type it does not convert (float16) is left to the caller (None)."""
+    import pyarrow as pa
+
+    from thermoskin.logio.common import arrow_float64
+
+    got = arrow_float64(pa.array(np.arange(10, dtype=np.int16))[2:5])
+    assert got is not None and got[0].tolist() == [2.0, 3.0, 4.0] and got[1] is None
+    col = pa.chunked_array([pa.array([1.5, None, 3.5, 4.5, None, 6.5])[1:5]])
+    vals, mask = arrow_float64(col)  # type: ignore[misc]
+    assert np.isnan(vals[0]) and vals[1:3].tolist() == [3.5, 4.5] and np.isnan(vals[3])
+    assert mask.tolist() == [True, False, False, True]
+    empty = arrow_float64(pa.array([], pa.float64()))
+    assert empty is not None and empty[0].shape == (0,) and empty[1] is None
+    assert arrow_float64(pa.array(np.ones(3, np.float16))) is None
+
+
+def test_the_line_by_line_reader_values_and_messages(tmp_path: Path) -> None:
+    """Fields the fast parsers refuse (`` NA`` with a space) send a block to the line-by-line
+    reader: a quoted field is read as its number, `` NA`` as NaN where NaN is allowed; and its
+    messages to their end: NaN-like text where NaN is not allowed (with the hint), other text
+    (without), bad text in ``t`` (with t's hint), an empty line."""
+    p = tmp_path / "slow.csv"
+    p.write_text('t,T_w,T_p,v,T_a,contact\n0.0, NA,"25.5",0.1,20,0\n0.001,24.25,"25.5",0.1,20,1\n',
+                 encoding="utf-8")
+    log = read_log(p)
+    assert np.isnan(log["T_w"][0]) and log["T_w"][1] == 24.25
+    assert log["T_p"].tolist() == [25.5, 25.5] and log["t"].tolist() == [0.0, 0.001]
+    assert log["contact"].tolist() == [0.0, 1.0] and log["T_a"].tolist() == [20.0, 20.0]
+    head = "t,T_w,T_p,v,T_a,contact\n0.0,24,25,0.1,20,0\n"
+    cases = {
+        "0.001,24,25,0.1,20, NA\n": "line 3, column 'contact': non-numeric value ' NA' "
+                                    "(NaN is allowed only in temperature and velocity columns)",
+        "0.001,24,25,0.1,20,abc\n": "line 3, column 'contact': non-numeric value 'abc'",
+        "abc,24,25,0.1,20,0\n": "line 3, column 't': non-numeric value 'abc' "
+                                "(t must be a finite number on every row)",
+        "\n0.002,24,25,0.1,20,0\n": "line 3: empty line, expected 6 fields (as in the header): ''",
+        "0.001,24,25,0.1,20,-nan\n": "line 3, column 'contact': NaN value '-nan' "
+                                      "(NaN is allowed only in temperature and velocity columns)",
+    }
+    for i, (row, want) in enumerate(cases.items()):
+        q = tmp_path / f"bad{i}.csv"
+        q.write_text(head + row, encoding="utf-8")
+        assert _error(q) == f"{q}: {want}"
+
+
+def test_the_line_by_line_reader_takes_a_line_of_64_kib_not_one_byte_more(tmp_path: Path) -> None:
+    """A line of 65 536 bytes (the limit for six columns: 64 KiB, more than 6 x 128) is read
+    (blanks before a number), one of 65 537 refused as it is."""
+    head = "t,T_w,T_p,v,T_a,contact\n0.0, NA,25,0.1,20,0\n"
+    start = "0.001,24,25,0.1,20,"
+    for n, ok in ((65536, True), (65537, False)):
+        p = tmp_path / f"l{n}.csv"
+        p.write_text(head + start + " " * (n - len(start) - 1) + "1\n", encoding="utf-8")
+        if ok:
+            assert read_log(p)["contact"].tolist() == [0.0, 1.0]
+        else:
+            assert _error(p) == (f"{p}: line 3: a line of 65537 bytes, longer than a row of 6 numbers can be "
+                                 "(65536 bytes at most): not a log row")
+
+
+def test_blocks_of_a_csv_read_in_small_chunks(tmp_path: Path) -> None:
+    """Read 10 rows at a time (blocks of 64 KiB): a first row of exactly 65 536 bytes (longer
+    than a block: read on) and 4 000 rows after it come back whole and in order; a line past the
+    limit after them is refused naming its own line (4 003), its blocks counted right."""
+    head = "t,T_w,T_p,v,T_a,contact\n"
+    first = "0.0,24,25,0.1,20,"
+    first += " " * (65536 - len(first) - 1) + "0\n"
+    rows = "".join(f"{k * 1e-3!r},{24 + k * 1e-4!r},25,0.1,20,{k % 2}\n" for k in range(1, 4001))
+    p = tmp_path / "b.csv"
+    p.write_text(head + first + rows, encoding="utf-8")
+    with LogReader(p, chunk_rows=10) as r:
+        got = list(r)
+    t = np.concatenate([c["t"] for c in got])
+    assert len(got) > 1 and np.array_equal(t, np.arange(4001) * 1e-3)
+    assert np.concatenate([c["contact"] for c in got]).tolist() == [0.0] + [k % 2 for k in range(1, 4001)]
+    q = tmp_path / "c.csv"
+    q.write_text(head + first + rows + "4.001," + "9" * 300_000 + "\n", encoding="utf-8")
+    with pytest.raises(LogError) as info, LogReader(q, chunk_rows=10) as r:
+        list(r)
+    msg = str(info.value)
+    assert msg.startswith(f"{q}: line 4003: a line of ") and msg.endswith(
+        "bytes or more, longer than a row of 6 numbers can be (65536 bytes at most): not a log row"), msg
+
+
+def test_csv_header_limits_by_hand(tmp_path: Path) -> None:
+    """A header of 4 096 columns is read, one of 4 097 refused; a header line of exactly 1 MiB
+    (4 096 names, line end included) is read; an empty name is named by its column (from 1);
+    a data line may take 128 bytes a column, 64 KiB at least."""
+    from thermoskin.logio.common import max_line_bytes
+
+    assert max_line_bytes(6) == 65536 and max_line_bytes(4096) == 128 * 4096
+    for n in (4096, 4097):
+        p = tmp_path / f"h{n}.csv"
+        names = ["t"] + [f"c{i}" for i in range(1, n)]
+        p.write_text(",".join(names) + "\n" + ",".join(["0"] * n) + "\n" + ",".join(["1"] * n) + "\n",
+                     encoding="utf-8")
+        if n == 4096:
+            assert len(read_log(p, required=("t",))) == 4096
+        else:
+            assert _error(p, required=("t",)) == f"{p}: line 1: 4097 columns, more than a log may have (4096)"
+    names = ["t"] + [f"c{i:04d}".ljust(255, "x") for i in range(1, 4095)]
+    names.append("z" * (4096 * 255 - 1 - 4094 * 255))
+    header = ",".join(names) + "\n"
+    assert len(header.encode()) == 1 << 20
+    p = tmp_path / "mib.csv"
+    p.write_text(header + ",".join(["0"] * 4096) + "\n" + ",".join(["1"] * 4096) + "\n", encoding="utf-8")
+    assert len(read_log(p, required=("t",))) == 4096
+    p = tmp_path / "empty_name.csv"
+    p.write_text("t,,T_w\n0,1,2\n1,1,2\n", encoding="utf-8")
+    assert _error(p, required=("t",)) == f"{p}: line 1: column 2 has an empty name (header 't,,T_w')"
+
+
+def test_a_csv_of_more_than_4_kib_without_a_final_line_end(tmp_path: Path) -> None:
+    """The last line of a log, longer than 4 KiB (blanks before its last field) and without its
+    line end, is read whole (its last field to its last digit)."""
+    rows = "".join(f"{k * 1e-3!r},24.5,25,0.1,20\n" for k in range(400))
+    p = tmp_path / "noend.csv"
+    p.write_text("t,T_w,T_p,v,T_a\n" + rows + "0.4,24.5,25,0.1," + " " * 5000 + "21", encoding="utf-8")
+    log = read_log(p)
+    assert len(log["t"]) == 401 and log["T_a"][-1] == 21.0 and log["T_a"][-2] == 20.0
+
+
+def test_column_names_and_dtypes_a_log_is_written_with() -> None:
+    """``check_names``: a name that is not a string, empty, holds a comma, quote or line break, or
+    has outer blanks is refused, a name with an X or a blank inside is not; ``as_column``: bools
+    kept, integers int64, floats float64; ``writable``: a read-only or strided array copied."""
+    from thermoskin.logio.common import as_column, check_names, writable
+
+    check_names(["t", "T_w", "a X b"], "w")
+    for bad in (1, "", "a,b", 'a"b', "a\nb", "a\rb", " a"):
+        with pytest.raises(ValueError, match="invalid column name"):
+            check_names(["t", bad], "w")  # type: ignore[list-item]
+    b = np.array([True, False])
+    assert as_column(b) is b
+    assert as_column(np.array([1, 2], np.uint8)).dtype == np.int64
+    assert as_column(np.array([1.5], np.float32)).dtype == np.float64
+    ro = np.arange(3.0)
+    ro.flags.writeable = False
+    assert writable(ro) is not ro and writable(ro).flags.writeable
+    strided = np.arange(6.0)[::2]
+    assert writable(strided) is not strided and writable(strided).flags.c_contiguous
+    ok = np.arange(3.0)
+    assert writable(ok) is ok
+
+
+def test_where_nan_is_allowed_and_the_first_bad_value_by_hand() -> None:
+    """NaN is allowed in ``T_*``, ``v`` and ``v_*`` columns by default (not ``V_x``, not ``t``);
+    a rule given as a function is asked for every column but ``t``; the first bad value is the
+    first in reading order (row first, then column)."""
+    from thermoskin.logio.common import allow_nan, first_bad_value
+
+    names = ["t", "T_w", "v", "v_2", "V_x", "contact"]
+    assert allow_nan(names) == [False, True, True, True, False, False]
+    assert allow_nan(names, lambda n: n in ("t", "contact")) == [False, False, False, False, False, True]
+    assert allow_nan(names, ("T_w",)) == [False, True, False, False, False, False]
+    nan, inf = np.nan, np.inf
+    cols = [np.array([0.0, 1.0, 2.0]), np.array([nan, 1.0, inf]), np.array([1.0, nan, 1.0])]
+    assert first_bad_value(cols, [False, True, False]) == (1, 2)  # row 1, column 2 before row 2
+    assert first_bad_value(cols, [False, True, True]) == (2, 1)   # the infinity in T_w
+    cols = [np.array([0.0, 1.0]), np.array([1.0, inf]), np.array([1.0, nan])]
+    assert first_bad_value(cols, [False, False, False]) == (1, 1)  # a tie: the first column
+
+
+def test_check_time_non_uniform_message_by_hand() -> None:
+    """A step off the median by more than 1 %: its interval, the times around it and the
+    expected step with its tolerance; a step within the tolerance passes."""
+    from thermoskin.logio.common import check_time
+
+    k, why = check_time(np.array([0.0, 0.01, 0.02, 0.035, 0.045, 0.055]))  # type: ignore[misc]
+    assert k == 3 and why == ("non-uniform sampling: interval 0.015 s (t = 0.02 -> 0.035), expected 0.01 s "
+                              "± 1 % (read with uniform=False to accept jitter)")
+    assert check_time(np.array([0.0, 0.01, 0.02, 0.0301, 0.0401])) is None

@@ -107,6 +107,8 @@ def test_hold_takes_the_last_plausible_command_and_the_first_before_it() -> None
     np.testing.assert_array_equal(c.columns["T_w_cmd"], [22.0, 22.0, 24.0, 24.0, np.nan, np.nan, 26.0])
     c = clean_log({"t": t[:3], "T_w_cmd": np.array([999.0, -999.0, 1e9])}, cfg)
     assert np.isnan(c.columns["T_w_cmd"]).all() and c.counts == {"T_w_cmd": 3}
+    c = clean_log({"t": t[:4], "T_w_cmd": np.array([23.0, 999.0, 999.0, 25.0])}, cfg)  # the first plausible
+    np.testing.assert_array_equal(c.columns["T_w_cmd"], [23.0, 23.0, 23.0, 25.0])
 
 
 @pytest.mark.parametrize("col", ["T_w", "T_p", "T_a", "v"])

@@ -223,3 +223,35 @@ def test_frames_counted_by_type() -> None:
     dec = Decoder(check_seq=False)
     dec.feed(encode(Hello(1)) + encode(sample(2)) + encode(sample(3)) + encode(sample(4)))
     assert dec.stats.by_type == {proto.T_HELLO: 1, proto.T_SAMPLE: 3} and dec.stats.frames == 4
+
+
+def test_frame_limit_past_one_cobs_block_and_a_tail_at_the_limit() -> None:
+    """A decoder for packets of 254 bytes (one whole COBS block, one code byte more): its frames
+    reach 254 + 1 + 2 = 257 bytes, decoded (as garbage here), 258 are oversize. A tail after a
+    frame exactly at the limit is kept (not counted); the bytes of a tail dropped past it are gone
+    (the next frame, fed at once, decodes)."""
+    dec = Decoder(check_seq=False, max_packet=254)
+    dec.feed(b"\x07" * 257 + b"\x00")
+    assert dec.stats.oversize == 0 and dec.stats.bad_cobs + dec.stats.crc + dec.stats.bad_length == 1
+    dec.feed(b"\x07" * 258 + b"\x00")
+    assert dec.stats.oversize == 1
+    dec = Decoder()
+    assert dec.feed(encode(sample(1)) + b"\x07" * 252) == [sample(1)]
+    assert dec.stats.oversize == 0
+    assert dec.feed(b"\x00") == [] and dec.stats.oversize == 0 and dec.stats.corrupted == 1
+    assert dec.feed(encode(sample(2)) + b"\x07" * 253) == [sample(2)] and dec.stats.oversize == 1
+    assert dec.feed(encode(sample(3))) == [sample(3)]
+
+
+def test_reset_forgets_the_buffer_and_the_sequence_not_the_counts() -> None:
+    """``reset``: half a frame buffered is forgotten (the next whole frame decodes on its own),
+    a seq already seen is new again; the counts stay."""
+    dec = Decoder()
+    assert dec.feed(encode(sample(5))) == [sample(5)]
+    dec.feed(encode(sample(6))[:10])
+    dec.reset()
+    assert dec.feed(encode(sample(5))) == [sample(5)]  # not glued to the half, not a repeat
+    assert dec.stats.frames == 2 and dec.stats.repeated == 0 and dec.stats.corrupted == 0
+    dec.feed(encode(sample(6))[:10])
+    dec.reset()
+    assert dec.feed(encode(sample(7))[10:]) == [] and dec.stats.corrupted == 1 and dec.stats.frames == 2

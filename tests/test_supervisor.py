@@ -164,3 +164,27 @@ def test_surface_estimate_and_stuck_switch() -> None:
     assert sv.Supervisor(cfg).surface(30.0, 20.0) == pytest.approx((Rag * 30.0 + Rg * 20.0) / (Rg + Rag))
     assert sup(stuck_readings=0).check(0.0, 24.0, 30.0, 20.0, stuck=proto.CH_W) == sv.OK
     assert sup(stuck_readings=1).check(0.0, 24.0, 30.0, 20.0, stuck=proto.CH_W) == sv.STUCK
+
+
+def test_a_lost_link_and_a_stop_trip_at_once_and_latch_the_first() -> None:
+    """``link_error``: a ``link`` fault (7) at its time, the detail naming the cause; ``stop``: the
+    safe outputs on request (9), not a fault of the skin. Whichever comes first is kept."""
+    s = sup()
+    assert s.check(0.0, 24.0, 30.0, 20.0) == sv.OK
+    assert sv.LINK == 7 and sv.STOPPED == 9
+    assert s.link_error(0.25, "port closed") == sv.LINK
+    assert s.code == sv.LINK and s.t_fault == 0.25 and math.isnan(s.value)
+    assert s.detail == "link lost: port closed" and s.gate(0.4, 0.1) == (0.0, 0.0)
+    assert s.stop(0.5) == sv.LINK and s.t_fault == 0.25  # the first kept
+    s = sup()
+    assert s.stop(1.5) == sv.STOPPED
+    assert s.code == sv.STOPPED and s.t_fault == 1.5 and math.isnan(s.value)
+    assert s.detail == "stopped on request" and s.gate(0.4, 0.1) == (0.0, 0.0)
+    assert s.link_error(2.0, "x") == sv.STOPPED and s.detail == "stopped on request"
+
+
+def test_the_pipe_surface_does_not_need_the_air() -> None:
+    """With the surface taken as the pipe's reading (the default), an air reading lost (NaN) or
+    absurd changes nothing: the surface is ``T_w``."""
+    s = sup()
+    assert s.surface(24.5, math.nan) == 24.5 and s.surface(24.5, math.inf) == 24.5
