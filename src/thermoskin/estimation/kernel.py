@@ -399,13 +399,14 @@ def _p_put(st, p):
 
 
 @_inline
-def _update(st, pr, i, y, p, eta, slow):
+def _update(st, pr, i, y, p, eta, slow, learning):
     """Scalar measurement: the pipe's reading (``i`` 0) or the tank's (3), with the learnt variance
     of its readings; adds its evidence about a change of ``q_i``. ``p``: the covariance
     (:func:`_p_get`), returned updated; the pipe's and the tank's updates of a sample pass it
     from one to the other in registers, and the state takes it once. ``eta``: the weight of
     this reading in the variance's tracker (0: not learnt); ``slow``: the slow states learn from
-    it.
+    it; ``learning`` (a constant where it is inlined): False for a patch with nothing learnt nor
+    carried (:func:`fixed`), whose code then has neither the bead nor the slow states.
 
     The pipe's reading is its thermocouple's bead, ``y = (1 - a) T_w + a m`` (:data:`XM`), so
     its row of the covariance is ``r = (1 - a) P[0, :] + a c`` (``c`` the bead's covariance with
@@ -419,22 +420,31 @@ def _update(st, pr, i, y, p, eta, slow):
     offset in a tank reading, the lag's derivative ``-WL2`` in a pipe reading, else 0), and each
     reading moves them by ``k e``, ``k = P_B s / (S + s' P_B s)``, and the state by ``-V k e``:
     the augmented filter's estimate, exactly for constant offsets (to first order in the lag)."""
-    a = st[LAGA]
+    if learning:
+        a = st[LAGA]
+        c0, c1, c2, c3, c4 = st[CM], st[CM + 1], st[CM + 2], st[CM + 3], st[CM + 4]
+        pmm = st[PMM]
+        pbb, pbt, ptt = st[PBB], st[PBT], st[PTT]
+    else:  # (all 0 in such a patch's state: its code the filter's alone)
+        a = c0 = c1 = c2 = c3 = c4 = pmm = pbb = pbt = ptt = 0.0
     b1 = 1.0 - a
-    c0, c1, c2, c3, c4 = st[CM], st[CM + 1], st[CM + 2], st[CM + 3], st[CM + 4]
-    pmm = st[PMM]
+    # (a patch that learns nothing keeps its variances at their priors: read from its
+    # parameters, one cache line fewer of its state a sample)
     if i == 0:
-        R = st[RW]
-        yhat = b1 * st[X] + a * st[XM]
-        sb = -(b1 * st[VB] + a * st[VBM])
-        stau = -st[WL2] - (b1 * st[VT] + a * st[VT + 5])
+        R = st[RW] if learning else pr[PR_RW0]
+        if learning:
+            yhat = b1 * st[X] + a * st[XM]
+            sb = -(b1 * st[VB] + a * st[VBM])
+            stau = -st[WL2] - (b1 * st[VT] + a * st[VT + 5])
+        else:
+            yhat = st[X]
+            sb = stau = 0.0
     else:
-        R = st[RP]
+        R = st[RP] if learning else pr[PR_RP0]
         yhat = st[X + 3]
-        sb = 1.0 - st[VB + 3]
-        stau = -st[VT + 3]
-    pbb, pbt, ptt = st[PBB], st[PBT], st[PTT]
-    sps = sb * sb * pbb + 2.0 * sb * stau * pbt + stau * stau * ptt
+        sb = 1.0 - st[VB + 3] if learning else 0.0
+        stau = -st[VT + 3] if learning else 0.0
+    sps = sb * sb * pbb + 2.0 * sb * stau * pbt + stau * stau * ptt if learning else 0.0
     e = y - yhat
     kap = st[KAPPA]
     man = False
@@ -447,7 +457,7 @@ def _update(st, pr, i, y, p, eta, slow):
             p = (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11],
                  p[12] + e * e, p[13], p[14] + (e / pr[PR_TMAN]) ** 2)
     # the reading's covariance with the state (its row of P), with the bead's, and its variance
-    if i == 0:
+    if i == 0 and learning:
         r0 = b1 * p[0] + a * c0
         r1 = b1 * p[1] + a * c1
         r2 = b1 * p[2] + a * c2
@@ -455,6 +465,10 @@ def _update(st, pr, i, y, p, eta, slow):
         r4 = b1 * p[4] + a * c4
         rm = b1 * c0 + a * pmm
         S = b1 * r0 + a * rm + R
+    elif i == 0:
+        r0, r1, r2, r3, r4 = p[0], p[1], p[2], p[3], p[4]
+        rm = 0.0
+        S = r0 + R
     else:
         r0, r1, r2, r3, r4 = p[3], p[7], p[10], p[12], p[13]
         rm = c3
@@ -520,7 +534,7 @@ def _update(st, pr, i, y, p, eta, slow):
     x3 = st[X + 3] + k3 * e
     x4 = st[X + 4] + k4 * e
     xm = st[XM] + km * e
-    if pr[PR_SLOWON] == 0.0:  # no bead nor slow state: the filter alone (a skin's patch)
+    if not learning or pr[PR_SLOWON] == 0.0:  # no bead nor slow state: the filter alone
         st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4] = x0, x1, x2, x3, x4
         return (p[0] - k0 * r0, p[1] - k0 * r1, p[2] - k0 * r2, p[3] - k0 * r3, p[4] - k0 * r4,
                 p[5] - k1 * r1, p[6] - k1 * r2, p[7] - k1 * r3, p[8] - k1 * r4,
@@ -673,7 +687,7 @@ def _predict(st, F, G, QQ, u, w):
 
 
 @_inline
-def _ambient(st, pr, t, y, fresh, idx):
+def _ambient(st, pr, t, y, fresh, idx, learning):
     """Update the ambient filter with a fresh air reading (if any), with its learnt variance.
 
     A sudden change of the air (a door) is found by Page's CUSUM on the standardised
@@ -682,7 +696,7 @@ def _ambient(st, pr, t, y, fresh, idx):
     to wait until the lagging sensor has caught up.
     """
     if fresh:
-        R = st[RA]
+        R = st[RA] if learning else pr[PR_RA0]
         S = st[PA + 3 * idx] + R
         e = y - st[XA + idx]
         z = e / math.sqrt(S)
@@ -1136,9 +1150,10 @@ def _median_in_place(a, lo, m):
 
 
 @_inline
-def _irho(st, pr):
-    """The weight of the onset evidence: ``1/rho``, 1 where ``rho`` is within its dead band."""
-    rho = st[RHO] / pr[PR_RHODB]
+def _irho(st, pr, learning=True):
+    """The weight of the onset evidence: ``1/rho``, 1 where ``rho`` is within its dead band
+    (``rho`` 1 where nothing is learnt)."""
+    rho = (st[RHO] if learning else 1.0) / pr[PR_RHODB]
     return 1.0 / rho if rho > 1.0 else 1.0
 
 
@@ -1190,7 +1205,7 @@ def _dispersion(st, pr, t, sge, sgg, on):
 
 
 @_inline
-def _detect(st, pr, t, ev):
+def _detect(st, pr, t, ev, learning):
     """The detector's sample; returns the step-result bits."""
     q = st[Q]
     sq = st[SQ]
@@ -1225,7 +1240,7 @@ def _detect(st, pr, t, ev):
         # the evidence's dispersion (:func:`_dispersion`): where the model does not fit the
         # readings the CUSUMs take the evidence as that much less (a quasi-likelihood), so that
         # noise alarms no more often than the threshold is for, and a touch needs that much more
-        irho = _irho(st, pr)
+        irho = _irho(st, pr, learning)
         fire = -1
         best = 0.0
         quiet = True
@@ -1432,7 +1447,8 @@ def _switch_correction(st, pr, Rw, iv_old, iv, slot):
 
 
 @_inline
-def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh, ev):
+def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh, ev,
+         learning=True):
     """One sample of one patch; returns the step-result bits (contact, started, ended). An
     entry point (``TouchEstimator.step``, a sample from Python) and, inlined, the body of every
     loop below, the sweep's batch and the re-dating's trace.
@@ -1440,6 +1456,9 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     ``iv`` and ``drive``: the pump's table row and the Peltier drive applied over the coming
     interval (``iv = -1``: the pump's velocity is unknown, a NaN); ``Qi`` / ``Qc``: the
     process-noise tables while idle and in contact; ``Rw`` the water's resistance per row.
+    ``learning`` False (a constant in the loops that inline this, ``*_fixed``): the step of a
+    patch with nothing learnt nor carried (:func:`fixed`), its code without any of it; the
+    same results as with True for such a patch, bit for bit.
     """
     st[KUP] = st[KUP + 6] = 0.0  # no update for the step signatures yet
     if pr[PR_TRACE] != 0.0:  # the trace's records of this sample
@@ -1471,17 +1490,17 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     st[SGE] = st[SGG] = 0.0
     st[QPRI] = st[X + 2]
     # the readings' converter steps (each channel's smallest change between fresh readings)
-    if (fresh & 1) != 0:
+    if learning and (fresh & 1) != 0:
         _quantum(st, QW, LYW, T_w)
     # the tank's and the air's reading variances from their own second differences (both
     # change smoothly: what a second difference holds is the noise, 6 R); the pipe's, which
     # the pump kinks at every switch, from its innovations (_update)
-    learn_r = pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0
-    if (fresh & 2) != 0:
+    learn_r = learning and pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0
+    if learning and (fresh & 2) != 0:
         if learn_r:
             _noise2(st, pr, RP, PR_RP0, QP, LYP, LY2P, T_p, t - st[TLP])
         _quantum(st, QP, LYP, T_p)
-    if (fresh & 4) != 0:
+    if learning and (fresh & 4) != 0:
         if learn_r:
             _noise2(st, pr, RA, PR_RA0, QA, LYA, LY2A, T_a, t - st[TLA])
         _quantum(st, QA, LYA, T_a)
@@ -1496,13 +1515,13 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     # hold the model's prediction over the interval as well, and come out 10-40 % below the
     # noise learnt so with 10 Hz boards; its variance stays at its prior, the innovations'
     # scale (KAPPA) carrying the rest into the detector
-    learn = (pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0 and st[MODE] != INCONTACT
+    learn = (learning and pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0 and st[MODE] != INCONTACT
              and t - st[TREL] >= pr[PR_TSETTLE] and st[RATE] >= pr[PR_RFAST])
-    if pr[PR_LEARN] != 0.0 and t - st[RST0] >= pr[PR_RSLOT]:
+    if learning and pr[PR_LEARN] != 0.0 and t - st[RST0] >= pr[PR_RSLOT]:
         _r_slots(st, pr, t)
     # the slow states (offset, lag) learn while no contact is seen and none has just ended, and
     # not while the filter settles after its start
-    slow = (pr[PR_LEARN] != 0.0 and st[MODE] != INCONTACT and t - st[TREL] >= pr[PR_TSETTLE]
+    slow = (learning and pr[PR_LEARN] != 0.0 and st[MODE] != INCONTACT and t - st[TREL] >= pr[PR_TSETTLE]
             and t - st[TINIT] >= pr[PR_LDELAY])
     # nor while the detector's evidence builds (an onset CUSUM above a fraction of its
     # threshold): the readings between a touch's onset and its detection are the touch's, and
@@ -1518,8 +1537,8 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         st[TLA] = t
     else:
         upd_a = (fresh & 4) != 0 and math.isfinite(T_a)
-        _ambient(st, pr, t, T_a, upd_a, int(pr[PR_AMB]))
-        if upd_a:
+        _ambient(st, pr, t, T_a, upd_a, int(pr[PR_AMB]), learning)
+        if learning and upd_a:
             st[TLA] = t
         if st[TAMB] == t and st[MODE] == INCONTACT and t - st[DETECTED] < pr[PR_TRETR]:
             # the "contact" just begun was the air changing: withdraw it (no event)
@@ -1545,7 +1564,8 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                 if st[MODE] != INCONTACT:
                     st[j] = c + pr[PR_APH] * (T_w - st[X] - c)
                 y = T_w - c
-            p = _update(st, pr, 0, y, p, _eta_w(pr, t - st[TLW]) if learn else 0.0, learn_slow)
+            p = _update(st, pr, 0, y, p, _eta_w(pr, t - st[TLW]) if learn else 0.0, learn_slow,
+                        learning)
             st[GAPRUN] = 0.0
             dt = t - st[TLW]
             if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is
@@ -1556,19 +1576,21 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         else:
             st[GAPRUN] += 1.0
         if upd_p:
-            p = _update(st, pr, 3, T_p - pr[PR_OFP] - st[BD], p, 0.0, learn_slow)
-            st[TLP] = t
+            p = _update(st, pr, 3, T_p - pr[PR_OFP] - (st[BD] if learning else pr[PR_BD0]), p, 0.0,
+                        learn_slow, learning)
+            if learning:
+                st[TLP] = t
         if upd_w or upd_p:
             _p_put(st, p)
     if iv_old >= 0:
         _switch_correction(st, pr, Rw, iv_old, iv, SWA)
     if slow and t - st[SWIN + 4] >= pr[PR_SWIN]:
         _slow_window(st, pr, t)
-    elif not slow:
+    elif learning and not slow:
         for j in range(4):
             st[SWIN + j] = 0.0
         st[SWIN + 4] = t
-    if pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0:
+    if learning and pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0:
         # (not while the slow states are still far from learnt: the filter's own transient at
         # its start)
         _dispersion(st, pr, t, st[SGE], st[SGG], not gap and st[MODE] != INCONTACT
@@ -1599,14 +1621,14 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     if gap:  # a NaN reading: hold the detector (and a contact) over it
         code = C_CONTACT if st[MODE] == INCONTACT else 0
     elif st[ARMED] != 0.0 and pr[PR_TRACE] == 0.0:
-        code = _detect(st, pr, t, ev)
+        code = _detect(st, pr, t, ev, learning)
     else:
         st[DQ] = st[Q] - st[B]
     # predict over the coming interval
     _ambient_predict(st, Phi_a, Q_a)
     Qd = Qc if st[MODE] == INCONTACT else Qi
     x0 = st[X]
-    slow_on = pr[PR_SLOWON] != 0.0
+    slow_on = learning and pr[PR_SLOWON] != 0.0
     if slow_on:
         _bead_predict(st)
     _predict(st, Phi[iv], Gam[iv], Qd[iv], st[XA], drive if drive == drive else 0.0)
@@ -1870,12 +1892,19 @@ def _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m):
     return PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m]
 
 
-@njit(**_FAST)
-def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
-              fresh, codes, EV):
-    """One sample of every patch: the readings are arrays over patches; ``codes[i]`` its bits,
-    ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``). For a few patches, on one
-    core (many go to :func:`step_many_parallel`); :func:`step` inlined, as there."""
+def fixed(PR: np.ndarray) -> bool:
+    """Whether every model in ``PR`` (one row a model) has nothing learnt nor carried of its
+    sensors: no reading variance learnt (``PR_TAUR`` 0), no dispersion (``PR_RHOW`` 0), neither
+    bead nor slow state (``PR_SLOWON`` 0), as ``estimation.model.fixed_sensors`` makes them (a
+    skin's patch). Such patches are stepped by the ``*_fixed`` loops, whose step has none of that
+    code: on one core 1000 patches tick in about 0.7 of the time (``benchmarks/patches.py``)."""
+    return bool(PR.shape[0] == 0 or ((PR[:, PR_TAUR] == 0.0) & (PR[:, PR_RHOW] == 0.0)
+                                     & (PR[:, PR_SLOWON] == 0.0)).all())
+
+
+@_inline
+def _step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
+               fresh, codes, EV, learning):
     m = mid[0] if ST.shape[0] > 0 else 0
     pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
     for i in range(ST.shape[0]):
@@ -1883,7 +1912,26 @@ def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T
             m = mid[i]
             pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
         codes[i] = step(ST[i], pr, F, G, Q1, Q2, Fa, Qa, R, t,
-                        T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
+                        T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i],
+                        learning)
+
+
+@njit(**_FAST)
+def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
+              fresh, codes, EV):
+    """One sample of every patch: the readings are arrays over patches; ``codes[i]`` its bits,
+    ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``). For a few patches, on one
+    core (many go to :func:`step_many_parallel`); :func:`step` inlined, as there."""
+    _step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
+               fresh, codes, EV, True)
+
+
+@njit(**_FAST)
+def step_many_fixed(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
+                    drive, fresh, codes, EV):
+    """:func:`step_many` for patches with nothing learnt nor carried (:func:`fixed`)."""
+    _step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
+               fresh, codes, EV, False)
 
 
 #: Patches a thread claims at a time in :func:`step_many_parallel` (about 3 µs of work).
@@ -1931,7 +1979,31 @@ def step_many_parallel(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_
                     m = mid[i]
                     pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
                 codes[i] = step(ST[i], pr, F, G, Q1, Q2, Fa, Qa, R, t, T_w[i], T_p[i], T_a[i],
-                                T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
+                                T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i], True)
+
+
+@njit(parallel=True, **_FAST)
+def step_many_parallel_fixed(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a,
+                             T_w_cmd, iv, drive, fresh, codes, EV, claims):
+    """:func:`step_many_parallel` for patches with nothing learnt nor carried (:func:`fixed`).
+    (Its loop written out as there: through an inlined helper, LLVM contracted the sums into
+    fused multiply-adds otherwise than in :func:`step_many`, and the two parted by an ulp.)"""
+    n = ST.shape[0]
+    nw = _claims_open(claims, n)
+    for w in prange(nw):
+        s = 0
+        while True:
+            lo, hi, s = _claim(claims, w, s, n)
+            if lo < 0:
+                break
+            m = mid[lo]
+            pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
+            for i in range(lo, hi):
+                if mid[i] != m:
+                    m = mid[i]
+                    pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
+                codes[i] = step(ST[i], pr, F, G, Q1, Q2, Fa, Qa, R, t, T_w[i], T_p[i], T_a[i],
+                                T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i], False)
 
 
 @_inline
@@ -1966,14 +2038,10 @@ def _claim(claims, w, s, n):
     return -1, -1, s
 
 
-@njit(nogil=True, **_FAST)
-def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd, iv,
-             drive, fresh, out, events, ev_patch, ev):
-    """A long-format log (one row per sample and patch, in time order): each row steps its
-    patch's state; fills ``out`` per row (as :func:`run`), ``events`` and ``ev_patch`` (the
-    patch of each; ``ev`` a scratch event row); returns the event count. :func:`step` inlined
-    (LLVM's inlining, which no longer lengthens the compile much): 149-157 ns a row against
-    187-193 ns calling it (9 patches, the same outputs)."""
+@_inline
+def _run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd, iv,
+              drive, fresh, out, events, ev_patch, ev, learning):
+    """:func:`run_rows`'s loop, ``learning`` a constant (:func:`step`)."""
     n = t.shape[0]
     ne = 0
     cap = events.shape[0]
@@ -1986,7 +2054,7 @@ def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, 
             pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
         st = ST[i]
         c = step(st, pr, F, G, Q1, Q2, Fa, Qa, R, t[k], T_w[k], T_p[k], T_a[k], T_w_cmd[k], iv[k],
-                 drive[k], fresh[k], ev)
+                 drive[k], fresh[k], ev, learning)
         _outputs(st, out, k)
         if c & C_ENDED:
             if ne < cap:
@@ -1994,6 +2062,26 @@ def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, 
                 ev_patch[ne] = i
             ne += 1
     return ne
+
+
+@njit(nogil=True, **_FAST)
+def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd, iv,
+             drive, fresh, out, events, ev_patch, ev):
+    """A long-format log (one row per sample and patch, in time order): each row steps its
+    patch's state; fills ``out`` per row (as :func:`run`), ``events`` and ``ev_patch`` (the
+    patch of each; ``ev`` a scratch event row); returns the event count. :func:`step` inlined
+    (LLVM's inlining, which no longer lengthens the compile much): 149-157 ns a row against
+    187-193 ns calling it (9 patches, the same outputs)."""
+    return _run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd,
+                     iv, drive, fresh, out, events, ev_patch, ev, True)
+
+
+@njit(nogil=True, **_FAST)
+def run_rows_fixed(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd,
+                   iv, drive, fresh, out, events, ev_patch, ev):
+    """:func:`run_rows` for patches with nothing learnt nor carried (:func:`fixed`)."""
+    return _run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd,
+                     iv, drive, fresh, out, events, ev_patch, ev, False)
 
 
 @njit(**_FAST)
