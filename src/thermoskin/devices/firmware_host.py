@@ -494,6 +494,7 @@ class _Frames:
                     t_us = m.t_us  # type: ignore[union-attr]
                     c, q_i, n_f, T_g = w.truth_at(t_us)
                     w.truth.add(t_us * 1e-6, c, q_i, n_f, T_g)
+            w.truth.maybe_flush(time.monotonic())  # handed to its writer every flush_s, as the emulator's
         return msgs
 
 
