@@ -1,4 +1,5 @@
-"""A `thermoskin` command as a process of its own: its wall time and peak resident memory."""
+"""A `thermoskin` command as a process of its own: its wall time and peak resident memory; CPU-bound
+processes to load the machine beside it."""
 
 from __future__ import annotations
 
@@ -6,9 +7,24 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 CMD = [sys.executable, "-c", "from thermoskin.__main__ import main; main()"]
+
+
+@contextmanager
+def cpu_hogs(n: int) -> Iterator[None]:
+    """``n`` CPU-bound processes (``python -c 'while True: pass'``) for the time of the block,
+    killed and reaped at its end, however it ends."""
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    try:
+        yield
+    finally:
+        for p in hogs:
+            p.kill()
+            p.wait()
 
 
 def check_package_dir(option: str, folder: str | None) -> None:

@@ -155,14 +155,17 @@ def totals(mods: list[dict[str, object]]) -> dict[str, object]:
 
 
 def merge(paths: list[str]) -> dict[str, object]:
-    """One JSON from the JSON of several runs: each module as its run had it, with the run's date
-    and commit; the totals summed."""
+    """One JSON from the JSON of several runs (or of earlier merges): each module as its run had
+    it, with the run's date and commit, a later file's module replacing an earlier's; the totals
+    summed."""
     out: dict[str, object] = {"modules": {}, "tool": None}
     for p in paths:
         run = json.loads(Path(p).read_text(encoding="utf-8"))
         out["tool"] = run.get("tool")
         for key, m in run["modules"].items():
-            out["modules"][key] = {**m, "date": run.get("date"), "commit": run.get("commit")}  # type: ignore[index]
+            # a merged JSON (no date of its own) keeps each module's
+            out["modules"][key] = {**m, "date": run.get("date", m.get("date")),  # type: ignore[index]
+                                   "commit": run.get("commit", m.get("commit"))}
     out["total"] = totals(list(out["modules"].values()))  # type: ignore[attr-defined]
     return out
 

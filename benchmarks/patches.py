@@ -160,7 +160,8 @@ def main() -> None:
         out["skin_detector"] = summary("skin")
         out["skin_full_loop"] = timing("skin_full")
         out["skin_ratio_p50"] = round(out["skin_detector"]["p50_us"] / out["skin_full_loop"]["p50_us"], 3)
-        out["skin_same_as_full"] = bool(np.array_equal(ests["skin"].ST[:, :K.RW], f_st[:, :K.RW], equal_nan=True))
+        out["skin_same_as_full"] = bool(np.array_equal(ests["skin"].ST[:, :K.RW], f_st[:, :K.RW],
+                                                       equal_nan=True))
     if peer is not None:
         out["peer"] = timing("peer")
         out["ratio_p50"] = round(out["p50_us"] / out["peer"]["p50_us"], 3)

@@ -33,9 +33,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _proc import cpu_hogs
 
 CMD = [sys.executable, "-c", "from thermoskin.cli import main; main()"]
-HOG = [sys.executable, "-c", "while True: pass"]
 LOOP_RE = re.compile(r"lateness p50 (-?[\d.]+) µs, p99 (-?[\d.]+) µs, max (-?[\d.]+) µs")
 
 
@@ -141,7 +141,6 @@ def main() -> None:
     ap.add_argument("--config", default=None, help="a config for the runs (e.g. a longer link timeout)")
     ap.add_argument("--keep", default=None, help="keep each run's files under this folder")
     a = ap.parse_args()
-    hogs = [subprocess.Popen(HOG) for _ in range(a.load)]
     result: dict[str, Any] = {"cores": os.cpu_count(), "load_processes": a.load, "seconds": a.seconds,
                               "device": "firmware" if a.firmware else "emulator",
                               "scenario": a.scenario, "delay_s": a.delay,
@@ -149,7 +148,7 @@ def main() -> None:
                                            "as shipped (SCHED_FIFO where allowed)"),
                               "config": a.config,
                               "note": "shared development machine: other jobs may run too"}
-    try:
+    with cpu_hogs(a.load):
         runs = []
         for j in range(a.runs):
             with tempfile.TemporaryDirectory() as d:
@@ -165,10 +164,6 @@ def main() -> None:
         lat = [s["latency_median_s"] for s in ses if s.get("latency_median_s") is not None]
         if lat:
             result["total"]["latency_median_s"] = statistics.median(lat)
-    finally:
-        for p in hogs:
-            p.kill()
-            p.wait()
     print(json.dumps(result, indent=2))
 
 

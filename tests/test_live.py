@@ -68,7 +68,9 @@ def free_port_pair() -> int:
 class FoxgloveClient:
     """Connects, subscribes to every advertised channel, collects ``(wall, topic, log_time, msg)``."""
 
-    def __init__(self, port: int, timeout: float = 60.0) -> None:
+    def __init__(self, port: int, timeout: float = 60.0, expect: int = 1) -> None:
+        """``expect``: the channels to wait for before subscribing (a server may advertise them
+        in several messages, as its run creates them)."""
         t_end = time.monotonic() + timeout
         while True:
             try:
@@ -82,10 +84,10 @@ class FoxgloveClient:
         self.subprotocol = self.ws.getsubprotocol()
         self.server_info = json.loads(self.ws.recv())
         self.channels: dict[int, dict[str, Any]] = {}
-        while not self.channels:
+        while len(self.channels) < expect:
             m = json.loads(self.ws.recv())
             if m.get("op") == "advertise":
-                self.channels = {c["id"]: c for c in m["channels"]}
+                self.channels.update({c["id"]: c for c in m["channels"]})
         subs = [{"id": 100 + i, "channelId": cid} for i, cid in enumerate(self.channels)]
         self.topic_of = {s["id"]: self.channels[s["channelId"]]["topic"] for s in subs}
         self.json_of = {s["id"]: self.channels[s["channelId"]]["encoding"] == "json" for s in subs}

@@ -515,6 +515,22 @@ def test_check_time() -> None:
     assert check_time(np.array([0.5, 0.52]), t_s=0.01, rtol=1.5) is None
 
 
+def test_check_time_holds_the_given_step_not_the_median() -> None:
+    """With ``t_s`` given, every interval is compared with it, not with the median interval:
+    hand numbers where the two differ."""
+    # intervals 2, 1, 1 ms: the given step is 2 ms, the median 1 ms
+    t = np.array([0.0, 0.002, 0.003, 0.004])
+    k, why = check_time(t, t_s=0.002)  # type: ignore[misc]
+    # the first interval off 2 ms by more than 1 % is the 1 ms one ending at t[2]
+    assert k == 2 and "interval 0.001 s" in why and "expected 0.002 s" in why
+    k, why = check_time(t)  # type: ignore[misc]
+    assert k == 1 and "interval 0.002 s" in why and "expected 0.001 s" in why  # the median's
+    # every interval 1 ms, said to be 2 ms: the first is already off
+    k, why = check_time(np.arange(5) * 0.001, t_s=0.002)  # type: ignore[misc]
+    assert k == 1 and "expected 0.002 s" in why
+    assert check_time(np.arange(5) * 0.001) is None
+
+
 # ------------------------------------------------------------------------- Parquet
 
 

@@ -297,3 +297,66 @@ def test_the_samples_before_the_models_start_up_are_not_read() -> None:
         x[:kb] = np.nan
     got = loc.locate(k_on, k_off, cut[0], cut[1], cut[2], cut[3:])
     assert got == want
+
+
+def test_spread_from_the_likelihood_computed_apart() -> None:
+    """The likelihood's scale, not only its limit: readings of 1.5 W at the middle of the travel
+    (pump running, inputs steady, noise 10 mK, a board's offset on each thermocouple), and the
+    position's mean, sd and heat computed apart from the module doc's rule: each grid place's
+    response to 1 W from ``scipy.linalg.expm`` of the model with that place's heat input (not the
+    locator's augmented matrix), each place's ``RSS`` by ``numpy.linalg.lstsq`` on the readings
+    less their mean before the onset, ``sigma^2 = RSS_min / (m - 2)``, the weights
+    ``exp(-(RSS - RSS_min) / (2 sigma^2))`` over the grid. A likelihood 1.5 times wider (or a
+    degree of freedom off) moves the sd by far more than the 1e-6 held."""
+    from thermoskin.skin.position import GRID, IDENTIFIABLE
+
+    skin = load_skin(ROOT / "examples" / "forearm.toml")
+    i = skin.patch("ventral1").index
+    p, lp = skin.patches[i], skin.loops[skin.patches[i].loop]
+    sp, v_on, N = p.spatial, lp.cfg.pump.v_on, p.spatial.n_cells
+    tc = [min(max(math.floor((1.0 - s / p.length) * N), 0), N - 1) for s in p.thermocouples]
+    flow = FlowResistance(lp.cfg.skin)
+    ends = (p.index == lp.patches[0], p.index == lp.patches[-1])
+    n, k_on, k_off = 4000, 2000, 3500
+    k0 = k_on - 1500  # the window: 1.5 s before the onset, the contact to its end (< 4 s)
+    pars = np.linspace(0.0, 1.0, GRID)
+
+    def response(par: float) -> np.ndarray:
+        """The thermocouples' rise from 1 W at ``par`` from sample ``k_on`` (from rest)."""
+        A, B = spatial_state_space(p.skin, sp, v_on, flow(v_on),
+                                   q_weights=contact_cells(float(par), N, sp.footprint), still_ends=ends)
+        m = A.shape[0]
+        M = np.zeros((m + 4, m + 4))
+        M[:m, :m], M[:m, m:] = A, B
+        X = scipy.linalg.expm(M * T_S)
+        F, g = X[:m, :m], X[:m, m + 2]
+        x, out = np.zeros(m), np.empty((n, len(tc)))
+        for k in range(n):
+            out[k] = x[tc]
+            x = F @ x + (g if k >= k_on else 0.0)
+        return out
+
+    H = [response(par) for par in pars]
+    rng = np.random.default_rng(7)
+    Y = np.array([24.3, 24.1]) + 1.5 * H[12] + rng.normal(0.0, 0.01, (n, 2))
+    loc = PatchLocator(skin, i, T_S)
+    pos = loc.locate(k_on, k_off, np.full(n, 24.6), np.full(n, 20.0), np.full(n, v_on),
+                     [Y[:, 0], Y[:, 1]])  # dq None: a step of 1 W, so the heat is the scale
+
+    r = np.concatenate([Y[k_on:k_off, j] - Y[k0:k_on, j].mean() for j in range(2)])
+    rss, scale = np.empty(GRID), np.empty(GRID)
+    for g, h in enumerate(H):
+        hc = np.concatenate([h[k_on:k_off, j] for j in range(2)])[:, None]
+        sol, res, _, _ = np.linalg.lstsq(hc, r, rcond=None)
+        scale[g], rss[g] = sol[0], res[0]
+    s2 = rss.min() / (r.size - 2)
+    w = np.exp(-(rss - rss.min()) / (2.0 * s2))
+    w /= w.sum()
+    s_grid = p.length * (1.0 - (0.5 * sp.footprint + pars * (1.0 - sp.footprint)))
+    mean = float(w @ s_grid)
+    sd = math.sqrt(float(w @ (s_grid - mean) ** 2))
+    # wider than the grid's step (several places weigh), narrow enough to be reported
+    assert s_grid[0] - s_grid[1] < sd < IDENTIFIABLE * float(np.std(s_grid))
+    assert pos.sd == pos.sd_fit == pytest.approx(sd, rel=1e-6)
+    assert pos.mean == pytest.approx(mean, rel=1e-6)
+    assert pos.heat == pytest.approx(float(w @ scale), rel=1e-6)

@@ -60,7 +60,7 @@ import sys
 import threading
 import time
 import tty
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -710,6 +710,45 @@ def check_options(scenario: str, faults: Sequence[str], tc_period: float | None,
     return sc, specs
 
 
+def serve_until_stopped(emu: PtyEmulator, link: str | os.PathLike[str], writer: TruthWriter | None,
+                        rt_priority: int, started: Callable[[], None] | None = None,
+                        stopped: Callable[[], None] | None = None) -> int:
+    """Serve ``emu`` (the emulator's core or the firmware's) on ``link`` until SIGINT/SIGTERM (or
+    :meth:`PtyEmulator.stop`): the link made (exit 2 in one line if it cannot be), ``SCHED_FIFO``
+    at ``rt_priority`` asked for, ``started()`` (the banner), the sessions served, the link
+    removed and the truth file closed, then ``stopped()`` (the report); 0 on a clean stop. The
+    signal handlers are put back, and the truth file closed, whatever happens."""
+    from thermoskin.devices.sched import set_fifo
+
+    old: dict[int, object] = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            old[sig] = signal.signal(sig, lambda signum, frame: emu.stop())
+    try:
+        try:
+            emu.open_link()
+        except OSError as e:
+            print(f"device-emulator: cannot create the link {link}: {e}", file=sys.stderr)
+            return 2
+        emu.priority = set_fifo(rt_priority)
+        if started is not None:
+            started()
+        try:
+            emu.serve()
+        finally:
+            emu.close_link()
+            if writer is not None:
+                writer.close()
+        if stopped is not None:
+            stopped()
+        return 0
+    finally:
+        if writer is not None:
+            writer.close()
+        for sig, handler in old.items():
+            signal.signal(sig, handler)  # type: ignore[arg-type]
+
+
 def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = (),
          tc_period: float | None = None, cfg: Config | None = None, verbose: bool = True,
          jitter: float | None = None, truth: str | os.PathLike[str] | None = None,
@@ -746,66 +785,42 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
             print(f"device-emulator: cannot write the truth file {truth}: {e.strerror or e}", file=sys.stderr)
             return 2
     emu = PtyEmulator(link, core, writer)
-    old: dict[int, object] = {}
 
-    def _stop(signum: int, frame: object) -> None:
-        emu.stop()
+    def started() -> None:
+        j = core.cfg.sensor.jitter
+        if rt_priority > 0 and not emu.priority.startswith("SCHED_FIFO"):
+            print(f"device-emulator: running at {emu.priority}: a busy machine may stall the "
+                  "emulator (its samples then come late, in a burst)", file=sys.stderr, flush=True)
+        print(f"device-emulator: {link} -> {emu.slave_name} (scenario {sc.name}, "
+              f"thermocouples every {core.tc_period * 1e3:g} ms"
+              + (f" +- {j * 1e3:g} ms" if j else "")
+              + (f", faults {', '.join(faults)}" if faults else "")
+              + (f", truth to {truth}" if truth is not None else "")
+              + ("; boards as configured" if ideal_sensors else
+                 f"; boards as a lab buys them: {describe(core.boards)}")
+              + "); waiting for the host",
+              file=sys.stderr, flush=True)
 
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            old[sig] = signal.signal(sig, _stop)
-    try:
-        try:
-            emu.open_link()
-        except OSError as e:
-            print(f"device-emulator: cannot create the link {link}: {e}", file=sys.stderr)
-            return 2
-        from thermoskin.devices.sched import set_fifo
-
-        emu.priority = set_fifo(rt_priority)
-        if verbose:
-            j = core.cfg.sensor.jitter
-            if rt_priority > 0 and not emu.priority.startswith("SCHED_FIFO"):
-                print(f"device-emulator: running at {emu.priority}: a busy machine may stall the "
-                      "emulator (its samples then come late, in a burst)", file=sys.stderr, flush=True)
-            print(f"device-emulator: {link} -> {emu.slave_name} (scenario {sc.name}, "
-                  f"thermocouples every {core.tc_period * 1e3:g} ms"
-                  + (f" +- {j * 1e3:g} ms" if j else "")
-                  + (f", faults {', '.join(faults)}" if faults else "")
-                  + (f", truth to {truth}" if truth is not None else "")
-                  + ("; boards as configured" if ideal_sensors else
-                     f"; boards as a lab buys them: {describe(core.boards)}")
-                  + "); waiting for the host",
-                  file=sys.stderr, flush=True)
-        try:
-            emu.serve()
-        finally:
-            emu.close_link()
-            if writer is not None:
-                writer.close()
-        if verbose:
-            tm = emu.timing()
-            if tm.get("samples"):
-                print("device-emulator: stopped after {samples:.0f} samples; lateness mean {mean_us:.0f} µs, "
-                      "p99 {p99_us:.0f} µs, max (longest stall) {max_us:.0f} µs; {overruns:.0f} samples "
-                      "sent late (> 50 ms), {lost_samples:.0f} lost, {dropped_frames:.0f} frames "
-                      "dropped; priority {priority}".format(**tm, priority=emu.priority), file=sys.stderr)
-                if core.sessions > 1 or core.refused:
-                    print(f"device-emulator: {core.sessions} sessions; {core.refused} HELLOs of a second "
-                          "host refused while a session was on", file=sys.stderr)
-                if core.t_safe == core.t_safe:
-                    print(f"device-emulator: SAFE from the host took effect at t = {core.t_safe:.3f} s",
-                          file=sys.stderr)
-                if writer is not None:
-                    print(f"device-emulator: {writer.rows} truth rows in {truth}", file=sys.stderr)
-            else:
-                print("device-emulator: stopped (no host connected)", file=sys.stderr)
-        return 0
-    finally:
+    def stopped() -> None:
+        tm = emu.timing()
+        if not tm.get("samples"):
+            print("device-emulator: stopped (no host connected)", file=sys.stderr)
+            return
+        print("device-emulator: stopped after {samples:.0f} samples; lateness mean {mean_us:.0f} µs, "
+              "p99 {p99_us:.0f} µs, max (longest stall) {max_us:.0f} µs; {overruns:.0f} samples "
+              "sent late (> 50 ms), {lost_samples:.0f} lost, {dropped_frames:.0f} frames "
+              "dropped; priority {priority}".format(**tm, priority=emu.priority), file=sys.stderr)
+        if core.sessions > 1 or core.refused:
+            print(f"device-emulator: {core.sessions} sessions; {core.refused} HELLOs of a second "
+                  "host refused while a session was on", file=sys.stderr)
+        if core.t_safe == core.t_safe:
+            print(f"device-emulator: SAFE from the host took effect at t = {core.t_safe:.3f} s",
+                  file=sys.stderr)
         if writer is not None:
-            writer.close()
-        for sig, handler in old.items():
-            signal.signal(sig, handler)  # type: ignore[arg-type]
+            print(f"device-emulator: {writer.rows} truth rows in {truth}", file=sys.stderr)
+
+    return serve_until_stopped(emu, link, writer, rt_priority, started if verbose else None,
+                               stopped if verbose else None)
 
 
 def _cli(argv: Sequence[str] | None = None) -> int:

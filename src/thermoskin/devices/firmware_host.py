@@ -44,7 +44,14 @@ from typing import Any
 import numpy as np
 
 from thermoskin.devices import protocol as proto
-from thermoskin.devices.emulator import OVERTEMP_C, FaultSpec, PtyEmulator, TruthWriter, write_pending
+from thermoskin.devices.emulator import (
+    OVERTEMP_C,
+    FaultSpec,
+    PtyEmulator,
+    TruthWriter,
+    serve_until_stopped,
+    write_pending,
+)
 from thermoskin.params import Config
 from thermoskin.sim.boards import describe
 from thermoskin.sim.plant import SimulatedPlant
@@ -495,6 +502,7 @@ class _Frames:
                     t_us = m.t_us  # type: ignore[union-attr]
                     c, q_i, n_f, T_g = w.truth_at(t_us)
                     w.truth.add(t_us * 1e-6, c, q_i, n_f, T_g)
+            w.truth.maybe_flush(time.monotonic())  # handed to its writer every flush_s, as the emulator's
         return msgs
 
 
@@ -665,9 +673,6 @@ def main(link: str, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec]
     """``device-emulator --firmware``: until SIGINT/SIGTERM; 0 on a clean stop, 2 on a bad
     argument or link (one line). The sensing elements are a lab's, drawn from ``[sensor]`` seed
     (``sim.boards``), unless ``ideal_sensors`` (then exactly ``[sensor]``)."""
-    import signal
-    import threading
-
     try:
         firmware_dir()
     except FirmwareNotFoundError as e:
@@ -685,54 +690,34 @@ def main(link: str, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec]
             return 2
     world = World(cfg, scenario, faults, tc_period, jitter, writer, lab_boards=not ideal_sensors)
     emu = FirmwarePty(link, world, writer, settings=settings)
-    old: dict[int, Any] = {}
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            old[sig] = signal.signal(sig, lambda s, f: emu.stop())
-    try:
-        try:
-            emu.open_link()
-        except OSError as e:
-            print(f"device-emulator: cannot create the link {link}: {e}", file=sys.stderr)
-            return 2
-        from thermoskin.devices.sched import set_fifo
 
-        emu.priority = set_fifo(rt_priority)
-        if verbose:
-            period = f"{tc_period * 1e3:g} ms" if tc_period else "98 ms (MAX31856, 50 Hz filter)"
-            print(f"device-emulator: {link} -> {emu.slave_name} (the firmware from {firmware_dir()} on "
-                  f"models of its hardware; scenario {scenario.name}, conversions every {period}"
-                  + (f", faults {', '.join(f'{f.kind}@{f.t:g}' for f in faults)}" if faults else "")
-                  + (f", truth to {truth}" if truth is not None else "")
-                  + ("; boards as configured" if ideal_sensors else
-                     f"; boards as a lab buys them: {describe(world.boards)}")
-                  + "); waiting for the host",
-                  file=sys.stderr, flush=True)
-        try:
-            emu.serve()
-        finally:
-            emu.close_link()
-            if writer is not None:
-                writer.close()
-        if verbose:
-            tm = emu.timing()
-            usb = emu.board.link if emu.board is not None else None
-            line = ("device-emulator: firmware stopped after {samples:.0f} samples in {sessions:.0f} "
-                    "sessions ({refused:.0f} HELLOs of a second host refused); {late:.0f} samples sent "
-                    "late, {skipped:.0f} skipped, {dropped_frames:.0f} frames dropped; priority {p}")
-            print(line.format(**tm, p=emu.priority) if tm.get("samples") else
-                  "device-emulator: stopped (no host connected)", file=sys.stderr)
-            if usb is not None and usb.frames.decoder.stats.corrupted:
-                print(f"device-emulator: {usb.frames.decoder.stats.corrupted} frames of the firmware did not "
-                      "decode", file=sys.stderr)
-            if emu.t_safe == emu.t_safe:
-                print(f"device-emulator: the firmware's safe state from t = {emu.t_safe:.3f} s (fault at "
-                      f"t = {world.t_fault:.3f} s)", file=sys.stderr)
-            if writer is not None:
-                print(f"device-emulator: {writer.rows} truth rows in {truth}", file=sys.stderr)
-        return 0
-    finally:
+    def started() -> None:
+        period = f"{tc_period * 1e3:g} ms" if tc_period else "98 ms (MAX31856, 50 Hz filter)"
+        print(f"device-emulator: {link} -> {emu.slave_name} (the firmware from {firmware_dir()} on "
+              f"models of its hardware; scenario {scenario.name}, conversions every {period}"
+              + (f", faults {', '.join(f'{f.kind}@{f.t:g}' for f in faults)}" if faults else "")
+              + (f", truth to {truth}" if truth is not None else "")
+              + ("; boards as configured" if ideal_sensors else
+                 f"; boards as a lab buys them: {describe(world.boards)}")
+              + "); waiting for the host",
+              file=sys.stderr, flush=True)
+
+    def stopped() -> None:
+        tm = emu.timing()
+        usb = emu.board.link if emu.board is not None else None
+        line = ("device-emulator: firmware stopped after {samples:.0f} samples in {sessions:.0f} "
+                "sessions ({refused:.0f} HELLOs of a second host refused); {late:.0f} samples sent "
+                "late, {skipped:.0f} skipped, {dropped_frames:.0f} frames dropped; priority {p}")
+        print(line.format(**tm, p=emu.priority) if tm.get("samples") else
+              "device-emulator: stopped (no host connected)", file=sys.stderr)
+        if usb is not None and usb.frames.decoder.stats.corrupted:
+            print(f"device-emulator: {usb.frames.decoder.stats.corrupted} frames of the firmware did not "
+                  "decode", file=sys.stderr)
+        if emu.t_safe == emu.t_safe:
+            print(f"device-emulator: the firmware's safe state from t = {emu.t_safe:.3f} s (fault at "
+                  f"t = {world.t_fault:.3f} s)", file=sys.stderr)
         if writer is not None:
-            writer.close()
-        for sig, handler in old.items():
-            signal.signal(sig, handler)
+            print(f"device-emulator: {writer.rows} truth rows in {truth}", file=sys.stderr)
+
+    return serve_until_stopped(emu, link, writer, rt_priority, started if verbose else None,
+                               stopped if verbose else None)
