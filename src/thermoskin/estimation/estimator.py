@@ -140,6 +140,8 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_RHO0] = 2.0
     pr[K.PR_RHOCAP] = 1e6
     pr[K.PR_SLOWCU] = 0.25
+    # converter steps up to twice the pipe reading's configured sd are dithered by the noise
+    pr[K.PR_QFINE] = K.QFINE_SD * math.sqrt(pr[K.PR_RW0])
     pr[K.PR_SLOWON] = 1.0 if (pr[K.PR_PB0] > 0 or pr[K.PR_PT0] > 0 or sn.lag_T_w > 0) else 0.0
     pr[K.PR_AIR] = min(1.0, t_s / 10.0)
     return pr

@@ -312,12 +312,18 @@ PR_SLOWON = 98   # 1: the pipe thermocouple's bead and the slow states are carri
                  # no lag, nothing learnt of them; the filter alone, as fast as before them)
 PR_SLOWCU = 99   # the slow states do not learn while an onset CUSUM is above this fraction of
                  # its threshold (a touch's evidence building before its detection)
-NPARAM = 100
+PR_QFINE = 100   # the slow states learn only while the T_w and T_p readings' converter steps are
+                 # at most this, K (a coarser step is not dithered by the noise: its error, a
+                 # sawtooth that follows the signal, was learnt as offsets swinging by 0.3 K)
+NPARAM = 101
 
 #: The slow states (offset, lag) are learnt from logs of this sample period or shorter only, s
 #: (100 Hz and faster): at 50 Hz the pump switches between rows, and the model's misfit there
 #: looked like an offset (0.1 K learnt where there was none).
 SLOW_TS_MAX = 0.0100001
+#: The slow states learn only while both converter steps are at most this many times the pipe
+#: reading's configured sd (``PR_QFINE``).
+QFINE_SD = 2.0
 
 
 #: Rows of the per-sample outputs (:func:`run`, :func:`run_rows`).
@@ -444,7 +450,10 @@ def _update(st, pr, i, y, p, eta, slow, learning):
         yhat = st[X + 3]
         sb = 1.0 - st[VB + 3] if learning else 0.0
         stau = -st[VT + 3] if learning else 0.0
-    sps = sb * sb * pbb + 2.0 * sb * stau * pbt + stau * stau * ptt if learning else 0.0
+    # (not with a coarse converter: the slow states are not learnt from its readings, nor their
+    # uncertainty taken into the innovations' variance, which drove the learnt noise down)
+    sps = (sb * sb * pbb + 2.0 * sb * stau * pbt + stau * stau * ptt
+           if learning and not _coarse(st, pr) else 0.0)
     e = y - yhat
     kap = st[KAPPA]
     man = False
@@ -487,6 +496,11 @@ def _update(st, pr, i, y, p, eta, slow, learning):
             st[KAPPA] = kap * pr[PR_UP]
         else:
             st[KAPPA] = kap * pr[PR_DOWN]
+            # not below 1 with a coarse converter: its readings hold still between steps, so
+            # most innovations are nought and their median is no scale (kappa fell to 0.17 with
+            # a 1/4 K step at 1 kHz, every reading's evidence taken 35 times over: a flood)
+            if learning and st[KAPPA] < 1.0 and pr[PR_LEARN] != 0.0 and _coarse(st, pr):
+                st[KAPPA] = 1.0
         if eta > 0.0 and i == 0:
             # the pipe reading's variance: its median tracker, e²/S at chi2(1)'s median 0.4549
             # (robust to the few large innovations of a pump switch), its steps into this slot
@@ -1418,6 +1432,14 @@ def _detect(st, pr, t, ev, learning):
 
 
 @_inline
+def _coarse(st, pr):
+    """Whether a converter step of the T_w or the T_p readings is known and coarser than
+    ``PR_QFINE`` (the slow states do not learn from such readings)."""
+    qw, qp = st[QW], st[QP]
+    return qw < 1e299 and qp < 1e299 and (qw > pr[PR_QFINE] or qp > pr[PR_QFINE])
+
+
+@_inline
 def _building(st, pr):
     """Whether the detector's evidence of an onset builds: idle, and an onset CUSUM above
     ``PR_SLOWCU`` of the onset threshold (as the last sample left them)."""
@@ -1522,7 +1544,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     # the slow states (offset, lag) learn while no contact is seen and none has just ended, and
     # not while the filter settles after its start
     slow = (learning and pr[PR_LEARN] != 0.0 and st[MODE] != INCONTACT and t - st[TREL] >= pr[PR_TSETTLE]
-            and t - st[TINIT] >= pr[PR_LDELAY])
+            and t - st[TINIT] >= pr[PR_LDELAY] and st[QW] <= pr[PR_QFINE] and st[QP] <= pr[PR_QFINE])
     # nor while the detector's evidence builds (an onset CUSUM above a fraction of its
     # threshold): the readings between a touch's onset and its detection are the touch's, and
     # learnt they moved the lag and the offset, whose error then read as heat at each pump
@@ -1592,10 +1614,10 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         st[SWIN + 4] = t
     if learning and pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0:
         # (not while the slow states are still far from learnt: the filter's own transient at
-        # its start)
+        # its start; but with a coarse converter, which they never learn from, at once)
         _dispersion(st, pr, t, st[SGE], st[SGG], not gap and st[MODE] != INCONTACT
                     and t - st[TAMB] >= pr[PR_TAMBH] and t - st[TREL] >= pr[PR_RHOSET]
-                    and st[PBB] <= pr[PR_RHOPB] and st[PTT] <= pr[PR_RHOPT])
+                    and ((st[PBB] <= pr[PR_RHOPB] and st[PTT] <= pr[PR_RHOPT]) or _coarse(st, pr)))
     st[Q] = st[X + 2]
     pq = st[P + 12]
     st[SQ] = math.sqrt(pq) if pq > 0.0 else 1e-12

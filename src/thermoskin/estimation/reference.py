@@ -91,6 +91,7 @@ IRATE_TAU = 10.0     # the information rate's time constant, s
 SLOW_WINDOW = 0.4    # the slow states' window, s
 SLOW_HOLD_CU = 0.25  # the slow states do not learn while an onset CUSUM is above this share of h
 SLOW_TS_MAX = 0.0100001  # ... and are learnt from logs of 100 Hz and faster only, s
+QFINE_SD = 2.0       # ... and while both converter steps are at most this times the T_w reading's sd
 R_SLOT = 0.5         # the pipe reading variance's steps are gathered in slots this long, s
 FAST_READINGS = 200.0  # ... learnt from pipe readings this many a second or more
 N_SLOTS = 4          # and taken into it N_SLOTS - 1 slots late (dropped at a detection)
@@ -135,6 +136,7 @@ class ReferenceEstimator:
         self.vsw = 0.29 if self.t_s > 1.5 * self.cfg.sampling.t_s else 0.0
         # what is learnt of the sensors: priors (the configuration)
         self.R0 = {ch: measurement_variance(self.cfg, ch) for ch in ("T_w", "T_p", "T_a")}
+        self.q_fine = QFINE_SD * math.sqrt(self.R0["T_w"])
         self.R = dict(self.R0)
         self.r_slots, self.r_slot, self.t_rslot = [0.0] * N_SLOTS, 0, 0.0
         self.r_count = dict.fromkeys(self.R0, 0)
@@ -205,6 +207,11 @@ class ReferenceEstimator:
         self.P_B = np.zeros((2, 2))
 
     # ---------------------------------------------------------------- the sensors
+    def _coarse(self) -> bool:
+        """A converter step of T_w or T_p known and coarser than the slow states learn from."""
+        qw, qp = self.quantum["T_w"], self.quantum["T_p"]
+        return qw < 1e299 and qp < 1e299 and (qw > self.q_fine or qp > self.q_fine)
+
     def _r_step(self, ch: str, up: bool, eta: float) -> None:
         """A reading variance's median tracker (kernel: ``_r_step``)."""
         r = self.R[ch] * (1 + eta) if up else self.R[ch] / (1 + eta)
@@ -265,7 +272,9 @@ class ReferenceEstimator:
             C[0] = 1.0  # the offset of the tank's readings
             R = self.R["T_p"]
         s = C - h @ self.V
-        sps = float(s @ self.P_B @ s)
+        # (not with a coarse converter: the slow states are not learnt from its readings, nor
+        # their uncertainty taken into the innovations' variance)
+        sps = 0.0 if self._coarse() else float(s @ self.P_B @ s)
         e = y - h @ self.x
         k2 = self.kappa**2
         man = False
@@ -282,6 +291,8 @@ class ReferenceEstimator:
             g = r[I_Q] / self.P[I_Q, I_Q] if self.P[I_Q, I_Q] > 0 else 0.0
             ge, gg = g * e / (k2 * Sf), g * g / (k2 * Sf)
             self.kappa *= self.up if abs(e) > 0.6745 * self.kappa * math.sqrt(Sf) else self.down
+            if self.kappa < 1.0 and self.learn and self._coarse():
+                self.kappa = 1.0  # (a coarse step's innovations: mostly nought, their median no scale)
             if eta > 0 and i == I_TW:  # a step of its variance's tracker, into this slot
                 self.r_slots[self.r_slot] += (1 if e * e > 0.4549 * Sf else -1) * math.log(1 + eta)
         K = r / S
@@ -411,7 +422,8 @@ class ReferenceEstimator:
         if self.learn and t - self.t_rslot >= R_SLOT:
             self._r_slots(t)
         slow = (self.learn and self.mode != "contact" and t - self.t_rel >= self.cfg.detector.t_settle
-                and t - self.t_init >= LEARN_DELAY)
+                and t - self.t_init >= LEARN_DELAY and self.quantum["T_w"] <= self.q_fine
+                and self.quantum["T_p"] <= self.q_fine)
         # nor while the detector's evidence of an onset builds (the window goes on without them)
         learn_slow = slow and not (self.mode == "idle"
                                    and any(c.g > SLOW_HOLD_CU * self.h for c in self.cusums))
@@ -464,7 +476,8 @@ class ReferenceEstimator:
         if self.cfg.detector.rho_window > 0 and self.learn:
             self._dispersion(t, ge, gg, not self.gap and self.mode != "contact"
                              and t - self.t_air >= self.t_amb_hold and t - self.t_rel >= RHO_SETTLE
-                             and self.P_B[0, 0] <= RHO_PB and self.P_B[1, 1] <= RHO_PT)
+                             and ((self.P_B[0, 0] <= RHO_PB and self.P_B[1, 1] <= RHO_PT)
+                                  or self._coarse()))
         self.sd = math.sqrt(self.P[I_Q, I_Q]) if self.ready else math.nan
         if T_w_cmd == T_w_cmd:
             if self.cmd == self.cmd and abs(T_w_cmd - self.cmd) > 1e-9:
