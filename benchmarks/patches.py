@@ -23,7 +23,10 @@ that the host's load falls on both alike; adds ``"peer"`` (its ``p50_us``, ``p99
 bit for bit at the end).
 
 ``--skin-detector``: the detector of a skin's patch (``observe --skin``, ``run --skin``), whose
-onset moves ``q_i`` alone, so the kernel keeps no step signatures.
+onset moves ``q_i`` alone, so the kernel keeps no step signatures, and whose sensors are as
+configured (nothing learnt: the ``*_fixed`` loops); adds ``"skin_detector"`` and, stepping a
+copy of those patches on the same ticks in turn with them, the full loops (with the learning
+code, idle for such patches) as ``"skin_full_loop"`` and ``"skin_ratio_p50"`` (fixed over full).
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ import numpy as np
 from _proc import check_package_dir
 
 from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation.model import fixed_sensors
 from thermoskin.estimation.patches import PatchEstimators
 from thermoskin.estimation.reference import ReferenceEstimator
 from thermoskin.params import load_config
@@ -70,7 +74,8 @@ def main() -> None:
     cfgs = {"single": cfg}
     if a.skin_detector:
         de = dataclasses.replace(cfg.detector, onset_state_jump=SKIN_ONSET_STATE_JUMP)
-        cfgs["skin"] = dataclasses.replace(cfg, detector=de)
+        # a skin's patch keeps its sensors as configured (skin.observe.patch_config)
+        cfgs["skin"] = fixed_sensors(dataclasses.replace(cfg, detector=de))
     warm = 2000
     n_s = warm + a.ticks
     log = simulate(SCENARIOS["one-finger"].with_duration(n_s * cfg.sampling.t_s + 1.0), cfg)
@@ -86,6 +91,18 @@ def main() -> None:
             for k, c in cfgs.items()}
     one = ests["single"]
     steppers = {name: est.tick for name, est in ests.items()}
+    if a.skin_detector:
+        sk = ests["skin"]
+        f_st, f_codes, f_ev = sk.ST.copy(), sk.codes.copy(), sk.EV.copy()
+        if sk._claims is None:
+            f_step, f_tail = K.step_many, (f_codes, f_ev)
+        else:
+            f_step, f_tail = K.step_many_parallel, (f_codes, f_ev, sk._claims.copy())
+
+        def full_tick(t: float, *r: np.ndarray) -> None:
+            f_step(f_st, sk.PR, sk.mid, *sk._tabs, t, *r, *f_tail)
+
+        steppers["skin_full"] = full_tick
     if peer is not None:
         p_st, p_codes, p_ev = one.ST.copy(), one.codes.copy(), one.EV.copy()
         p_tail: tuple[np.ndarray, ...] = (p_codes, p_ev)
@@ -141,6 +158,10 @@ def main() -> None:
     out: dict[str, object] = {"n": a.n, **summary("single"), "period_ms": a.period_ms}
     if a.skin_detector:
         out["skin_detector"] = summary("skin")
+        out["skin_full_loop"] = timing("skin_full")
+        out["skin_ratio_p50"] = round(out["skin_detector"]["p50_us"] / out["skin_full_loop"]["p50_us"], 3)
+        out["skin_same_as_full"] = bool(np.array_equal(ests["skin"].ST[:, :K.RW], f_st[:, :K.RW],
+                                                       equal_nan=True))
     if peer is not None:
         out["peer"] = timing("peer")
         out["ratio_p50"] = round(out["p50_us"] / out["peer"]["p50_us"], 3)

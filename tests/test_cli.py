@@ -377,7 +377,7 @@ def test_run_skin_asks_for_every_kernel_it_compiles(tmp_path: Path, monkeypatch)
     assert cli.common.skin_kernels(load_skin(forearm, load_config())) == tuple(expected)  # forearm has pipes
     single = forearm.with_name("single.toml")  # one patch fed straight from its tank: no transport
     assert cli.common.skin_kernels(load_skin(single, load_config())) == cli.common.SKIN_KERNELS
-    assert {"sim/skin_plant._advance", "estimation/kernel.run_rows"} <= set(expected)
+    assert {"sim/skin_plant._advance", "estimation/kernel.run_rows_fixed"} <= set(expected)
     for missing in (None, *expected):
         asked: list[str] = []
         monkeypatch.setattr(_numba_cache, "has_compiled",
@@ -403,7 +403,7 @@ def test_observe_skin_asks_for_the_estimators_only(tmp_path: Path, monkeypatch) 
     log = tmp_path / "skin.csv"
     code, _, err = invoke("simulate", "--skin", str(forearm), "--duration", "0.5", "-o", str(log))
     assert code == 0, err
-    for missing in (None, "estimation/kernel.run_rows"):
+    for missing in (None, "estimation/kernel.run_rows_fixed"):
         asked: list[str] = []
         monkeypatch.setattr(_numba_cache, "has_compiled", lambda w, m=missing, a=asked: a.append(w) or w != m)
         code, _, err = invoke("observe", "--skin", str(forearm), str(log), "-o", str(tmp_path / "o.csv"))

@@ -400,3 +400,34 @@ def test_garbage_on_the_line_is_skipped() -> None:
     s = samples(b)
     assert b.device.bad_frames > 0 and [m.t_us for m in s] == [1000 * i for i in range(len(s))]
     assert s[-1].drive == np.float32(0.3) and not s[-1].status & proto.ST_SAFE
+
+
+def test_the_firmware_reads_boards_as_a_lab_buys_them() -> None:
+    """``device-emulator --firmware`` draws its sensing elements as a lab's boards
+    (``sim.boards.lab_boards``): with the same skin and commands, each channel's fresh readings
+    differ from the configured (ideal) boards' by that channel's drawn offset less its bead's lag
+    times the temperature's slope (a first-order lag's response to a ramp; the still pipe cools
+    by about a kelvin a second), every reading on the converter's 1/128 K grid."""
+    from thermoskin.sim.boards import lab_boards
+
+    cfg = Config()
+    drawn = lab_boards(cfg.sensor)
+    assert max(abs(drawn.offset_T_w), abs(drawn.offset_T_p), abs(drawn.offset_T_a)) > 0.1  # can fail
+    got = []
+    for lab in (False, True):
+        b = FirmwareBench(cfg, SCENARIOS["none"], lab_boards=lab)
+        host = Host(b, drive=0.0, v=0.0)
+        host.hello()
+        b.run_for(3_000_000, host)
+        got.append(samples(b))
+    for i, (ch, bit) in enumerate(zip(("T_w", "T_p", "T_a"), proto.CHANNEL_BITS, strict=True)):
+        ideal = {m.t_us: (m.T_w, m.T_p, m.T_a)[i] for m in got[0] if m.fresh & bit}
+        lab = {m.t_us: (m.T_w, m.T_p, m.T_a)[i] for m in got[1] if m.fresh & bit}
+        both = sorted(set(ideal) & set(lab))
+        assert len(both) >= 25, ch
+        d = np.array([lab[t] - ideal[t] for t in both])
+        slope = np.gradient([ideal[t] for t in both], np.array(both) * 1e-6)
+        expected = getattr(drawn, f"offset_{ch}") - getattr(drawn, f"lag_{ch}") * slope
+        assert np.mean(d - expected) == pytest.approx(0.0, abs=0.03), ch
+        x = np.array([lab[t] for t in both])
+        assert np.allclose(x * 128.0, np.round(x * 128.0), atol=1e-3), ch

@@ -168,3 +168,65 @@ def test_rows_of_two_models_in_any_order_each_step_with_their_own() -> None:
     mixed.run_rows(order, k * a.sampling.t_s, T_w[k, order], log["T_p"][:n_s][k], log["v"][:n_s][k],
                    log["T_a"][:n_s][k])
     _assert_each_as_alone(mixed, cfgs, log, T_w)
+
+
+def test_patches_with_nothing_learnt_step_in_the_loops_without_it() -> None:
+    """Patches whose sensors are as configured (``fixed_sensors``, a skin's) are stepped by the
+    ``*_fixed`` loops, whose step has no learning code: on the same readings (a touched and an
+    untouched log, each patch its own noise) their filter and detector (the state before the
+    learnt fields), contact bits and ended contacts equal, bit for bit, those of the full loops
+    stepping the same patches, serial, parallel and long-format alike; and one patch's contact
+    estimate the plain-Python reference's (``estimation/reference.py``, written apart) to
+    1e-9 W. A patch that learns is stepped by the full loops."""
+    from thermoskin.estimation.model import fixed_sensors
+    from thermoskin.estimation.patches import PatchEstimators
+    from thermoskin.estimation.reference import ReferenceEstimator
+    from thermoskin.params import load_config
+    from thermoskin.sim.run import simulate
+    from thermoskin.sim.scenarios import SCENARIOS
+
+    learning = load_config()
+    cfg = fixed_sensors(learning)
+    assert not K.fixed(PatchEstimators(learning, n=2).PR)
+    n, n_s = 40, 9000
+    dur = n_s * cfg.sampling.t_s + 0.5
+    touched = simulate(SCENARIOS["one-finger"].with_duration(dur), cfg)
+    quiet = simulate(SCENARIOS["none"].with_duration(dur), cfg)
+    src = [quiet if i % 2 == 0 else touched for i in range(n)]
+    rng = np.random.default_rng(3)
+    cols = {c: np.stack([s[c][:n_s] for s in src], axis=1) for c in ("T_w", "T_p", "T_a", "v")}
+    cols["T_w"] += rng.normal(0.0, 0.005, (n_s, n))
+    ser, par = PatchEstimators(cfg, n=n, parallel=False), PatchEstimators(cfg, n=n, parallel=True)
+    assert K.fixed(ser.PR) and ser._step_many is K.step_many_fixed
+    assert par._step_many_parallel is K.step_many_parallel_fixed
+    full_st, full_codes, full_ev = ser.ST.copy(), ser.codes.copy(), ser.EV.copy()
+    ref = ReferenceEstimator(cfg, cfg.sampling.t_s)
+    nan, fresh = np.full(n, np.nan), np.full(n, 7, dtype=np.int64)
+    worst, ended = 0.0, 0
+    for k in range(n_s):
+        t = k * cfg.sampling.t_s
+        rest = (cols["T_w"][k], cols["T_p"][k], cols["T_a"][k], nan)
+        iv = ser.index(cols["v"][k])
+        ser.tick(t, *rest, iv, nan, fresh)
+        par.tick(t, *rest, iv, nan, fresh)
+        K.step_many(full_st, ser.PR, ser.mid, *ser._tabs, t, *rest, iv, nan, fresh, full_codes, full_ev)
+        np.testing.assert_array_equal(ser.codes, full_codes)
+        np.testing.assert_array_equal(par.codes, full_codes)
+        done = np.flatnonzero(full_codes & K.C_ENDED)
+        np.testing.assert_array_equal(ser.EV[done], full_ev[done])
+        ended += len(done)
+        ref.step(t, cols["T_w"][k, 1], cols["T_p"][k, 1], cols["v"][k, 1], cols["T_a"][k, 1])
+        if ref.dq == ref.dq:
+            worst = max(worst, abs(ser.ST[1, K.DQ] - ref.dq))
+    np.testing.assert_array_equal(ser.ST[:, :K.RW], full_st[:, :K.RW])
+    np.testing.assert_array_equal(par.ST[:, :K.RW], full_st[:, :K.RW])
+    assert ended >= n // 2 and worst < 1e-9
+    # the long-format loop: each patch's rows in turn within a sample
+    rows = PatchEstimators(cfg, n=n, parallel=False)
+    assert rows._run_rows is K.run_rows_fixed
+    k = np.repeat(np.arange(n_s), n)
+    p = np.tile(np.arange(n), n_s)
+    out, _ = rows.run_rows(p, k * cfg.sampling.t_s, cols["T_w"][k, p], cols["T_p"][k, p],
+                           cols["v"][k, p], cols["T_a"][k, p])
+    np.testing.assert_array_equal(rows.ST[:, :K.RW], full_st[:, :K.RW])
+    assert out["contact"].sum() > 0

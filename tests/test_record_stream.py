@@ -23,8 +23,10 @@ def record_run(path: Path, seconds: float) -> None:
     """A closed-loop run of touches recorded as `thermoskin run --record` does."""
     rec = LoopRecorder(path, CFG)
     try:
-        run_closed_loop(SCENARIOS["one-finger"].with_duration(seconds), CFG, on_block=rec.write_rows,
-                        keep=False)
+        # (its touches after the skin has reached its set-point and the estimator learnt its
+        # sensors, as `thermoskin run` shifts them)
+        run_closed_loop(SCENARIOS["one-finger"].shifted(4.0).with_duration(seconds), CFG,
+                        on_block=rec.write_rows, keep=False)
     finally:
         rec.close()
 

@@ -53,6 +53,7 @@ def _reference_fit(log: dict[str, np.ndarray], cfg: Config, k0: int, end: int, j
     """The pulse fit the textbook way, on rows ``k0..end-1`` (evidence from ``j_first`` on)."""
     t = log["t"]
     est = ReferenceEstimator(cfg, loop_t_s(sample_interval(t), cfg), detect=False)
+    est.hold(est.R0, 0.0, cfg.sensor.lag_T_w)  # as the re-dating's filter holds them
     est.record_switches = True
     cmd = log.get("T_w_cmd")
     rows, phis = [], []
@@ -62,25 +63,28 @@ def _reference_fit(log: dict[str, np.ndarray], cfg: Config, k0: int, end: int, j
                  float(log["T_a"][k]), float(cmd[k]) if cmd is not None else math.nan,
                  int(log["fresh"][k]), float(log["drive"][k]) if "drive" in log else math.nan)
         rows.append(est.updates)
-        phis.append(est.tables.Phi[est.iv_prev])
+        F = np.zeros((6, 6))  # the model's step and the pipe thermocouple's bead's
+        F[:5, :5] = est.tables.Phi[est.iv_prev]
+        F[5, 0], F[5, 5] = 1.0 - est.a, est.a
+        phis.append(F)
     tt = t[k0:end]
     s_on, s_off = np.searchsorted(tt, cand_on), np.searchsorted(tt, cand_off)
     keep = s_off < len(tt) - 1
     cand_off, s_off = cand_off[keep], s_off[keep]
     start = np.concatenate([s_on, s_off])
     n = len(start)
-    mu = np.zeros((5, n + 5))
-    mu[:, n:] = np.eye(5)
+    mu = np.zeros((6, n + 6))
+    mu[:, n:] = np.eye(6)
     cols, z = [], []
     for j in range(j_first, len(tt)):
         new = start == j
         mu[:, :n][:, new] = 0.0
         mu[I_Q, :n][new] = 1.0
-        for i, e, Se, Kg, evidence in rows[j]:
+        for i, e, Se, Kg, evidence, h in rows[j]:
             if i < 0:  # a pump switch's correction: x_Tw += c (x_Tp - x_Tw)
                 mu[0] += e * (mu[3] - mu[0])
                 continue
-            rho = mu[i].copy()
+            rho = h @ mu  # the reading's row (the pipe's: its bead's)
             if evidence:
                 cols.append(rho / math.sqrt(Se))
                 z.append(e / math.sqrt(Se))
@@ -115,14 +119,18 @@ def _reference_fit(log: dict[str, np.ndarray], cfg: Config, k0: int, end: int, j
     return float(np.sum(w * on) / np.sum(w)), float(np.sum(w * off) / np.sum(w))
 
 
-def test_pulse_sums_against_row_by_row_signatures() -> None:
+@pytest.mark.parametrize("lag", [False, True], ids=["no lag", "a lagging pipe thermocouple"])
+def test_pulse_sums_against_row_by_row_signatures(lag: bool) -> None:
     """The compiled sums (transitions between readings multiplied together first) against the
-    signatures carried row by row and summed directly, on a random trace with sparse readings."""
+    signatures carried row by row and summed directly, on a random trace with sparse readings;
+    with a lag, the pipe's reading is its bead's, ``(1 - a) T_w + a m``, and the bead steps as
+    ``m <- (1 - a) T_w + a m`` (six states)."""
     rng = np.random.default_rng(3)
     n = 400
     rec = np.zeros((n, RD.NREC))
     Phi = np.stack([np.eye(5) + 0.02 * rng.standard_normal((5, 5)) for _ in range(2)])
     for j in range(n):
+        la = 0.6 + 0.3 * rng.random() if lag else 0.0
         for u, every in ((0, 7), (1, 11)):
             if j % every == 0:
                 o = u * K.NUR
@@ -130,9 +138,11 @@ def test_pulse_sums_against_row_by_row_signatures() -> None:
                 rec[j, o + 1] = rng.standard_normal()
                 rec[j, o + 2] = 0.5 + rng.random()
                 rec[j, o + 3] = 1.0 if rng.random() > 0.1 else 0.0
-                rec[j, o + 4:o + 9] = 0.3 * rng.standard_normal(5)
+                rec[j, o + 4:o + 10] = 0.3 * rng.standard_normal(6)
+                rec[j, o + 10] = la if u == 0 else 0.0
         rec[j, RD.RIV] = float(rng.integers(2))
         rec[j, RD.RREADY] = 1.0
+        rec[j, RD.RLAGA] = la
         if j % 13 == 5:
             rec[j, RD.RSWB if j % 2 else RD.RSWA] = 0.2 * rng.standard_normal()
     j_first = 20
@@ -141,23 +151,29 @@ def test_pulse_sums_against_row_by_row_signatures() -> None:
     a, d, cn, nn, x = RD.pulse_sums(rec, Phi, j_first, s_on, s_off)
     start = np.concatenate([s_on, s_off])
     nc = len(start)
-    mu = np.zeros((5, nc + 5))
-    mu[:, nc:] = np.eye(5)
+    ns = RD.NS
+    mu = np.zeros((ns, nc + ns))
+    mu[:, nc:] = np.eye(ns)
     Rcols, z = [], []
     for j in range(j_first, n):
         for c in np.flatnonzero(start == j):
-            mu[:, c] = np.eye(5)[I_Q]
+            mu[:, c] = np.eye(ns)[I_Q]
         mu[0] += rec[j, RD.RSWB] * (mu[3] - mu[0])
-        for u, i in ((0, 0), (1, 3)):
+        for u in (0, 1):
             o = u * K.NUR
             if rec[j, o]:
-                rho = mu[i].copy()
+                la = rec[j, o + 10]
+                rho = (1.0 - la) * mu[0] + la * mu[5] if u == 0 else mu[3].copy()
                 if rec[j, o + 3]:
                     Rcols.append(rho / math.sqrt(rec[j, o + 2]))
                     z.append(rec[j, o + 1] / math.sqrt(rec[j, o + 2]))
-                mu -= np.outer(rec[j, o + 4:o + 9], rho)
+                mu -= np.outer(rec[j, o + 4:o + 10], rho)
         mu[0] += rec[j, RD.RSWA] * (mu[3] - mu[0])
-        mu = Phi[int(rec[j, RD.RIV])] @ mu
+        la = rec[j, RD.RLAGA]
+        F = np.zeros((ns, ns))
+        F[:5, :5] = Phi[int(rec[j, RD.RIV])]
+        F[5, 0], F[5, 5] = 1.0 - la, la
+        mu = F @ mu
     R = np.array(Rcols).T
     G = R @ R.T
     np.testing.assert_allclose(a, R @ np.array(z), rtol=1e-10, atol=1e-12)
@@ -371,7 +387,7 @@ def test_close_taps_are_not_dated_into_each_other() -> None:
 def test_a_contact_open_at_the_end_keeps_its_release() -> None:
     """A log cut in the middle of a tap: the contact did not end, so its release stays the
     log's end (its onset alone is dated again)."""
-    cfg, log, _ = _log("tap-burst", 7, duration=10.31)
+    cfg, log, _ = _log("tap-burst", 7, duration=10.4)  # a tap 10.25-10.71 s, detected at 10.31 s
     on = observe(log, cfg).events
     off = observe(log, cfg.replace(detector={"redate_readings": 0.0})).events
     assert on[-1].release == off[-1].release == log["t"][-1]

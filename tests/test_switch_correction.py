@@ -15,6 +15,7 @@ import numpy as np
 
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.estimator import TouchEstimator
+from thermoskin.estimation.model import fixed_sensors
 from thermoskin.params import load_config
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS
@@ -40,7 +41,9 @@ def test_correction_learns_an_injected_switch_pattern() -> None:
     ph, up = _phases(log["v"])
     pattern = 0.04 * np.sin(np.pi * np.minimum(ph, 50) / 50.0)  # K, 40 mK at mid-phase
     T_w = log["T_w"] + np.where(up, pattern, 0.0)
-    cfg = dataclasses.replace(base, estimator=dataclasses.replace(base.estimator, switch_bins=NB))
+    # nothing learnt of the sensors: the injected pattern is the correction's to learn alone
+    cfg = fixed_sensors(dataclasses.replace(base, estimator=dataclasses.replace(base.estimator,
+                                                                                switch_bins=NB)))
     est = TouchEstimator(cfg)
     est.run(log["t"], T_w, log["T_p"], log["v"], log["T_a"], log["T_w_cmd"], log["fresh"])
     tpl = est.st[K.TPL:K.TPL + 2 * NB].reshape(2, NB)
@@ -56,6 +59,6 @@ def test_correction_learns_an_injected_switch_pattern() -> None:
     assert abs(np.median(d)) < 0.04 * 2 / np.pi  # at most the pattern's mean
     # and the readings so corrected give no false event where the uncorrected model sees some
     assert not est.events
-    plain = TouchEstimator(base)  # switch_bins 0: no correction
+    plain = TouchEstimator(fixed_sensors(base))  # switch_bins 0: no correction (nor learning)
     plain.run(log["t"], T_w, log["T_p"], log["v"], log["T_a"], log["T_w_cmd"], log["fresh"])
     assert len(plain.events) >= 10

@@ -171,6 +171,16 @@ class EstimatorParams(_Validated):
     tank_jump: float = _p(4.0, "sd", 1.0, 100.0,
                           doc="a T_p reading this many standard deviations off is a manoeuvre of "
                               "the tank (a drive step): its slope is let go")
+    tau_noise: float = _p(3.0, "s", 0.0, 3600.0,
+                          doc="each channel's reading variance is learnt from its innovations over "
+                              "about this long (0: the configured noise_T and quantum_T are taken as "
+                              "they are)")
+    lag_drift: float = _p(1e-6, "s^2/s", 0.0, 1.0,
+                          doc="the learnt lag's random walk")
+    lag_max: float = _p(1.0, "s", 0.0, 60.0, doc="the longest pipe-thermocouple lag learnt")
+    offset_drift: float = _p(1e-6, "K^2/s", 0.0, 1.0,
+                             doc="the learnt offset's random walk (it follows slow changes: a board "
+                                 "warming, a skin slightly off at a new operating point)")
     tank_jump_s: float = _p(0.3, "s", 1e-3, 60.0,
                             doc="time over which such a jump is taken as a change of slope")
     max_gap_s: float = _p(2.0, "s", 1e-3, 3600.0,
@@ -210,6 +220,12 @@ class DetectorParams(_Validated):
     h_rate: float = _p(1.52, "", 0.0, 100.0,
                        doc="... plus this times ln(readings per second): more readings, more "
                            "chances of a false alarm (10 Hz boards: 9.5, 100 Hz: 13.0, 1 kHz: 16.5)")
+    rho_window: float = _p(0.4, "s", 0.0, 60.0,
+                           doc="window of the onset evidence's dispersion, learnt while idle: where "
+                               "the model does not fit the readings the detector needs that much more "
+                               "evidence (0: none)")
+    rho_deadband: float = _p(1.5, "", 1.0, 100.0,
+                             doc="a dispersion up to this is taken as none (its tracker's own scatter)")
     h_min: float = _p(11.9, "", 0.0, 1000.0,
                       doc="... and never below this: a CUSUM alarms on noise about once in e^h "
                           "readings (Lorden), so at a few readings a second each carries much "
@@ -274,6 +290,12 @@ class SensorParams(_Validated):
 
     section = "sensor"
     noise_T: float = _p(0.02, "K", 0.0, 10.0, doc="thermocouple noise (standard deviation)")
+    noise_T_w: float | None = _p(None, "K", 0.0, 10.0, optional=True,
+                                 doc="the T_w board's noise (standard deviation; unset: noise_T)")
+    noise_T_p: float | None = _p(None, "K", 0.0, 10.0, optional=True,
+                                 doc="the T_p board's noise (unset: noise_T)")
+    noise_T_a: float | None = _p(None, "K", 0.0, 10.0, optional=True,
+                                 doc="the T_a board's noise (unset: noise_T)")
     quantum_T: float = _p(0.0078125, "K", 0.0, 10.0,
                           doc="thermocouple resolution (0 = none); 1/128 K as a MAX31856")
     seed: int = _p(0, "", 0, 2**32 - 1, doc="random seed of the sensor noise and jitter")
@@ -297,6 +319,20 @@ class SensorParams(_Validated):
                                "cold junction); only the differences between channels are observable")
     offset_T_p: float = _p(0.0, "K", -5.0, 5.0, doc="the T_p reading's offset (as offset_T_w)")
     offset_T_a: float = _p(0.0, "K", -5.0, 5.0, doc="the T_a reading's offset (as offset_T_w)")
+    lag_sd: float = _p(0.05, "s", 0.0, 60.0,
+                       doc="how far the T_w thermocouple's lag may be from lag_T_w (the prior of the "
+                           "lag the estimator learns; 0: lag_T_w is taken as it is): a bead in water "
+                           "lags tens of ms")
+    offset_sd: float = _p(0.3, "K", 0.0, 5.0,
+                          doc="how far the T_p readings' offset against the T_w readings' may be from "
+                              "the configured ones (the prior of the offset the estimator learns; "
+                              "0: not learnt): type K boards are within about 0.3 K of each other")
+
+    def noise(self, channel: str) -> float:
+        """The noise of ``channel``'s board (``T_w``, ``T_p`` or ``T_a``), K: its own key, or
+        ``noise_T``."""
+        own = getattr(self, f"noise_{channel}")
+        return self.noise_T if own is None else own
 
     def __post_init__(self) -> None:
         super().__post_init__()

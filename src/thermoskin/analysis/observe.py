@@ -31,6 +31,7 @@ from thermoskin.estimation.freshness import (
     loop_t_s,
     sample_interval,
 )
+from thermoskin.estimation.learnt import Learnt, notices
 from thermoskin.logio.plausible import Cleaned, clean_log
 from thermoskin.logio.units import Units
 from thermoskin.params import Config
@@ -44,7 +45,7 @@ __all__ = ["INPUT_COLUMNS", "ContactEvent", "Observation", "StreamResult", "coar
 
 #: The estimator's columns written by :func:`observe_file` (a log that had them keeps its own
 #: as ``*_live``).
-OUTPUT_COLUMNS = ("q_i_hat", "dq_i_hat", "contact", "gap")
+OUTPUT_COLUMNS = ("q_i_hat", "dq_i_hat", "contact", "gap", "b_p_hat", "b_p_sd")
 #: Chunks :func:`observe_file` reads ahead (4 of 262 144 rows: about 50 MiB for six columns).
 PREFETCH_CHUNKS = 4
 
@@ -151,6 +152,10 @@ class StreamResult:
     duration_s: float = 0.0
     warnings: list[str] = field(default_factory=list)
     """One line per column with implausible values or with no valid sample at all."""
+    learnt: Learnt | None = None
+    """What the estimator learnt of the sensors by the log's end."""
+    notices: dict[str, str] = field(default_factory=dict)
+    """What it says of them (:func:`~thermoskin.estimation.learnt.notices`), once each."""
 
 
 def _prepared(chunks: Iterable[dict[str, NDArray[np.float64]]], cfg: Config, fresh_inf: FreshInference
@@ -171,7 +176,8 @@ def _prepared(chunks: Iterable[dict[str, NDArray[np.float64]]], cfg: Config, fre
 def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg: Config,
                  progress: Callable[[int, int | None], None] | None = None, *,
                  characterise: bool = True, compiling: Callable[[], None] | None = None,
-                 units: Units | None = None) -> StreamResult:
+                 units: Units | None = None,
+                 on_first: Callable[[Learnt], None] | None = None) -> StreamResult:
     """:func:`observe` streamed from a log file to another (CSV or Parquet each), in chunks:
     memory does not grow with the log's length. The output holds every input column, the
     input's own estimates renamed ``*_live``, then ``q_i_hat, dq_i_hat, contact, gap``.
@@ -182,7 +188,10 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
     yet (a cold cache), so it is compiled only once the first chunk has passed every check
     (a bad log is one error, not a compile first), and ``compiling()`` is called just before;
     otherwise the kernel is loaded while the first chunk is read. ``units``: the log's units
-    (:class:`~thermoskin.logio.units.Units`: converted to seconds and °C as read, or checked)."""
+    (:class:`~thermoskin.logio.units.Units`: converted to seconds and °C as read, or checked).
+    ``on_first``: given what the estimator has learnt of the sensors by the end of the first
+    chunk (262 144 rows, or the whole of a shorter log), its one-finger SNR included: said at
+    the start."""
     from thermoskin.logio import LogReader, LogWriter, WriteBehind, prefetch
 
     with LogReader(path, required=INPUT_COLUMNS, live=True, one_patch=True, units=units) as reader:
@@ -242,6 +251,8 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
                 row.update({k: cols[k] for k in OUTPUT_COLUMNS})
                 behind.write(row)
                 gaps += int(cols["gap"].sum())
+                if rows == 0 and on_first is not None:
+                    on_first(est.learnt())
                 rows += len(chunk["t"])
                 t_last = float(chunk["t"][-1])
                 if progress is not None:
@@ -263,4 +274,5 @@ def observe_file(path: str | os.PathLike[str], out: str | os.PathLike[str], cfg:
                         warnings=Cleaned(columns={}, rejected=np.zeros(0, bool), counts=counts, first=first,
                                          no_valid=[k for k, ok in valid.items() if not ok]).warnings(cfg)
                         + coarse_log_warnings(t_s, cfg, rows, n_switch)
-                        + stuck_warnings(fresh_inf.periods, t_s))
+                        + stuck_warnings(fresh_inf.periods, t_s),
+                        learnt=est.learnt(), notices=notices(est.learnt(), cfg))

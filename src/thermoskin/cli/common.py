@@ -363,6 +363,24 @@ SCENARIO_OPT = click.option("--scenario", default="fingers", show_default=True,
 DURATION_OPT = click.option("--duration", type=float, default=None,
                             help="Seconds to simulate (default: the scenario's).")
 
+IDEAL_SENSORS_OPT = click.option(
+    "--ideal-sensors", "ideal_sensors", is_flag=True,
+    help="Simulate the thermocouple boards exactly as [sensor] says (what the estimator is told). "
+         "Default: boards as a lab buys them, drawn from [sensor] seed: offsets within +-0.3 K, "
+         "noise 0.02-0.05 K, a 1/128 K step, beads lagging 5-30 ms in water and 0.5-1.5 s in air "
+         "(sim/boards.py, docs/model.md).")
+
+
+def _boards(cfg: Any, ideal: bool) -> Any:
+    """The simulated boards: ``[sensor]`` itself (``--ideal-sensors``) or a lab's, drawn from its
+    seed (``sim.boards.lab_boards``); and a line saying which."""
+    from thermoskin.sim.boards import describe, lab_boards
+
+    if ideal:
+        return cfg.sensor, "boards: as configured (--ideal-sensors)"
+    b = lab_boards(cfg.sensor)
+    return b, f"boards as a lab buys them (seed {b.seed}; --ideal-sensors for the configured): {describe(b)}"
+
 
 #: The Peltier identification experiment, a scenario of ``simulate`` only.
 EXCITATION = "excitation"
@@ -445,9 +463,9 @@ SKIN_PLANT_KERNELS = ("sim/skin_plant._advance", "sim/skin_plant._gather", "sim/
                       "sim/board_bank._read")
 
 
-#: The patches' estimators' (``run_rows``, the sample step inlined): what `observe --skin`
-#: compiles (about 10 s on a cold cache).
-SKIN_ESTIMATOR_KERNELS = ("estimation/kernel.new_state", "estimation/kernel.run_rows",
+#: The patches' estimators' (``run_rows_fixed``, the sample step inlined; a skin's patches learn
+#: nothing of their sensors): what `observe --skin` compiles (about 10 s on a cold cache).
+SKIN_ESTIMATOR_KERNELS = ("estimation/kernel.new_state", "estimation/kernel.run_rows_fixed",
                           "estimation/kernel.finish")
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import click
 
 from thermoskin.cli.app import main
-from thermoskin.cli.common import CONFIG_OPT, SCENARIO_OPT, _config
+from thermoskin.cli.common import CONFIG_OPT, IDEAL_SENSORS_OPT, SCENARIO_OPT, _config
 from thermoskin.params import ConfigError
 from thermoskin.paths import PathError
 
@@ -37,9 +37,10 @@ from thermoskin.paths import PathError
 @click.option("--watchdog", type=float, default=None,
               help="The device's command watchdog, s [default: 0.5; the firmware's 0.05].")
 @CONFIG_OPT
+@IDEAL_SENSORS_OPT
 def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_period: float | None,
                     jitter: float | None, truth_path: Path | None, firmware: bool, watchdog: float | None,
-                    config_path: Path | None) -> None:
+                    config_path: Path | None, ideal_sensors: bool = False) -> None:
     """Run the simulated skin behind a pseudo-terminal speaking docs/protocol.md.
 
     Makes LINK a symbolic link to the pty and runs until stopped (Ctrl-C, SIGTERM); the link
@@ -69,9 +70,10 @@ def device_emulator(link: Path, scenario: str, faults: tuple[str, ...], tc_perio
         except (KeyError, ValueError) as e:
             click.echo(f"thermoskin: error: {e.args[0] if isinstance(e, KeyError) else e}", err=True)
             sys.exit(2)
-        sys.exit(firmware_main(str(link), cfg, sc, specs, tc_period, jitter, truth_path, watchdog))
+        sys.exit(firmware_main(str(link), cfg, sc, specs, tc_period, jitter, truth_path, watchdog,
+                               ideal_sensors=ideal_sensors))
     sys.exit(emulator_main(str(link), scenario, list(faults), tc_period, cfg, jitter=jitter,
-                           truth=truth_path, watchdog=watchdog))
+                           truth=truth_path, watchdog=watchdog, ideal_sensors=ideal_sensors))
 
 
 @main.command("device-hello")

@@ -99,9 +99,19 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
             startup.resume()      # garbage (millions of objects) must not be frozen
             note()
 
+        said: set[str] = set()
+
+        def first(lt: Any) -> None:  # the start: a fingertip below the noise is said at once
+            from thermoskin.estimation.learnt import SNR_MIN, snr_line
+
+            if lt.snr == lt.snr and lt.snr < SNR_MIN:
+                said.add("snr")
+                bar.console.print(f"thermoskin: note: {snr_line(lt.snr, 'this log')}", markup=False)
+
         res = observe_file(input_csv, output_csv, cfg, progress=progress,
                            characterise=events_path is not None,  # what touched: for the events file
-                           compiling=None if note is None else compiling, units=units)
+                           compiling=None if note is None else compiling, units=units,
+                           on_first=first)
     _write_events(events_path, res.events)
     t_s = res.t_s
     for w in res.warnings:
@@ -115,6 +125,12 @@ def observe(input_csv: Path, output_csv: Path, events_path: Path | None,
         console.print(f"against the log's own estimates: max |q_i_hat difference| "
                       f"{res.live_q_max_abs_diff:.3g} W, {res.live_contact_mismatches or 0} contact "
                       "mismatches")
+    if res.learnt is not None:
+        for line in res.learnt.lines():
+            console.print(line)
+        for key, line in res.notices.items():
+            if key not in said:
+                console.print(f"thermoskin: note: {line}", markup=False)
     if not res.events and res.duration_s < cfg.detector.t_warmup + cfg.detector.t_arm:
         err_console.print(f"thermoskin: warning: the log lasts {res.duration_s:.3g} s, less than "
                           "the detector needs to arm and learn its baseline: no contact can be reported")

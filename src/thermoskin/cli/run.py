@@ -23,8 +23,10 @@ from thermoskin.cli.common import (
     DURATION_OPT,
     ESTIMATOR_KERNEL,
     EVENTS_OPT,
+    IDEAL_SENSORS_OPT,
     SCENARIO_OPT,
     UserError,
+    _boards,
     _check_duration,
     _check_loop,
     _config,
@@ -88,12 +90,14 @@ SETTLE_S = 10.0
                    "(--groups) and the layout picture.")
 @click.option("--groups", "groups_path", type=click.Path(path_type=Path), default=None,
               help="With --skin: also write the body contacts, one row each.")
+@IDEAL_SENSORS_OPT
 @_user_errors
 def run(scenario: str, duration: float | None, setpoint: float | None,
         config_path: Path | None, log_path: Path, plot_path: Path | None, events_path: Path | None,
         device: str, realtime: bool | None, record_path: Path | None, probe_amp: float | None,
         live_addr: str | None, live_rate: float, live_wait: float, skin_path: Path | None = None,
-        groups_path: Path | None = None, live_allow_origin: tuple[str, ...] = ()) -> None:
+        groups_path: Path | None = None, live_allow_origin: tuple[str, ...] = (),
+        ideal_sensors: bool = False) -> None:
     """Run the whole skin in closed loop: the simulated skin (default) or a serial device.
 
     From ambient, the MPC and the inner loop bring T_w to its command while the observer
@@ -176,9 +180,18 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                if sc.setpoints else f"{sc.T_w_cmd:g} degC")
     where = (f"the device at {device[len('serial://'):]}" if serial else
              "the simulated skin" + (" at wall-clock speed" if realtime else ""))
+    # what the configured sensors should give (a short simulation: before the first line, which
+    # a caller may take for the loop's start)
+    watch = _SensorWatch(cfg, sc)
     console.print(f"[bold]thermoskin run[/]: closed loop on {where}, scenario '{sc.name}'"
                   + (", " if serial else f" ({len(sc.touches)} touches), ")
                   + f"T_w_cmd {cmd_txt}, {sc.duration:g} s at {1 / cfg.sampling.t_s:.0f} Hz")
+    boards = None
+    if not serial and not realtime:  # the simulated boards (--realtime: its device's own, configured)
+        boards, said = _boards(cfg, ideal_sensors)
+        console.print(said, markup=False)
+    if watch.start_line:
+        console.print(watch.start_line, markup=False)
     names = [k for k in COLUMNS if not serial or k not in TRUTH]
     from thermoskin.logio import has_rows
     from thermoskin.paths import Replaced
@@ -223,6 +236,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             from thermoskin.logio import LogError
 
             def on_block(block: dict[str, Any]) -> None:
+                for line in watch.feed(block):  # what the readings teach of the sensors, once each
+                    console.print(f"thermoskin: note: {line}", markup=False)
                 try:
                     runlog.write(block)  # type: ignore[union-attr]
                     if recorder is not None:
@@ -258,7 +273,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
 
                     res = run_closed_loop(sc, cfg, on_start=started, on_event=ended,
                                           progress=lambda f: bar.update(task, completed=f),
-                                          on_block=on_block, stop=stop, probe=probe, keep=False)
+                                          on_block=on_block, stop=stop, probe=probe, keep=False,
+                                          boards=boards)
             if recorder is not None:
                 _record_end(recorder, res, digest.t_last if digest.rows else 0.0)
         finally:  # each output closed whatever the others do (a full disk under one of them)
@@ -293,6 +309,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                 _summary(sc, digest.tracking_errors(), res.events, t_stop)
         if serial or realtime:
             _loop_figures(res, n)
+        for line in watch.summary():
+            console.print(line, markup=False)
         wrote = f"wrote {log_path} and {plot_path}" if n else "no samples"
         if events_path is not None:
             wrote += f", {events_path}"
@@ -319,6 +337,59 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
         click.echo(f"thermoskin: {why} at t = {n * cfg.sampling.t_s:.3f} s; the device is in its "
                    f"safe state; {', '.join(outs[:-1])} and {outs[-1]} written", err=True)
         sys.exit(stop.exit_code)
+
+
+class _SensorWatch:
+    """What the run's readings teach of its sensors, said as it goes and summed up at the end.
+
+    At the start, the one-finger SNR the configured sensors should give (``sim.expected``: a
+    fingertip below their noise is said at once). Then a second estimator follows the log's rows
+    as they are written (the live one's kernel on the same rows: the same state, bit for bit, as
+    ``observe`` of the log), and what it learns is said once each (``estimation.learnt.Watch``:
+    a fingertip below the readings' noise, readings that do not fit the model, an offset, a lag
+    or a noise unlike the configured ones)."""
+
+    def __init__(self, cfg: Config, sc: Any) -> None:
+        from thermoskin.estimation.estimator import TouchEstimator
+        from thermoskin.estimation.learnt import SNR_MIN, Watch, snr_line
+        from thermoskin.sim.expected import expected
+
+        self.est = TouchEstimator(cfg.replace(detector={"redate_readings": 0.0}))
+        self.watch = Watch(cfg)
+        self.cfg = cfg
+        self.t_next = 0.0
+        self.rows = 0
+        lt = expected(cfg, T_w_cmd=sc.T_w_cmd_at(0.0))
+        self.start_line = ""
+        if lt.snr == lt.snr and lt.snr < SNR_MIN:
+            self.watch.said.add("snr")
+            self.start_line = f"thermoskin: note: {snr_line(lt.snr, 'the configured sensors')}"
+
+    def feed(self, block: dict[str, Any]) -> list[str]:
+        """A block of the log's rows; the notices to say now."""
+        if "T_w" not in block or not len(block["t"]):
+            return []
+        cols = {k: np.asarray(block[k], dtype=float) for k in ("t", "T_w", "T_p", "v", "T_a")}
+        self.est.feed(cols["t"], cols["T_w"], cols["T_p"], cols["v"], cols["T_a"],
+                      T_w_cmd=block.get("T_w_cmd"), fresh=block.get("fresh"), drive=block.get("drive"))
+        self.rows += len(cols["t"])
+        t = float(cols["t"][-1])
+        if t < self.t_next:
+            return []
+        self.t_next = t + 1.0
+        return self.watch.new(self.est.st, t)
+
+    def summary(self) -> list[str]:
+        """What was learnt by the run's end, and what it says not said before."""
+        if not self.rows:
+            return []
+        lt = self.est.learnt()
+        out = list(lt.lines())
+        from thermoskin.estimation.learnt import notices
+
+        out += [f"thermoskin: note: {line}" for key, line in notices(lt, self.cfg).items()
+                if key not in self.watch.said]
+        return out
 
 
 def _close_log(runlog: Any, path: Path) -> None:

@@ -15,7 +15,9 @@ from thermoskin.cli.common import (
     CONFIG_OPT,
     DURATION_OPT,
     EXCITATION,
+    IDEAL_SENSORS_OPT,
     UserError,
+    _boards,
     _check_duration,
     _config,
     _outputs,
@@ -59,9 +61,10 @@ def scenarios() -> None:
                    "in closed loop, "
                    "one controller per water loop; the log has one row per sample and patch: "
                    "t,patch,T_w,T_p,v,T_a[,T_w2..],q_i,contact_true,position_true,fresh.")
+@IDEAL_SENSORS_OPT
 @_user_errors
 def simulate(scenario: str | None, duration: float | None, config_path: Path | None,
-             output_csv: Path, skin_path: Path | None) -> None:
+             output_csv: Path, skin_path: Path | None, ideal_sensors: bool = False) -> None:
     """Simulate the skin under a named scenario and write its log."""
     from thermoskin.logio import write_blocks, write_log
     from thermoskin.paths import LOG_SUFFIXES
@@ -89,10 +92,13 @@ def simulate(scenario: str | None, duration: float | None, config_path: Path | N
     sc = _scenario(scenario, duration, cfg.sampling.t_s)
     if duration is None:
         _check_duration(sc.duration, cfg.sampling.t_s, "the scenario's duration")
+    boards, said = _boards(cfg, ideal_sensors)
+    console.print(said)
     with _progress_bar(f"simulating {sc.name}") as bar:
         task = bar.add_task(f"simulating {sc.name}", total=1.0)
         # written block by block (whole or not at all): memory does not follow the length
-        blocks = simulate_blocks(sc, cfg, progress=lambda f: bar.update(task, completed=f))
+        blocks = simulate_blocks(sc, cfg, progress=lambda f: bar.update(task, completed=f),
+                                 boards=boards)
         rows = write_blocks(output_csv, blocks)
     console.print(f"simulated {sc.duration:g} s of '{sc.name}' ({len(sc.touches)} touches, "
                   f"{rows} samples); wrote {output_csv}")

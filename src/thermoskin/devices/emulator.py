@@ -68,6 +68,7 @@ import numpy as np
 
 from thermoskin.devices import protocol as proto
 from thermoskin.params import Config
+from thermoskin.sim.boards import describe
 from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import DEFAULT_SCENARIO, SCENARIOS, Scenario, get_scenario
 
@@ -128,7 +129,8 @@ class DeviceCore:
 
     The physics and the thermocouple boards are the simulated plant
     (:class:`~thermoskin.sim.plant.SimulatedPlant`: Peltier tank, the scenario's touches and
-    ambient repeating every ``scenario.duration``, the ``[sensor]`` boards); ``tc_period``
+    ambient repeating every ``scenario.duration``, the ``[sensor]`` boards, or with
+    ``lab_boards`` boards as a lab buys them drawn from its seed, ``sim.boards``); ``tc_period``
     (s) sets the three boards' conversion periods and ``jitter`` (s) their jitter (``None``:
     the configuration's). The faults are the device's own, applied to the plant's readings.
     """
@@ -136,7 +138,7 @@ class DeviceCore:
     def __init__(self, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec] = (),
                  tc_period: float | None = 0.1, command_timeout: float = 0.5,
                  device_id: int = DEVICE_ID, jitter: float | None = None,
-                 session_timeout: float = SESSION_TIMEOUT) -> None:
+                 session_timeout: float = SESSION_TIMEOUT, lab_boards: bool = False) -> None:
         sensor: dict[str, float] = {}
         if tc_period is not None:
             sensor.update(period_T_w=tc_period, period_T_p=tc_period, period_T_a=tc_period)
@@ -154,7 +156,11 @@ class DeviceCore:
         self.session_timeout = float(session_timeout)
         """The host's silence (s) after which its session is over (the device idles until a HELLO)."""
         self.device_id = device_id
-        self.plant = SimulatedPlant(cfg, scenario, repeat=True)
+        from thermoskin.sim.boards import lab_boards as draw
+
+        self.boards = draw(cfg.sensor) if lab_boards else cfg.sensor
+        """The boards the plant reads through (their true offsets, noise, lags)."""
+        self.plant = SimulatedPlant(cfg, scenario, repeat=True, boards=self.boards)
         self.skin = self.plant.skin
         self.tank = self.plant.tank
         self.sensors = self.plant.sensors
@@ -746,7 +752,7 @@ def serve_until_stopped(emu: PtyEmulator, link: str | os.PathLike[str], writer: 
 def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = (),
          tc_period: float | None = None, cfg: Config | None = None, verbose: bool = True,
          jitter: float | None = None, truth: str | os.PathLike[str] | None = None,
-         rt_priority: int = 40, watchdog: float | None = None) -> int:
+         rt_priority: int = 40, watchdog: float | None = None, ideal_sensors: bool = False) -> int:
     """Run the emulator until SIGINT/SIGTERM; 0 on a clean stop, 2 on bad arguments or link.
 
     ``rt_priority``: the ``SCHED_FIFO`` priority asked for once the host connects (0: none;
@@ -756,7 +762,8 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
     ``[sensor]`` periods if any is set, else 0.1 s. ``jitter`` (s): their jitter (``None``:
     the config's). ``truth``: a CSV file for the truth (:class:`TruthWriter`), complete up
     to the last sample sent when the emulator stops. ``watchdog`` (s): the command watchdog
-    (default 0.5 s).
+    (default 0.5 s). The boards are a lab's, drawn from ``[sensor]`` seed (``sim.boards``),
+    unless ``ideal_sensors`` (then exactly ``[sensor]``).
     """
     cfg = cfg or Config()
     s = cfg.sensor
@@ -765,7 +772,8 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
     try:
         sc, specs = check_options(scenario, faults, tc_period, jitter, watchdog)
         core = DeviceCore(cfg, sc, specs, tc_period=tc_period, jitter=jitter,
-                          command_timeout=0.5 if watchdog is None else watchdog)
+                          command_timeout=0.5 if watchdog is None else watchdog,
+                          lab_boards=not ideal_sensors)
     except (KeyError, ValueError) as e:
         print(f"device-emulator: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
         return 2
@@ -787,7 +795,10 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
               f"thermocouples every {core.tc_period * 1e3:g} ms"
               + (f" +- {j * 1e3:g} ms" if j else "")
               + (f", faults {', '.join(faults)}" if faults else "")
-              + (f", truth to {truth}" if truth is not None else "") + "); waiting for the host",
+              + (f", truth to {truth}" if truth is not None else "")
+              + ("; boards as configured" if ideal_sensors else
+                 f"; boards as a lab buys them: {describe(core.boards)}")
+              + "); waiting for the host",
               file=sys.stderr, flush=True)
 
     def stopped() -> None:
@@ -822,10 +833,13 @@ def _cli(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--tc-period", type=float, default=None,
                     help="conversion period of the three thermocouple boards, s (default 0.1)")
     ap.add_argument("--jitter", type=float, default=None, help="conversion-instant jitter, s (default 0)")
+    ap.add_argument("--ideal-sensors", action="store_true",
+                    help="the boards exactly as [sensor] says (default: a lab's, drawn from its seed)")
     ap.add_argument("--truth", default=None, metavar="TRUTH.csv",
                     help="write the truth: t,contact_true,q_i,n_fingers,T_g per sample")
     a = ap.parse_args(argv)
-    return main(a.link, a.scenario, a.fault, a.tc_period, jitter=a.jitter, truth=a.truth)
+    return main(a.link, a.scenario, a.fault, a.tc_period, jitter=a.jitter, truth=a.truth,
+                ideal_sensors=a.ideal_sensors)
 
 
 if __name__ == "__main__":

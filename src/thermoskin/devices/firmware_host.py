@@ -8,7 +8,8 @@
 - :class:`Max31856Model`: the converter's 16 registers (defaults as the datasheet's), SPI
   transactions (address, write bit ``0x80``, auto-increment), continuous conversions every
   98 ms with the 50 Hz filter (82 ms with 60 Hz; ``--tc-period`` overrides), each latching
-  the sensing element's temperature (``sim.sensors``: lag, noise and offset of ``[sensor]``)
+  the sensing element's temperature (``sim.sensors``: lag, noise and offset of boards as a
+  lab buys them, ``sim.boards``, or with ``--ideal-sensors`` of ``[sensor]``)
   quantised to the 19-bit ``LTCB`` registers (1/128 K a count, rounded), ``DRDY`` low until
   ``LTCB`` is read, fault bits in ``SR`` (``OPEN``, ``TCRANGE``);
 - :class:`SpiBus` with chip selects, :class:`PwmModel` (``duty_u16``) and :class:`PinModel`;
@@ -29,6 +30,7 @@ must not depend on the wall clock.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import gc
 import math
 import os
@@ -51,6 +53,7 @@ from thermoskin.devices.emulator import (
     write_pending,
 )
 from thermoskin.params import Config
+from thermoskin.sim.boards import describe
 from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import Scenario
 
@@ -222,16 +225,21 @@ class World:
 
     def __init__(self, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec] = (),
                  tc_period: float | None = None, jitter: float | None = None,
-                 truth: TruthWriter | None = None) -> None:
+                 truth: TruthWriter | None = None, lab_boards: bool = False) -> None:
         s = cfg.sensor
-        # the sensing elements as [sensor] has them (lag, noise, offsets), read every sample:
-        # the converters' conversions and quantum are the models'
-        analog = cfg.replace(sensor={"period_T_w": 0.0, "period_T_p": 0.0, "period_T_a": 0.0,
-                                     "quantum_T": 0.0})
+        from thermoskin.sim.boards import lab_boards as draw
+
+        self.boards = draw(s) if lab_boards else s
+        """The sensing elements' offsets, noise and lags: a lab's drawn from ``[sensor]`` seed
+        (``sim.boards``) with ``lab_boards``, else ``[sensor]``'s."""
+        # the sensing elements (lag, noise, offsets) read every sample: the converters'
+        # conversions and quantum (1/128 K) are the models'
+        analog = dataclasses.replace(self.boards, period_T_w=0.0, period_T_p=0.0, period_T_a=0.0,
+                                     quantum_T=0.0)
         self.cfg = cfg
         self.t_s = cfg.sampling.t_s
         self.t_s_us = round(self.t_s * 1e6)
-        self.plant = SimulatedPlant(analog, scenario, repeat=True)
+        self.plant = SimulatedPlant(cfg, scenario, repeat=True, boards=analog)
         j = s.jitter if jitter is None else jitter
         self.models = [Max31856Model(self.t_s, tc_period, j, seed=int(s.seed) + i) for i in range(3)]
         self.faults = sorted(faults, key=lambda f: f.t)
@@ -578,14 +586,14 @@ class FirmwareBench:
 
     def __init__(self, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec] = (),
                  tc_period: float | None = None, truth: TruthWriter | None = None,
-                 settings: dict[str, Any] | None = None) -> None:
+                 settings: dict[str, Any] | None = None, lab_boards: bool = False) -> None:
         fw = load_firmware()
         import skinfw.config as fwc
 
         for k, v in (settings or {}).items():
             setattr(fwc, k, v)
         self.clock = VirtualClock()
-        self.world = World(cfg, scenario, faults, tc_period, truth=truth)
+        self.world = World(cfg, scenario, faults, tc_period, truth=truth, lab_boards=lab_boards)
         self.link = MemoryLink(self.world, self.clock)
         self.board = HostBoard(self.world, self.clock, self.link)
         self.device = fw.Device(self.board)
@@ -661,9 +669,10 @@ class FirmwarePty(PtyEmulator):
 
 def main(link: str, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec], tc_period: float | None,
          jitter: float | None, truth: str | os.PathLike[str] | None, watchdog: float | None,
-         verbose: bool = True, rt_priority: int = 40) -> int:
+         verbose: bool = True, rt_priority: int = 40, ideal_sensors: bool = False) -> int:
     """``device-emulator --firmware``: until SIGINT/SIGTERM; 0 on a clean stop, 2 on a bad
-    argument or link (one line)."""
+    argument or link (one line). The sensing elements are a lab's, drawn from ``[sensor]`` seed
+    (``sim.boards``), unless ``ideal_sensors`` (then exactly ``[sensor]``)."""
     try:
         firmware_dir()
     except FirmwareNotFoundError as e:
@@ -679,7 +688,7 @@ def main(link: str, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec]
         except OSError as e:
             print(f"device-emulator: cannot write the truth file {truth}: {e.strerror or e}", file=sys.stderr)
             return 2
-    world = World(cfg, scenario, faults, tc_period, jitter, writer)
+    world = World(cfg, scenario, faults, tc_period, jitter, writer, lab_boards=not ideal_sensors)
     emu = FirmwarePty(link, world, writer, settings=settings)
 
     def started() -> None:
@@ -687,7 +696,10 @@ def main(link: str, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec]
         print(f"device-emulator: {link} -> {emu.slave_name} (the firmware from {firmware_dir()} on "
               f"models of its hardware; scenario {scenario.name}, conversions every {period}"
               + (f", faults {', '.join(f'{f.kind}@{f.t:g}' for f in faults)}" if faults else "")
-              + (f", truth to {truth}" if truth is not None else "") + "); waiting for the host",
+              + (f", truth to {truth}" if truth is not None else "")
+              + ("; boards as configured" if ideal_sensors else
+                 f"; boards as a lab buys them: {describe(world.boards)}")
+              + "); waiting for the host",
               file=sys.stderr, flush=True)
 
     def stopped() -> None:

@@ -10,7 +10,7 @@ truth of the sample just read is in :meth:`truth`.
 from __future__ import annotations
 
 from thermoskin.devices.base import Sample
-from thermoskin.params import Config
+from thermoskin.params import Config, SensorParams
 from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import Scenario
 
@@ -18,8 +18,9 @@ from thermoskin.sim.scenarios import Scenario
 class SimDevice:
     """A :class:`~thermoskin.devices.base.Device` backed by the simulated skin."""
 
-    def __init__(self, cfg: Config, scenario: Scenario, skin_model: str = "network") -> None:
-        self.plant = SimulatedPlant(cfg, scenario, skin_model=skin_model)
+    def __init__(self, cfg: Config, scenario: Scenario, skin_model: str = "network",
+                 boards: SensorParams | None = None) -> None:
+        self.plant = SimulatedPlant(cfg, scenario, skin_model=skin_model, boards=boards)
         self.t_s = cfg.sampling.t_s
         self.n = self.plant.n
         self._safe = False

@@ -28,7 +28,8 @@ from numpy.typing import NDArray
 
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.events import ContactEvent
-from thermoskin.estimation.model import ModelTables, build_tables
+from thermoskin.estimation.learnt import Learnt, learnt
+from thermoskin.estimation.model import ModelTables, build_tables, measurement_variance
 from thermoskin.estimation.observer import ThermalExchangeObserver
 from thermoskin.estimation.redate import Redater
 from thermoskin.estimation.redate import load as redate_load
@@ -101,6 +102,48 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_RAG] = cfg.skin.R_ag
     pr[K.PR_BAND] = d.arm_band
     pr[K.PR_NARM] = max(1, round(d.t_arm / t_s))
+    # what is learnt of the sensors: their priors (the configuration) and how fast
+    sn, es = cfg.sensor, cfg.estimator
+    pr[K.PR_RW0] = measurement_variance(cfg, "T_w")
+    pr[K.PR_RP0] = measurement_variance(cfg, "T_p")
+    pr[K.PR_RA0] = measurement_variance(cfg, "T_a")
+    pr[K.PR_OFW], pr[K.PR_OFP], pr[K.PR_OFA] = sn.offset_T_w, sn.offset_T_p, sn.offset_T_a
+    pr[K.PR_BD0] = 0.0
+    # the slow states learn from logs of 100 Hz and faster only: at 50 Hz the pump switches
+    # between rows and the model's misfit there looks like an offset (0.1 K learnt where there
+    # was none, the detector's evidence drowned in its uncertainty)
+    slow_ok = t_s <= K.SLOW_TS_MAX
+    pr[K.PR_PB0] = sn.offset_sd**2 if slow_ok else 0.0
+    pr[K.PR_SB] = es.offset_drift
+    pr[K.PR_TAUR] = es.tau_noise
+    pr[K.PR_LEARN] = 1.0
+    pr[K.PR_RMIN] = 400.0
+    pr[K.PR_RHOW] = d.rho_window
+    pr[K.PR_RHOETA] = 0.03
+    pr[K.PR_RHODB] = d.rho_deadband
+    pr[K.PR_RHOSET] = 0.5
+    pr[K.PR_LAG0] = sn.lag_T_w
+    pr[K.PR_PT0] = sn.lag_sd**2 if slow_ok else 0.0
+    pr[K.PR_ST] = es.lag_drift
+    pr[K.PR_TAUMAX] = max(es.lag_max, sn.lag_T_w)
+    pr[K.PR_DBMAX] = 1e-3  # K a reading: 1 K/s at 1 kHz
+    pr[K.PR_DTMAX] = 5e-4  # s a reading: 0.5 s/s at 1 kHz
+    pr[K.PR_LDELAY] = 0.5
+    pr[K.PR_SWIN] = 0.4
+    pr[K.PR_RSLOT] = 0.5
+    pr[K.PR_RFAST] = 200.0
+    pr[K.PR_RHOPB] = 0.03**2
+    pr[K.PR_RHOPT] = 0.01**2
+    pr[K.PR_RHODB_] = 0.02
+    pr[K.PR_RHODT] = 0.005
+    pr[K.PR_RHOEARLY] = 10.0
+    pr[K.PR_RHO0] = 2.0
+    pr[K.PR_RHOCAP] = 1e6
+    pr[K.PR_SLOWCU] = 0.25
+    # converter steps up to twice the pipe reading's configured sd are dithered by the noise
+    pr[K.PR_QFINE] = K.QFINE_SD * math.sqrt(pr[K.PR_RW0])
+    pr[K.PR_SLOWON] = 1.0 if (pr[K.PR_PB0] > 0 or pr[K.PR_PT0] > 0 or sn.lag_T_w > 0) else 0.0
+    pr[K.PR_AIR] = min(1.0, t_s / 10.0)
     return pr
 
 
@@ -148,6 +191,7 @@ class TouchEstimator:
         self._R_w = FlowResistance(cfg.skin)
         self._build((0.0, cfg.pump.v_on, *v_values))
         self._ev = np.zeros(K.NEV)
+        self._b_cfg = cfg.sensor.offset_T_p - cfg.sensor.offset_T_w
         self.reset()
 
     def _build(self, v_values: tuple[float, ...]) -> None:
@@ -217,6 +261,15 @@ class TouchEstimator:
         return float(self.st[K.X + 1])
 
     @property
+    def b_p_hat(self) -> float:
+        """The T_p readings' offset against the T_w readings (configured and learnt), K."""
+        return float(self.st[K.BD]) + self._b_cfg
+
+    def learnt(self) -> Learnt:
+        """What the estimator has learnt of its sensors (:mod:`~thermoskin.estimation.learnt`)."""
+        return learnt(self.st, self.cfg)
+
+    @property
     def gap(self) -> bool:
         """A reading is NaN at this sample (held over)."""
         return bool(self.st[K.GAP])
@@ -253,7 +306,8 @@ class TouchEstimator:
             if self.started or self.ended or t >= rd.due:
                 self.written = [*self.written, *rd.on_row(
                     self, rd.n - 1, t, self.st[K.ONSET] if self.started else math.nan,
-                    ContactEvent.from_kernel(self._ev) if self.ended else None)]
+                    ContactEvent.from_kernel(self._ev) if self.ended else None,
+                    learnt=self._ev if self.ended else None)]
         if self.written:
             self.events.extend(self.written)
         self.contact = code & K.C_CONTACT
@@ -267,7 +321,7 @@ class TouchEstimator:
         if K.finish(self.st, t, self._ev):
             e = ContactEvent.from_kernel(self._ev)
             self.events.append(e if rd is None else rd.redate(self, e, rd.n - 1, math.inf,
-                                                              open_end=True))
+                                                              open_end=True, learnt=self._ev))
             self.contact = 0
 
     # -- arrays -----------------------------------------------------------------------------
@@ -277,7 +331,8 @@ class TouchEstimator:
         """The next chunk of a log (continuing from the last sample stepped): per-sample
         columns ``q_i_hat, dq_i_hat, sd, contact, gap`` (and the filter's ``T_g_hat``, the
         sheet's temperature, with ``cov_qg``, the covariance of the ``q_i`` and ``T_g``
-        estimates) and the contacts that ended in it."""
+        estimates; ``b_p_hat`` and ``b_p_sd``, the T_p readings' offset against the T_w
+        readings, configured and learnt, K) and the contacts that ended in it."""
         t, T_w, T_p, v, T_a = (np.ascontiguousarray(x, dtype=float) for x in (t, T_w, T_p, v, T_a))
         n = len(t)
         cmd = np.full(n, math.nan) if T_w_cmd is None else np.ascontiguousarray(T_w_cmd, dtype=float)
@@ -286,7 +341,7 @@ class TouchEstimator:
               else np.ascontiguousarray(fresh, dtype=np.int64))
         iv = self.rows_of(v)
         rd = self._redater
-        out = np.empty((8, n))
+        out = np.empty((K.NOUT, n))
         events = np.empty((max(16, n // 50), K.NEV))
         marks = np.empty((2 * len(events), 3))
         ne, nm = K.run(self.st, self.pr, *self.tabs, t, T_w, T_p, T_a, cmd, iv, drv, fr, out,
@@ -294,22 +349,23 @@ class TouchEstimator:
         new = [ContactEvent.from_kernel(events[i]) for i in range(min(ne, len(events)))]
         if rd is not None:
             new = self._redate_chunk(rd, new, (t, T_w, T_p, T_a, cmd, iv, drv, fr),
-                                     marks[:min(nm, len(marks))])
+                                     marks[:min(nm, len(marks))], events)
         self.events.extend(new)
         self.contact = int(self.st[K.CONTACT])
         cols = {"q_i_hat": out[0], "dq_i_hat": out[1], "sd": out[3],
                 "contact": out[4].astype(np.int8), "gap": out[5].astype(np.int8),
-                "T_g_hat": out[6], "cov_qg": out[7]}
+                "T_g_hat": out[6], "cov_qg": out[7], "b_p_hat": out[8] + self._b_cfg, "b_p_sd": out[9]}
         return cols, new
 
     def _redate_chunk(self, rd: Redater, ended: list[ContactEvent], block: tuple[Array, ...],
-                      marks: Array) -> list[ContactEvent]:
+                      marks: Array, records: Array) -> list[ContactEvent]:
         """The chunk's rows where a contact started or ended (``marks``: row, bits, onset), or
         the waiting one fell due, in order, as :meth:`step` hands them to the re-dating one
         sample at a time."""
         t = block[0]
         n0 = rd.n
         it = iter(ended)
+        ie = 0  # the next ended contact's kernel record
         written: list[ContactEvent] = []
         pos, im = 0, 0
         while True:
@@ -319,9 +375,13 @@ class TouchEstimator:
             if k >= len(t):
                 break
             c = int(marks[im, 1]) if im < len(marks) and marks[im, 0] == k else 0
+            learnt = None
+            if c & K.C_ENDED:
+                learnt = records[ie]
+                ie += 1
             written.extend(rd.on_row(self, n0 + k, float(t[k]),
                                      float(marks[im, 2]) if c & K.C_STARTED else math.nan,
-                                     next(it) if c & K.C_ENDED else None, block, n0))
+                                     next(it) if c & K.C_ENDED else None, block, n0, learnt))
             if c:
                 im += 1
             pos = k + 1

@@ -44,9 +44,14 @@ TEXT_COLUMNS = ("kind", "toucher", "material")
 TAP_S = 1.0
 """A contact shorter than this is a tap, s (taps last 0.2-0.6 s, holds 1.5 s and more)."""
 
-#: The compiled kernel's event record: these fields, in this order (``estimation.kernel``).
+#: The compiled kernel's event record: these fields, in this order (``estimation.kernel``),
+#: then what the estimator had learnt of the sensors when the contact ended (held through it):
+#: the readings' variances of ``T_w``, ``T_p``, ``T_a`` (K²), the learnt offset of ``T_p``'s
+#: readings against ``T_w``'s (K) and the pipe thermocouple's lag (s) (the re-dating's filter
+#: takes them).
 EV_ONSET, EV_DETECTED, EV_RELEASE, EV_DURATION, EV_SIGN, EV_PEAK, EV_MEAN, EV_ENERGY = range(8)
-NEV = 8
+EV_RW, EV_RP, EV_RA, EV_BD, EV_LAG = range(8, 13)
+NEV = 13
 
 
 def one_patch_kind(duration: float) -> str:

@@ -42,13 +42,18 @@ import numpy as np
 
 from thermoskin._jit import fetch_add, njit, prange, prefetch_w
 from thermoskin.estimation.events import (  # the event record's layout
+    EV_BD,
     EV_DETECTED,
     EV_DURATION,
     EV_ENERGY,
+    EV_LAG,
     EV_MEAN,
     EV_ONSET,
     EV_PEAK,
+    EV_RA,
     EV_RELEASE,
+    EV_RP,
+    EV_RW,
     EV_SIGN,
     NEV,
 )
@@ -135,7 +140,8 @@ GT0 = GHEAD + 2         # time of the first reading pooled in the newest entry, 
 GOPEN = GHEAD + 3       # the newest entry, still pooling (3 fields as in GBUF): kept here, with
 #                         the fields every sample reads, and written to GBUF once it is full
 KUP = GOPEN + 3   # this sample's pipe and tank updates for the step signatures, 6 fields each:
-#                   made (1/0), the gain K (5); applied to them with the prediction (_mu_carry)
+#                   made (1/0), the gain K (5); applied to them with the prediction (_mu_carry);
+#                   their gains on the bead (KUPM) further on
 NPH = 64          # most phase bins of the pump-cycle correction, per direction
 TPL = KUP + 12    # the correction: mean no-touch innovation of T_w per (direction, phase), K
 GBUF = TPL + 2 * NPH    # NGB entries of 3: time of the last reading pooled, sums of g e/S, g^2/S
@@ -143,10 +149,71 @@ NGB = 256
 WBUF = GBUF + 3 * NGB  # warm-up buffer: NWB q values
 NWB = 256
 UREC = WBUF + NWB  # traced (PR_TRACE): this sample's pipe and tank updates, NUR fields each:
-NUR = 9                # made (1/0), innovation e, kappa^2 S, evidence (1/0), the gain K (5)
+NUR = 11               # made (1/0), innovation e, kappa^2 S, evidence (1/0), the gain K (5), the
+#                        gain on the bead, and the bead's weight a in the reading
 SWB = UREC + 2 * NUR   # traced: a pump-switch correction's x_Tw += c (x_Tp - x_Tw), its c, before
 SWA = SWB + 1          # the updates and after them (0: none)
-NSTATE = SWA + 1
+# what is learnt of the sensors from their readings (docs/model.md, Sensors that calibrate
+# themselves): each channel's reading variance, its converter's step, the offset of the tank's
+# readings against the pipe's (a slow state of the two-stage filter) and the evidence's dispersion
+RW = SWA + 1       # the variance of a T_w reading, K^2 (noise and quantum), learnt
+RP = RW + 1        # ... of a T_p reading
+RA = RW + 2        # ... of a T_a reading
+QW = RW + 3        # the smallest non-zero change between two fresh T_w readings (the converter's
+QP = RW + 4        # step, if it has one), K; 1e300 before any change; T_p, T_a
+QA = RW + 5
+LYW = RW + 6       # the last fresh readings of T_w, T_p, T_a (NaN before the first)
+LYP = RW + 7
+LYA = RW + 8
+TLP = RW + 9       # the time of the last fresh T_p reading, s
+TLA = RW + 10      # ... of T_a
+BD = RW + 11       # the offset of the T_p readings against the T_w readings beyond the configured
+#                    ones (reading minus truth, K): a slow state of the two-stage filter
+PBB = RW + 12      # the covariance of the two-stage filter's slow states (offset, lag): b b, b t,
+PBT = RW + 13      # t t (K^2, K s, s^2)
+PTT = RW + 14
+VB = RW + 15       # 5: the patch state's sensitivity to an error of BD (dx/db, the two-stage
+#                    filter's V: Friedland 1969)
+RHO = VB + 5       # the onset evidence's dispersion over its model value (1 when the model fits)
+WGE = RHO + 1      # this window's sums of g e/S and g^2/S, and where it began, s
+WGG = RHO + 2
+WT0 = RHO + 3
+IRATE = RHO + 4    # the information on a step of q_i the readings bring, W^-2 per s (idle)
+LINIT = RHO + 5    # 1 once what is learnt has its priors
+RHON = RHO + 6     # the dispersion's windows seen
+# the pipe thermocouple's bead: y = (1 - a) T_w + a m, m <- (1 - a) T_w + a m a sample (a first-order
+# lag, a = exp(-t_s / tau)); m is a measurement-only state: nothing of the patch's depends on it,
+# so the patch's covariance P is as without it, and m carries its own covariance with the state
+XM = RHON + 1      # m, the bead's temperature through the last sample, degC
+CM = XM + 1        # 5: its covariance with the patch state
+PMM = CM + 5       # its variance
+LAGA = PMM + 1     # a, the bead's weight a sample (0: no lag)
+LAGT = LAGA + 1    # tau, the pipe thermocouple's lag, s: the two-stage filter's other slow state
+VBM = LAGT + 1     # the bead's sensitivity to an error of BD (V_b's sixth component)
+VT = VBM + 1       # 6: the state's (5) and the bead's sensitivity to an error of tau
+WL1 = VT + 6       # the model's pipe rate through the lag once and twice, K/s: the reading's
+WL2 = WL1 + 1      # sensitivity to tau is -WL2 (the lag's derivative, -s/(tau s + 1)^2)
+MUM = WL2 + 1      # NCU: each onset CUSUM's step signature on the bead
+KUPM = MUM + NCU   # this sample's gains on the bead of the pipe and the tank updates, and the a of
+#                    the pipe's reading (for the signatures)
+TINIT = KUPM + 3   # when the filter last started, s
+SWIN = TINIT + 1   # the slow states' window: sums of s e/S and s^2/S for the offset and the lag,
+#                    and where it began (their covariance is let go where a window's evidence
+#                    says they are off by more than it allows)
+LY2P = SWIN + 5    # the fresh T_p and T_a readings before the last (second differences)
+LY2A = SWIN + 6
+RSL = SWIN + 7     # NRS slots of the pipe reading variance's steps (the sum of their logarithms),
+NRS = 4            # taken into it NRS - 1 slots late, dropped at a detection
+RSI = RSL + NRS    # the slot being filled
+RST0 = RSI + 1     # when it began, s
+NRW = RST0 + 1     # the readings each variance's tracker has taken (T_w, T_p, T_a)
+RHOB = NRW + 3     # the first NRB windows' z^2 over chi2(1)'s median, and a copy to sort
+NRB = 16
+WBD = RHOB + 2 * NRB  # the learnt offset and lag where the dispersion's window began
+WLT = WBD + 1
+IRN = WLT + 1      # the weight the information rate's mean has given its samples (1 - (1 - w)^n:
+#                    its start's bias, taken off where it is read)
+NSTATE = IRN + 1
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -207,8 +274,60 @@ PR_GLR = 58      # 1: an onset is dated by the GLR over the change time; 0: at t
 PR_GPOOL = 59    # a buffer entry pools the readings less than this after its first, s
 PR_HMIN = 60     # the onset threshold's floor
 PR_TRACE = 61    # 1: no detection; each update is recorded in the state (UREC), for the re-dating
-NPARAM = 62
+PR_RW0 = 62      # the prior variance of a T_w reading (noise_T_w² + quantum_T²/12), K^2
+PR_RP0 = 63      # ... of a T_p reading
+PR_RA0 = 64      # ... of a T_a reading
+PR_OFW = 65      # the configured offsets of the T_w, T_p, T_a readings, K (subtracted)
+PR_OFP = 66
+PR_OFA = 67
+PR_BD0 = 68      # the learnt offset's starting value (0; the re-dating's filter: the live one's), K
+PR_PB0 = 69      # its prior variance, K^2 (0: not learnt)
+PR_SB = 70       # its random walk, K^2/s
+PR_TAUR = 71     # the readings' variances are learnt over about this long, s (0: not learnt)
+PR_LEARN = 72    # 1: learn (offset, variances, dispersion); 0: hold them (the re-dating's filter)
+PR_RHOW = 73     # the dispersion's window, s (0: none)
+PR_RHOETA = 74   # its tracker's least step (in its logarithm, a window)
+PR_RHODB = 77    # the dispersion below this is taken as 1 (its tracker's own scatter)
+PR_AIR = 78      # the information rate's weight per sample (t_s / its time constant)
+PR_RMIN = 79     # a learnt variance stays within this factor of its prior, both ways
+PR_RHOSET = 80   # the dispersion's windows begin this long after a release, s
+PR_LAG0 = 81     # the pipe thermocouple's lag to start from (configured), s
+PR_PT0 = 82      # its prior variance, s^2 (0: not learnt)
+PR_ST = 83       # its random walk, s^2/s
+PR_TAUMAX = 84   # the longest lag learnt, s
+PR_DBMAX = 85    # the most a reading moves the learnt offset, K, and the lag, s
+PR_DTMAX = 86
+PR_LDELAY = 87   # the slow states learn from this long after the filter's start, s
+PR_SWIN = 88     # the slow states' window, s
+PR_RSLOT = 89    # the pipe reading variance's steps are gathered in slots this long, s
+PR_RFAST = 90    # ... from pipe readings this many a second or more
+PR_RHOPB = 91    # the dispersion is learnt once the offset's variance is below this, K^2,
+PR_RHOPT = 92    # and the lag's below this, s^2
+PR_RHODB_ = 93   # a dispersion window over which the offset moved more than this, K,
+PR_RHODT = 94    # or the lag more than this, s, is not taken, in the filter's first PR_RHOEARLY s
+PR_RHOEARLY = 95
+PR_RHO0 = 96     # the dispersion before its third window
+PR_RHOCAP = 97   # ... and at most this over its first windows (a touch among them)
+PR_SLOWON = 98   # 1: the pipe thermocouple's bead and the slow states are carried (0: neither is:
+                 # no lag, nothing learnt of them; the filter alone, as fast as before them)
+PR_SLOWCU = 99   # the slow states do not learn while an onset CUSUM is above this fraction of
+                 # its threshold (a touch's evidence building before its detection)
+PR_QFINE = 100   # the slow states learn only while the T_w and T_p readings' converter steps are
+                 # at most this, K (a coarser step is not dithered by the noise: its error, a
+                 # sawtooth that follows the signal, was learnt as offsets swinging by 0.3 K)
+NPARAM = 101
 
+#: The slow states (offset, lag) are learnt from logs of this sample period or shorter only, s
+#: (100 Hz and faster): at 50 Hz the pump switches between rows, and the model's misfit there
+#: looked like an offset (0.1 K learnt where there was none).
+SLOW_TS_MAX = 0.0100001
+#: The slow states learn only while both converter steps are at most this many times the pipe
+#: reading's configured sd (``PR_QFINE``).
+QFINE_SD = 2.0
+
+
+#: Rows of the per-sample outputs (:func:`run`, :func:`run_rows`).
+NOUT = 10
 
 # step result bits
 C_CONTACT, C_STARTED, C_ENDED = 1, 2, 4
@@ -250,6 +369,11 @@ def new_state() -> np.ndarray:
     st[TAMB] = -1e300
     st[CMD] = np.nan
     st[QIH] = np.nan
+    st[QW] = st[QP] = st[QA] = 1e300
+    st[LYW] = st[LYP] = st[LYA] = np.nan
+    st[LY2P] = st[LY2A] = np.nan
+    st[TLP] = st[TLA] = -1e300
+    st[RHO] = 1.0
     return st
 
 
@@ -281,26 +405,90 @@ def _p_put(st, p):
 
 
 @_inline
-def _update(st, pr, i, y, R, p):
-    """Scalar measurement of state ``i``; adds its evidence about a change of ``q_i``. ``p``:
-    the covariance (:func:`_p_get`), returned updated; the pipe's and the tank's updates of a
-    sample pass it from one to the other in registers, and the state takes it once."""
-    S = p[_tri(i, i)] + R
-    e = y - st[X + i]
-    kap = st[KAPPA]
-    sS = math.sqrt(S)
-    if i == 3 and abs(e) > pr[PR_CMAN] * kap * sS:
-        # the tank manoeuvres (the drive jumped): let its slope go, as a fading-memory filter
-        # does, and take no evidence about q_i from this reading
-        p33 = p[12] + e * e
-        p = (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p33, p[13],
-             p[14] + (e / pr[PR_TMAN]) ** 2)
-        S = p33 + R
+def _update(st, pr, i, y, p, eta, slow, learning):
+    """Scalar measurement: the pipe's reading (``i`` 0) or the tank's (3), with the learnt variance
+    of its readings; adds its evidence about a change of ``q_i``. ``p``: the covariance
+    (:func:`_p_get`), returned updated; the pipe's and the tank's updates of a sample pass it
+    from one to the other in registers, and the state takes it once. ``eta``: the weight of
+    this reading in the variance's tracker (0: not learnt); ``slow``: the slow states learn from
+    it; ``learning`` (a constant where it is inlined): False for a patch with nothing learnt nor
+    carried (:func:`fixed`), whose code then has neither the bead nor the slow states.
+
+    The pipe's reading is its thermocouple's bead, ``y = (1 - a) T_w + a m`` (:data:`XM`), so
+    its row of the covariance is ``r = (1 - a) P[0, :] + a c`` (``c`` the bead's covariance with
+    the state) and ``S = (1 - a) r_0 + a r_m + R``; without a lag (``a`` 0) that is ``P[0, :]`` and
+    ``P[0, 0] + R`` exactly, the filter as before.
+
+    The offset of the tank's readings against the pipe's (``BD``) and the pipe thermocouple's lag
+    (``LAGT``) are the slow states of a two-stage filter (Friedland 1969; Hsieh and Chen 1999):
+    the patch filter runs as if they were known, ``V`` (:data:`VB`, :data:`VT`) carries the
+    state's sensitivity to an error of each, ``s = C - H V`` the innovation's (``C``: 1 for the
+    offset in a tank reading, the lag's derivative ``-WL2`` in a pipe reading, else 0), and each
+    reading moves them by ``k e``, ``k = P_B s / (S + s' P_B s)``, and the state by ``-V k e``:
+    the augmented filter's estimate, exactly for constant offsets (to first order in the lag)."""
+    if learning:
+        a = st[LAGA]
+        c0, c1, c2, c3, c4 = st[CM], st[CM + 1], st[CM + 2], st[CM + 3], st[CM + 4]
+        pmm = st[PMM]
+        pbb, pbt, ptt = st[PBB], st[PBT], st[PTT]
+    else:  # (all 0 in such a patch's state: its code the filter's alone)
+        a = c0 = c1 = c2 = c3 = c4 = pmm = pbb = pbt = ptt = 0.0
+    b1 = 1.0 - a
+    # (a patch that learns nothing keeps its variances at their priors: read from its
+    # parameters, one cache line fewer of its state a sample)
+    if i == 0:
+        R = st[RW] if learning else pr[PR_RW0]
+        if learning:
+            yhat = b1 * st[X] + a * st[XM]
+            sb = -(b1 * st[VB] + a * st[VBM])
+            stau = -st[WL2] - (b1 * st[VT] + a * st[VT + 5])
+        else:
+            yhat = st[X]
+            sb = stau = 0.0
     else:
+        R = st[RP] if learning else pr[PR_RP0]
+        yhat = st[X + 3]
+        sb = 1.0 - st[VB + 3] if learning else 0.0
+        stau = -st[VT + 3] if learning else 0.0
+    # (not with a coarse converter: the slow states are not learnt from its readings, nor their
+    # uncertainty taken into the innovations' variance, which drove the learnt noise down)
+    sps = (sb * sb * pbb + 2.0 * sb * stau * pbt + stau * stau * ptt
+           if learning and not _coarse(st, pr) else 0.0)
+    e = y - yhat
+    kap = st[KAPPA]
+    man = False
+    if i == 3:
+        Sf = p[12] + R + sps
+        man = abs(e) > pr[PR_CMAN] * kap * math.sqrt(Sf)
+        if man:
+            # the tank manoeuvres (the drive jumped): let its slope go, as a fading-memory filter
+            # does, and take no evidence about q_i from this reading
+            p = (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11],
+                 p[12] + e * e, p[13], p[14] + (e / pr[PR_TMAN]) ** 2)
+    # the reading's covariance with the state (its row of P), with the bead's, and its variance
+    if i == 0 and learning:
+        r0 = b1 * p[0] + a * c0
+        r1 = b1 * p[1] + a * c1
+        r2 = b1 * p[2] + a * c2
+        r3 = b1 * p[3] + a * c3
+        r4 = b1 * p[4] + a * c4
+        rm = b1 * c0 + a * pmm
+        S = b1 * r0 + a * rm + R
+    elif i == 0:
+        r0, r1, r2, r3, r4 = p[0], p[1], p[2], p[3], p[4]
+        rm = 0.0
+        S = r0 + R
+    else:
+        r0, r1, r2, r3, r4 = p[3], p[7], p[10], p[12], p[13]
+        rm = c3
+        S = r3 + R
+    Sf = S + sps  # the innovation's variance with the slow states' uncertainty
+    sS = math.sqrt(Sf)
+    if not man:
         # evidence: the reading's sensitivity to a lasting change of q_i, g = P[i, q] / P[q, q]
         pqq = p[9]
-        g = p[_tri(i, 2)] / pqq if pqq > 0.0 else 0.0
-        gS = g / (kap * kap * S)  # one division for both
+        g = r2 / pqq if pqq > 0.0 else 0.0
+        gS = g / (kap * kap * Sf)  # one division for both
         st[SGE] += gS * e
         st[SGG] += gS * g
         # the innovations' scale: running median of |e| / sqrt(S) (0.6745 for a unit normal)
@@ -308,25 +496,36 @@ def _update(st, pr, i, y, R, p):
             st[KAPPA] = kap * pr[PR_UP]
         else:
             st[KAPPA] = kap * pr[PR_DOWN]
+            # not below 1 with a coarse converter: its readings hold still between steps, so
+            # most innovations are nought and their median is no scale (kappa fell to 0.17 with
+            # a 1/4 K step at 1 kHz, every reading's evidence taken 35 times over: a flood)
+            if learning and st[KAPPA] < 1.0 and pr[PR_LEARN] != 0.0 and _coarse(st, pr):
+                st[KAPPA] = 1.0
+        if eta > 0.0 and i == 0:
+            # the pipe reading's variance: its median tracker, e²/S at chi2(1)'s median 0.4549
+            # (robust to the few large innovations of a pump switch), its steps into this slot
+            l1 = math.log(1.0 + eta)
+            st[RSL + int(st[RSI])] += l1 if e * e > 0.4549 * Sf else -l1
     inv = 1.0 / S
-    # P's row i, which is its column (P is symmetric)
-    r0, r1, r2, r3, r4 = p[_tri(i, 0)], p[_tri(i, 1)], p[_tri(i, 2)], p[_tri(i, 3)], p[_tri(i, 4)]
     k0 = r0 * inv
     k1 = r1 * inv
     k2 = r2 * inv
     k3 = r3 * inv
     k4 = r4 * inv
+    km = rm * inv
     if pr[PR_TRACE] != 0.0:  # the re-dating's detection-free filter keeps the update
         u = UREC if i == 0 else UREC + NUR
         st[u] = 1.0
         st[u + 1] = e
-        st[u + 2] = kap * kap * S
-        st[u + 3] = 0.0 if (i == 3 and abs(e) > pr[PR_CMAN] * kap * sS) else 1.0
+        st[u + 2] = kap * kap * Sf
+        st[u + 3] = 0.0 if man else 1.0
         st[u + 4] = k0
         st[u + 5] = k1
         st[u + 6] = k2
         st[u + 7] = k3
         st[u + 8] = k4
+        st[u + 9] = km
+        st[u + 10] = a if i == 0 else 0.0
     # each onset CUSUM's step signature: what remains in the estimate's error of a step of
     # q_i at the CUSUM's last zero after this reading, mu <- (I - K H) mu: the gain kept, and
     # applied with the prediction (:func:`_mu_carry`)
@@ -338,13 +537,92 @@ def _update(st, pr, i, y, R, p):
         st[u + 3] = k2
         st[u + 4] = k3
         st[u + 5] = k4
-    st[X] += k0 * e
-    st[X + 1] += k1 * e
-    st[X + 2] += k2 * e
-    st[X + 3] += k3 * e
-    st[X + 4] += k4 * e
-    # P <- P - K P[i, :] with K = P[:, i]/S: P is symmetric, so row i is column i and the gain
-    # k_a = r_a / S; on the upper triangle alone (15 products, not 25)
+        if i == 0:
+            st[KUPM] = km
+            st[KUPM + 2] = a
+        else:
+            st[KUPM + 1] = km
+    x0 = st[X] + k0 * e
+    x1 = st[X + 1] + k1 * e
+    x2 = st[X + 2] + k2 * e
+    x3 = st[X + 3] + k3 * e
+    x4 = st[X + 4] + k4 * e
+    xm = st[XM] + km * e
+    if not learning or pr[PR_SLOWON] == 0.0:  # no bead nor slow state: the filter alone
+        st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4] = x0, x1, x2, x3, x4
+        return (p[0] - k0 * r0, p[1] - k0 * r1, p[2] - k0 * r2, p[3] - k0 * r3, p[4] - k0 * r4,
+                p[5] - k1 * r1, p[6] - k1 * r2, p[7] - k1 * r3, p[8] - k1 * r4,
+                p[9] - k2 * r2, p[10] - k2 * r3, p[11] - k2 * r4,
+                p[12] - k3 * r3, p[13] - k3 * r4,
+                p[14] - k4 * r4)
+    # the slow states' sensitivities through this update: V <- V - K (H V - C) = V + K s
+    vb0 = st[VB] + k0 * sb
+    vb1 = st[VB + 1] + k1 * sb
+    vb2 = st[VB + 2] + k2 * sb
+    vb3 = st[VB + 3] + k3 * sb
+    vb4 = st[VB + 4] + k4 * sb
+    vbm = st[VBM] + km * sb
+    vt0 = st[VT] + k0 * stau
+    vt1 = st[VT + 1] + k1 * stau
+    vt2 = st[VT + 2] + k2 * stau
+    vt3 = st[VT + 3] + k3 * stau
+    vt4 = st[VT + 4] + k4 * stau
+    vtm = st[VT + 5] + km * stau
+    st[VB], st[VB + 1], st[VB + 2], st[VB + 3], st[VB + 4], st[VBM] = vb0, vb1, vb2, vb3, vb4, vbm
+    st[VT], st[VT + 1], st[VT + 2], st[VT + 3], st[VT + 4], st[VT + 5] = vt0, vt1, vt2, vt3, vt4, vtm
+    if slow and sps > 0.0 and not man and e * e < 64.0 * Sf:
+        # (an outlier, beyond 8 sd, is no evidence of either)
+        # the slow states learnt from this reading (held during a contact), and the state moved
+        # as the filter would stand had its readings been corrected by them all along
+        # the window's evidence on each, for the fading of their covariance (_slow_window)
+        st[SWIN] += sb * e / Sf
+        st[SWIN + 1] += sb * sb / Sf
+        st[SWIN + 2] += stau * e / Sf
+        st[SWIN + 3] += stau * stau / Sf
+        hb = pbb * sb + pbt * stau
+        ht = pbt * sb + ptt * stau
+        kb = hb / Sf
+        kt = ht / Sf
+        db = kb * e
+        dt = kt * e
+        # each reading moves them by at most PR_DBMAX, PR_DTMAX: the lag's effect is linear in
+        # it only for small changes, and the filter's start (its state settling) can ask for
+        # large ones; a reading so limited is taken as that share of one (its information)
+        f = 1.0
+        if abs(db) > pr[PR_DBMAX]:
+            f = pr[PR_DBMAX] / abs(db)
+        if abs(dt) > pr[PR_DTMAX] and pr[PR_DTMAX] / abs(dt) < f:
+            f = pr[PR_DTMAX] / abs(dt)
+        db *= f
+        dt *= f
+        st[PBB] = pbb - f * kb * hb
+        st[PBT] = pbt - f * kb * ht
+        st[PTT] = ptt - f * kt * ht
+        st[BD] += db
+        tau = st[LAGT] + dt
+        tau = 0.0 if tau < 0.0 else (pr[PR_TAUMAX] if tau > pr[PR_TAUMAX] else tau)
+        dt = tau - st[LAGT]
+        st[LAGT] = tau
+        st[LAGA] = math.exp(-pr[PR_TS] / tau) if tau > 0.0 else 0.0
+        # the estimate of q_i moves with them (what it had taken of their errors): so does its
+        # no-touch baseline
+        st[B] -= vb2 * db + vt2 * dt
+        x0 -= vb0 * db + vt0 * dt
+        x1 -= vb1 * db + vt1 * dt
+        x2 -= vb2 * db + vt2 * dt
+        x3 -= vb3 * db + vt3 * dt
+        x4 -= vb4 * db + vt4 * dt
+        xm -= vbm * db + vtm * dt
+    st[X], st[X + 1], st[X + 2], st[X + 3], st[X + 4] = x0, x1, x2, x3, x4
+    st[XM] = xm
+    # the bead's covariances: c <- c - K r_m, P_mm <- P_mm - k_m r_m
+    st[CM] = c0 - k0 * rm
+    st[CM + 1] = c1 - k1 * rm
+    st[CM + 2] = c2 - k2 * rm
+    st[CM + 3] = c3 - k3 * rm
+    st[CM + 4] = c4 - k4 * rm
+    st[PMM] = pmm - km * rm
+    # P <- P - K r' with K = r/S (P symmetric); on the upper triangle alone (15 products, not 25)
     return (p[0] - k0 * r0, p[1] - k0 * r1, p[2] - k0 * r2, p[3] - k0 * r3, p[4] - k0 * r4,
             p[5] - k1 * r1, p[6] - k1 * r2, p[7] - k1 * r3, p[8] - k1 * r4,
             p[9] - k2 * r2, p[10] - k2 * r3, p[11] - k2 * r4,
@@ -423,8 +701,8 @@ def _predict(st, F, G, QQ, u, w):
 
 
 @_inline
-def _ambient(st, pr, t, y, fresh, R, idx):
-    """Update the ambient filter with a fresh air reading (if any).
+def _ambient(st, pr, t, y, fresh, idx, learning):
+    """Update the ambient filter with a fresh air reading (if any), with its learnt variance.
 
     A sudden change of the air (a door) is found by Page's CUSUM on the standardised
     innovations (drift ``PR_KAIR``, threshold ``PR_HAIR``, either sign): the air's estimate is
@@ -432,6 +710,7 @@ def _ambient(st, pr, t, y, fresh, R, idx):
     to wait until the lagging sensor has caught up.
     """
     if fresh:
+        R = st[RA] if learning else pr[PR_RA0]
         S = st[PA + 3 * idx] + R
         e = y - st[XA + idx]
         z = e / math.sqrt(S)
@@ -488,9 +767,30 @@ def _ambient_predict(st, Fa, Qa):
 
 
 @_inline
+def _learnt_init(st, pr):
+    """What is learnt of the sensors at its priors (once: a restart after a gap keeps it)."""
+    st[RW] = pr[PR_RW0]
+    st[RP] = pr[PR_RP0]
+    st[RA] = pr[PR_RA0]
+    st[BD] = pr[PR_BD0]
+    st[PBB] = pr[PR_PB0]
+    st[RHO] = pr[PR_RHO0] if pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0 else 1.0
+    st[PBT] = 0.0
+    st[PTT] = pr[PR_PT0]
+    tau = pr[PR_LAG0]
+    st[LAGT] = tau
+    st[LAGA] = math.exp(-pr[PR_TS] / tau) if tau > 0.0 else 0.0
+    st[LINIT] = 1.0
+
+
+@_inline
 def _init(st, pr, T_w, T_p, T_a):
-    """Start from the first valid readings: the network's no-touch sheet, no touch, still tank."""
-    R = pr[PR_RT]
+    """Start from the first valid readings (offsets taken off): the network's no-touch sheet,
+    no touch, still tank. The tank's state is its reading, so its sensitivity to an error of
+    the learnt offset is 1 (``V = e_Tp``)."""
+    if st[LINIT] == 0.0:
+        _learnt_init(st, pr)
+    R = st[RW]
     Rg, Rag = pr[PR_RG], pr[PR_RAG]
     for i in range(25):
         st[P + i] = 0.0
@@ -502,14 +802,27 @@ def _init(st, pr, T_w, T_p, T_a):
     st[P] = R
     st[P + 6] = R
     st[P + 12] = pr[PR_P0Q]
-    st[P + 18] = R
+    st[P + 18] = st[RP]
     st[P + 24] = 1e-4
+    # the bead at the pipe's reading: its covariances those of T_w
+    st[XM] = T_w
+    for i in range(5):
+        st[CM + i] = st[P + i]
+    st[PMM] = R
+    for i in range(5):
+        st[VB + i] = 0.0
+        st[VT + i] = 0.0
+    st[VB + 3] = 1.0
+    st[VBM] = 0.0
+    st[VT + 5] = 0.0
+    st[WL1] = st[WL2] = 0.0
+    Ra = st[RA]
     st[XA] = T_a
     st[XA + 1] = T_a
-    st[PA] = R
-    st[PA + 1] = R
-    st[PA + 2] = R
-    st[PA + 3] = R
+    st[PA] = Ra
+    st[PA + 1] = Ra
+    st[PA + 2] = Ra
+    st[PA + 3] = Ra
     st[READY] = 1.0
     st[GAPRUN] = 0.0
     _mu_reset_all(st)
@@ -612,6 +925,7 @@ def _mu_reset(st, j):
     for a_ in range(NMU):
         st[MU + NCU * a_ + j] = 0.0
     st[MU + NCU * 2 + j] = 1.0
+    st[MUM + j] = 0.0
 
 
 @_inline
@@ -622,9 +936,10 @@ def _mu_reset_all(st):
 
 
 @_inline
-def _mu_reading(u0, u1, u2, u3, u4, k0, k1, k2, k3, k4, rho):
-    """A reading's update of a signature, ``mu - K rho`` (``rho``: its component at the reading)."""
-    return u0 - k0 * rho, u1 - k1 * rho, u2 - k2 * rho, u3 - k3 * rho, u4 - k4 * rho
+def _mu_reading(u0, u1, u2, u3, u4, um, k0, k1, k2, k3, k4, km, rho):
+    """A reading's update of a signature, ``mu - K rho`` (``rho``: its component at the reading;
+    ``um`` and ``km`` the bead's)."""
+    return u0 - k0 * rho, u1 - k1 * rho, u2 - k2 * rho, u3 - k3 * rho, u4 - k4 * rho, um - km * rho
 
 
 @_inline
@@ -635,9 +950,10 @@ def _kup_gains(st):
     uw = st[KUP] != 0.0
     up = st[KUP + 6] != 0.0
     return ((st[KUP + 1] if uw else 0.0, st[KUP + 2] if uw else 0.0, st[KUP + 3] if uw else 0.0,
-             st[KUP + 4] if uw else 0.0, st[KUP + 5] if uw else 0.0),
+             st[KUP + 4] if uw else 0.0, st[KUP + 5] if uw else 0.0, st[KUPM] if uw else 0.0,
+             st[KUPM + 2] if uw else 0.0),
             (st[KUP + 7] if up else 0.0, st[KUP + 8] if up else 0.0, st[KUP + 9] if up else 0.0,
-             st[KUP + 10] if up else 0.0, st[KUP + 11] if up else 0.0))
+             st[KUP + 10] if up else 0.0, st[KUP + 11] if up else 0.0, st[KUPM + 1] if up else 0.0))
 
 
 @_inline
@@ -646,8 +962,11 @@ def _mu_readings(st, j, w, p):
     from :func:`_kup_gains`): ``mu - K_w mu[T_w]``, then ``- K_p mu[T_p]``."""
     u0, u1, u2, u3, u4 = (st[MU + j], st[MU + NCU + j], st[MU + 2 * NCU + j], st[MU + 3 * NCU + j],
                           st[MU + 4 * NCU + j])
-    u0, u1, u2, u3, u4 = _mu_reading(u0, u1, u2, u3, u4, w[0], w[1], w[2], w[3], w[4], u0)
-    return _mu_reading(u0, u1, u2, u3, u4, p[0], p[1], p[2], p[3], p[4], u3)
+    um = st[MUM + j]
+    aw = w[6]  # the pipe reading's bead weight: it reads (1 - a) mu[T_w] + a mu[bead]
+    u0, u1, u2, u3, u4, um = _mu_reading(u0, u1, u2, u3, u4, um, w[0], w[1], w[2], w[3], w[4], w[5],
+                                         (1.0 - aw) * u0 + aw * um)
+    return _mu_reading(u0, u1, u2, u3, u4, um, p[0], p[1], p[2], p[3], p[4], p[5], u3)
 
 
 @_inline
@@ -678,8 +997,11 @@ def _mu_carry(st, F):
     b0, b1, b2, b3, b4 = F[1, 0], F[1, 1], F[1, 2], F[1, 3], F[1, 4]
     c0, c1, c2, c3, c4 = F[3, 0], F[3, 1], F[3, 2], F[3, 3], F[3, 4]
     w, p = _kup_gains(st)
+    la = st[LAGA]
+    lb = 1.0 - la
     for j in range(NCU):
-        u0, u1, u2, u3, u4 = _mu_readings(st, j, w, p)
+        u0, u1, u2, u3, u4, um = _mu_readings(st, j, w, p)
+        st[MUM + j] = lb * u0 + la * um  # the bead through the sample (before the model's step)
         st[MU + j] = a0 * u0 + a1 * u1 + a2 * u2 + a3 * u3 + a4 * u4
         st[MU + NCU + j] = b0 * u0 + b1 * u1 + b2 * u2 + b3 * u3 + b4 * u4
         st[MU + 2 * NCU + j] = u2
@@ -713,6 +1035,11 @@ def _end(st, t_release, ev):
     ev[EV_PEAK] = sg * st[PEAK]
     ev[EV_MEAN] = sg * mean
     ev[EV_ENERGY] = sg * mean * dur
+    ev[EV_RW] = st[RW]
+    ev[EV_RP] = st[RP]
+    ev[EV_RA] = st[RA]
+    ev[EV_BD] = st[BD]
+    ev[EV_LAG] = st[LAGT]
     st[MODE] = IDLE
     st[CONTACT] = 0.0
     st[TREL] = t_release
@@ -837,7 +1164,62 @@ def _median_in_place(a, lo, m):
 
 
 @_inline
-def _detect(st, pr, t, ev):
+def _irho(st, pr, learning=True):
+    """The weight of the onset evidence: ``1/rho``, 1 where ``rho`` is within its dead band
+    (``rho`` 1 where nothing is learnt)."""
+    rho = (st[RHO] if learning else 1.0) / pr[PR_RHODB]
+    return 1.0 / rho if rho > 1.0 else 1.0
+
+
+@_inline
+def _dispersion(st, pr, t, sge, sgg, on):
+    """The onset evidence's dispersion ``rho`` and the information rate, while no contact is
+    seen (``on``). Where the model fits the readings (the innovations white, their variances
+    right) the evidence a window of ``PR_RHOW`` s gathers, ``z² = (sum g e/S)² / sum g²/S``, is
+    chi2(1); where it does not (an unmodelled lag, a skin unlike its configuration, coarse
+    converters) the innovations are coloured and ``z²`` is ``rho`` chi2(1). ``rho`` is the
+    median of ``z²`` over chi2(1)'s (0.4549) over the first :data:`NRB` windows (6 s), then
+    tracks it in steps of ``max(PR_RHOETA, 1/(n+1))`` in its logarithm at the ``n``-th window.
+    The information rate, ``sum g²/S`` a second over ``rho``, is what the one-finger SNR is
+    figured from."""
+    if not on:
+        st[WGE] = st[WGG] = 0.0
+        st[WT0] = t
+        st[WBD] = st[BD]
+        st[WLT] = st[LAGT]
+        return
+    st[IRATE] += pr[PR_AIR] * (sgg * _irho(st, pr) / pr[PR_TS] - st[IRATE])
+    st[IRN] += pr[PR_AIR] * (1.0 - st[IRN])
+    st[WGE] += sge
+    st[WGG] += sgg
+    if t - st[WT0] >= pr[PR_RHOW]:
+        a, b = st[WGE], st[WGG]
+        # a window over which the slow states moved in the filter's first seconds (learning
+        # them: its own transient, not the model's misfit) is not taken
+        moved = t - st[TINIT] < pr[PR_RHOEARLY] and (abs(st[BD] - st[WBD]) > pr[PR_RHODB_]
+                                                    or abs(st[LAGT] - st[WLT]) > pr[PR_RHODT])
+        if b > 0.0 and not moved:
+            n = int(st[RHON])
+            st[RHON] = n + 1.0
+            if n < NRB:  # the first NRB windows: their median (a few seconds, robust), from
+                # the third on (before: its prior, PR_RHO0, a little wary)
+                st[RHOB + n] = a * a / (0.4549 * b)
+                for j in range(n + 1):
+                    st[RHOB + NRB + j] = st[RHOB + j]
+                r = _median_in_place(st, RHOB + NRB, n + 1) if n >= 2 else st[RHO]
+                r = r if r < pr[PR_RHOCAP] else pr[PR_RHOCAP]  # (a touch in the first windows)
+            else:  # then a tracker of it
+                eta = 1.0 / (n + 1.0) if 1.0 / (n + 1.0) > pr[PR_RHOETA] else pr[PR_RHOETA]
+                r = st[RHO] * math.exp(eta if a * a > 0.4549 * st[RHO] * b else -eta)
+            st[RHO] = r if r > 1e-3 else 1e-3
+        st[WGE] = st[WGG] = 0.0
+        st[WT0] = t
+        st[WBD] = st[BD]
+        st[WLT] = st[LAGT]
+
+
+@_inline
+def _detect(st, pr, t, ev, learning):
     """The detector's sample; returns the step-result bits."""
     q = st[Q]
     sq = st[SQ]
@@ -869,6 +1251,10 @@ def _detect(st, pr, t, ev):
         hold_other = t - st[TREL] < pr[PR_TREF]  # no onset of the other sign after a release
         hold_all = t - st[TAMB] < pr[PR_TAMBH]  # the air changed: its sensor catches up first
         h = st[HTH]
+        # the evidence's dispersion (:func:`_dispersion`): where the model does not fit the
+        # readings the CUSUMs take the evidence as that much less (a quasi-likelihood), so that
+        # noise alarms no more often than the threshold is for, and a touch needs that much more
+        irho = _irho(st, pr, learning)
         fire = -1
         best = 0.0
         quiet = True
@@ -876,7 +1262,7 @@ def _detect(st, pr, t, ev):
             o = CU + 4 * j
             D = pr[PR_D] if j < 2 else (pr[PR_DHI] if j < 4 else pr[PR_DLO])
             sgj = 1.0 if j % 2 == 0 else -1.0
-            g = st[o] + sgj * D * sge - 0.5 * D * D * sgg
+            g = st[o] + (sgj * D * sge - 0.5 * D * D * sgg) * irho
             if hold_all or (hold_other and sgj != st[LASTSIGN]):
                 g = 0.0
             if g <= 0.0:
@@ -929,11 +1315,15 @@ def _detect(st, pr, t, ev):
                 jump = sg * D
             if pr[PR_OSJ] != 0.0:
                 mu = _mu_updated(st, fire)
+                um = jump * mu[5]  # the bead's part
                 for a_ in range(5):
                     ua = jump * mu[a_]
                     st[X + a_] += ua
                     for b_ in range(a_, 5):  # P's upper triangle (_p_get)
                         st[P + 5 * a_ + b_] += 0.25 * ua * jump * mu[b_]
+                    st[CM + a_] += 0.25 * ua * um
+                st[XM] += um
+                st[PMM] += 0.25 * um * um
             else:
                 st[X + 2] += jump
                 st[P + 12] += 0.25 * jump * jump
@@ -962,6 +1352,7 @@ def _detect(st, pr, t, ev):
             st[LVLMAX] = d
             st[SINCE] = 0.0
             _cusums_reset(st, t)
+            _r_drop(st)
             st[DQ] = q - b
             return C_CONTACT | C_STARTED
         if quiet and t - st[TREL] >= pr[PR_TSETTLE]:
@@ -1017,6 +1408,7 @@ def _detect(st, pr, t, ev):
             st[MODE] = IDLE
             st[CONTACT] = 0.0
             st[X + 2] = b
+            st[VB + 2] = st[VT + 2] = 0.0  # q_i set: no longer a function of the slow states
             st[P + 12] += 0.25 * lvl * lvl
             st[Q] = b
             st[DQ] = 0.0
@@ -1027,6 +1419,7 @@ def _detect(st, pr, t, ev):
         _end(st, t_rel, ev)
         # the touch has gone: the estimate goes back to its baseline, free to correct itself
         st[X + 2] = b
+        st[VB + 2] = st[VT + 2] = 0.0  # q_i set: no longer a function of the slow states
         st[P + 12] += 0.25 * lvl * lvl
         st[Q] = b
         st[DQ] = 0.0
@@ -1036,6 +1429,27 @@ def _detect(st, pr, t, ev):
         st[B] = q
         return C_ENDED
     return C_CONTACT
+
+
+@_inline
+def _coarse(st, pr):
+    """Whether a converter step of the T_w or the T_p readings is known and coarser than
+    ``PR_QFINE`` (the slow states do not learn from such readings)."""
+    qw, qp = st[QW], st[QP]
+    return qw < 1e299 and qp < 1e299 and (qw > pr[PR_QFINE] or qp > pr[PR_QFINE])
+
+
+@_inline
+def _building(st, pr):
+    """Whether the detector's evidence of an onset builds: idle, and an onset CUSUM above
+    ``PR_SLOWCU`` of the onset threshold (as the last sample left them)."""
+    if st[MODE] != IDLE:
+        return False
+    lim = pr[PR_SLOWCU] * st[HTH]
+    for j in range(NCU):  # noqa: SIM110 (a loop, not a generator, in compiled code)
+        if st[CU + 4 * j] > lim:
+            return True
+    return False
 
 
 @_inline
@@ -1049,11 +1463,14 @@ def _switch_correction(st, pr, Rw, iv_old, iv, slot):
         st[slot] = c
     half = (st[X + 3] - st[X]) * c
     st[X] += half
+    st[VB] += (st[VB + 3] - st[VB]) * c
+    st[VT] += (st[VT + 3] - st[VT]) * c
     st[P] += (pr[PR_VSW] * 2.0 * half) ** 2
 
 
 @_inline
-def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh, ev):
+def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh, ev,
+         learning=True):
     """One sample of one patch; returns the step-result bits (contact, started, ended). An
     entry point (``TouchEstimator.step``, a sample from Python) and, inlined, the body of every
     loop below, the sweep's batch and the re-dating's trace.
@@ -1061,8 +1478,10 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     ``iv`` and ``drive``: the pump's table row and the Peltier drive applied over the coming
     interval (``iv = -1``: the pump's velocity is unknown, a NaN); ``Qi`` / ``Qc``: the
     process-noise tables while idle and in contact; ``Rw`` the water's resistance per row.
+    ``learning`` False (a constant in the loops that inline this, ``*_fixed``): the step of a
+    patch with nothing learnt nor carried (:func:`fixed`), its code without any of it; the
+    same results as with True for such a patch, bit for bit.
     """
-    R = pr[PR_RT]
     st[KUP] = st[KUP + 6] = 0.0  # no update for the step signatures yet
     if pr[PR_TRACE] != 0.0:  # the trace's records of this sample
         st[UREC] = st[UREC + NUR] = st[SWB] = st[SWA] = 0.0
@@ -1092,17 +1511,63 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     st[GAP] = 1.0 if gap else 0.0
     st[SGE] = st[SGG] = 0.0
     st[QPRI] = st[X + 2]
+    # the readings' converter steps (each channel's smallest change between fresh readings)
+    if learning and (fresh & 1) != 0:
+        _quantum(st, QW, LYW, T_w)
+    # the tank's and the air's reading variances from their own second differences (both
+    # change smoothly: what a second difference holds is the noise, 6 R); the pipe's, which
+    # the pump kinks at every switch, from its innovations (_update)
+    learn_r = learning and pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0
+    if learning and (fresh & 2) != 0:
+        if learn_r:
+            _noise2(st, pr, RP, PR_RP0, QP, LYP, LY2P, T_p, t - st[TLP])
+        _quantum(st, QP, LYP, T_p)
+    if learning and (fresh & 4) != 0:
+        if learn_r:
+            _noise2(st, pr, RA, PR_RA0, QA, LYA, LY2A, T_a, t - st[TLA])
+        _quantum(st, QA, LYA, T_a)
+    # the configured offsets off the readings (the learnt one of the tank's at its update)
+    T_w_raw = T_w
+    T_w = T_w - pr[PR_OFW]
+    T_a = T_a - pr[PR_OFA]
+    # the pipe reading's variance from its innovations, while no contact is seen and none has
+    # just ended, taken NRS slots late (_r_slots): the innovations of a touch not yet detected
+    # (with slow boards, a second or so) are dropped at its detection, not taken for noise
+    # and only from fast readings (PR_RFAST a second and more): a slow board's innovations
+    # hold the model's prediction over the interval as well, and come out 10-40 % below the
+    # noise learnt so with 10 Hz boards; its variance stays at its prior, the innovations'
+    # scale (KAPPA) carrying the rest into the detector
+    learn = (learning and pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0 and st[MODE] != INCONTACT
+             and t - st[TREL] >= pr[PR_TSETTLE] and st[RATE] >= pr[PR_RFAST])
+    if learning and pr[PR_LEARN] != 0.0 and t - st[RST0] >= pr[PR_RSLOT]:
+        _r_slots(st, pr, t)
+    # the slow states (offset, lag) learn while no contact is seen and none has just ended, and
+    # not while the filter settles after its start
+    slow = (learning and pr[PR_LEARN] != 0.0 and st[MODE] != INCONTACT and t - st[TREL] >= pr[PR_TSETTLE]
+            and t - st[TINIT] >= pr[PR_LDELAY] and st[QW] <= pr[PR_QFINE] and st[QP] <= pr[PR_QFINE])
+    # nor while the detector's evidence builds (an onset CUSUM above a fraction of its
+    # threshold): the readings between a touch's onset and its detection are the touch's, and
+    # learnt they moved the lag and the offset, whose error then read as heat at each pump
+    # switch (a flood the hold during contacts kept); the window goes on without them
+    learn_slow = slow and not _building(st, pr)
     if st[READY] == 0.0:
         if gap:
             return C_CONTACT if st[MODE] == INCONTACT else 0
-        _init(st, pr, T_w, T_p, T_a)
+        _init(st, pr, T_w, T_p - pr[PR_OFP] - (pr[PR_BD0] if st[LINIT] == 0.0 else st[BD]), T_a)
+        st[TINIT] = t
+        st[TLP] = t
+        st[TLA] = t
     else:
-        _ambient(st, pr, t, T_a, (fresh & 4) != 0 and math.isfinite(T_a), R, int(pr[PR_AMB]))
+        upd_a = (fresh & 4) != 0 and math.isfinite(T_a)
+        _ambient(st, pr, t, T_a, upd_a, int(pr[PR_AMB]), learning)
+        if learning and upd_a:
+            st[TLA] = t
         if st[TAMB] == t and st[MODE] == INCONTACT and t - st[DETECTED] < pr[PR_TRETR]:
             # the "contact" just begun was the air changing: withdraw it (no event)
             st[MODE] = IDLE
             st[CONTACT] = 0.0
             st[X + 2] = st[B]
+            st[VB + 2] = st[VT + 2] = 0.0  # q_i set: no longer a function of the slow states
             _cusums_reset(st, t)
         upd_w = (fresh & 1) != 0 and math.isfinite(T_w)
         upd_p = (fresh & 2) != 0 and math.isfinite(T_p)
@@ -1121,7 +1586,8 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                 if st[MODE] != INCONTACT:
                     st[j] = c + pr[PR_APH] * (T_w - st[X] - c)
                 y = T_w - c
-            p = _update(st, pr, 0, y, R, p)
+            p = _update(st, pr, 0, y, p, _eta_w(pr, t - st[TLW]) if learn else 0.0, learn_slow,
+                        learning)
             st[GAPRUN] = 0.0
             dt = t - st[TLW]
             if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is
@@ -1132,11 +1598,26 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         else:
             st[GAPRUN] += 1.0
         if upd_p:
-            p = _update(st, pr, 3, T_p, R, p)
+            p = _update(st, pr, 3, T_p - pr[PR_OFP] - (st[BD] if learning else pr[PR_BD0]), p, 0.0,
+                        learn_slow, learning)
+            if learning:
+                st[TLP] = t
         if upd_w or upd_p:
             _p_put(st, p)
     if iv_old >= 0:
         _switch_correction(st, pr, Rw, iv_old, iv, SWA)
+    if slow and t - st[SWIN + 4] >= pr[PR_SWIN]:
+        _slow_window(st, pr, t)
+    elif learning and not slow:
+        for j in range(4):
+            st[SWIN + j] = 0.0
+        st[SWIN + 4] = t
+    if learning and pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0:
+        # (not while the slow states are still far from learnt: the filter's own transient at
+        # its start; but with a coarse converter, which they never learn from, at once)
+        _dispersion(st, pr, t, st[SGE], st[SGG], not gap and st[MODE] != INCONTACT
+                    and t - st[TAMB] >= pr[PR_TAMBH] and t - st[TREL] >= pr[PR_RHOSET]
+                    and ((st[PBB] <= pr[PR_RHOPB] and st[PTT] <= pr[PR_RHOPT]) or _coarse(st, pr)))
     st[Q] = st[X + 2]
     pq = st[P + 12]
     st[SQ] = math.sqrt(pq) if pq > 0.0 else 1e-12
@@ -1152,7 +1633,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     if st[ARMED] == 0.0:
         if T_w_cmd != T_w_cmd:
             st[ARMED] = 1.0
-        elif math.isfinite(T_w) and abs(T_w - T_w_cmd) <= pr[PR_BAND]:
+        elif math.isfinite(T_w_raw) and abs(T_w_raw - T_w_cmd) <= pr[PR_BAND]:
             st[NIN] += 1.0
             if st[NIN] >= pr[PR_NARM]:
                 st[ARMED] = 1.0
@@ -1162,18 +1643,207 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     if gap:  # a NaN reading: hold the detector (and a contact) over it
         code = C_CONTACT if st[MODE] == INCONTACT else 0
     elif st[ARMED] != 0.0 and pr[PR_TRACE] == 0.0:
-        code = _detect(st, pr, t, ev)
+        code = _detect(st, pr, t, ev, learning)
     else:
         st[DQ] = st[Q] - st[B]
     # predict over the coming interval
     _ambient_predict(st, Phi_a, Q_a)
     Qd = Qc if st[MODE] == INCONTACT else Qi
+    x0 = st[X]
+    slow_on = learning and pr[PR_SLOWON] != 0.0
+    if slow_on:
+        _bead_predict(st)
     _predict(st, Phi[iv], Gam[iv], Qd[iv], st[XA], drive if drive == drive else 0.0)
+    if slow_on:
+        _slow_predict(st, pr, Phi[iv], x0)
     if _keeps_mu(st, pr):  # the step signatures, for the onset's whole-state jump
         _mu_carry(st, Phi[iv])
     if st[GAPRUN] > pr[PR_MAXGAP]:
         st[READY] = 0.0  # restart from the next valid readings
     return code
+
+
+@_inline
+def _quantum(st, iq, ily, y):
+    """A channel's converter step: the greatest common divisor of the changes between its fresh
+    readings (``st[iq]``; the last reading in ``st[ily]``), by Euclid's algorithm to within
+    1e-9 K: a converter's readings are whole multiples of its step, so their changes are too,
+    however far apart; a board without one (or a log's readings rounded to no common step)
+    brings it below 1e-6 K at once."""
+    if math.isfinite(y):
+        d = abs(y - st[ily])
+        if d > 1e-9:
+            g = st[iq]
+            if g >= 1e299:
+                g = d
+            else:
+                a, b = (g, d) if g > d else (d, g)
+                for _ in range(64):
+                    if b <= 1e-9:
+                        break
+                    a, b = b, a % b
+                g = a
+            st[iq] = g
+        st[ily] = y
+
+
+@_inline
+def _r_slots(st, pr, t):
+    """The next slot of the pipe reading variance's steps: the oldest, ``NRS - 1`` slots of
+    ``PR_RSLOT`` s back (1.5 s), taken into the variance (within its bounds), and begun afresh."""
+    k = int(st[RSI]) + 1
+    k = k if k < NRS else 0
+    v = st[RSL + k]
+    if v != 0.0:
+        r = st[RW] * math.exp(v)
+        q = st[QW]
+        qq = q * q / 12.0 if q < 1e299 else 0.0
+        lo = pr[PR_RW0] / pr[PR_RMIN]
+        lo = lo if lo > qq else qq
+        hi = pr[PR_RW0] * pr[PR_RMIN]
+        st[RW] = lo if r < lo else (hi if r > hi else r)
+    st[RSL + k] = 0.0
+    st[RSI] = k
+    st[RST0] = t
+
+
+@_inline
+def _r_drop(st):
+    """A contact detected: the pipe reading variance's steps not yet taken were its onset's."""
+    for j in range(NRS):
+        st[RSL + j] = 0.0
+
+
+@_inline
+def _r_step(st, pr, R, up, eta, ipr0, iq):
+    """A reading variance's median tracker, one step up (``up``) or down by ``1 + eta``, kept
+    within ``PR_RMIN`` of its prior (``pr[ipr0]``) both ways and above its converter's step's
+    ``q²/12`` (``st[iq]``)."""
+    r = R * (1.0 + eta) if up else R / (1.0 + eta)
+    q = st[iq]
+    qq = q * q / 12.0 if q < 1e299 else 0.0
+    lo = pr[ipr0] / pr[PR_RMIN]
+    lo = lo if lo > qq else qq
+    hi = pr[ipr0] * pr[PR_RMIN]
+    return lo if r < lo else (hi if r > hi else r)
+
+
+@_inline
+def _noise2(st, pr, ir, ipr0, iq, iy1, iy2, y, dt):
+    """A smooth channel's reading variance from its second differences: ``y - 2 y1 + y2`` of three
+    fresh readings is ``6 R`` in variance where the temperature's curvature over them is small
+    against the noise; its median tracker (chi2(1)'s median 0.4549), each reading weighed by
+    :func:`_eta` of ``dt`` since the last. ``st[iy1]``, ``st[iy2]``: the last two readings
+    (``iy1`` is the quantum's, moved on by :func:`_quantum`)."""
+    if not math.isfinite(y):
+        return
+    y1, y2 = st[iy1], st[iy2]
+    st[iy2] = y1
+    if y1 == y1 and y2 == y2:
+        d = y - 2.0 * y1 + y2
+        st[ir] = _r_step(st, pr, st[ir], d * d > 6.0 * 0.4549 * st[ir], _eta(st, pr, ir - RW + NRW, dt),
+                         ipr0, iq)
+
+
+@_inline
+def _eta_w(pr, dt):
+    """A pipe reading's weight in its variance's tracker: the time since the last over the
+    tracker's time constant, at most 0.01 (fast readings only: no start of its own)."""
+    w = dt / pr[PR_TAUR]
+    return w if w < 0.01 else 0.01
+
+
+@_inline
+def _eta(st, pr, icount, dt):
+    """A reading's weight in its variance's tracker: the time since the channel's last reading
+    over the tracker's time constant, at most 0.01 (a slow board's readings, each weighed so,
+    still average about a hundred), and at first ``1/(n + 4)`` at its ``n``-th reading
+    (``st[icount]``, counted here): a running median, learnt in a hundred readings, ten seconds
+    of a 10 Hz board's, rather than the tracker's time constants."""
+    n = st[icount]
+    st[icount] = n + 1.0
+    w = dt / pr[PR_TAUR]
+    w = w if w < 0.01 else 0.01
+    f = 1.0 / (n + 4.0)
+    return f if f > w else w
+
+
+@_inline
+def _slow_window(st, pr, t):
+    """The end of a slow-state window: where the readings since its start say an offset or a lag
+    other than the learnt one, by more than three of its standard deviations (``(sum s e/S)²/sum
+    s²/S > 9``), its variance is let go to the square of that difference (``sum s e/S / sum
+    s²/S``, the window's least-squares estimate of the error): the learnt value was believed too
+    well (a first-order filter's covariance shrinks before a lag far from its start is reached),
+    and the next readings move it at once. Its covariance with the other is let go with it. At
+    most (1 K)² for the offset and ``PR_TAUMAX``² for the lag (an absurd reading's window); a
+    state whose prior variance is 0 (not learnt) stays as it is, and so do both with a slow
+    board (fewer than ``PR_RFAST`` readings a second)."""
+    # (from fast boards only, PR_RFAST readings a second and more: a slow board's few readings a
+    # window, each holding the model's prediction over its interval, let them go again and again,
+    # the offset's sd back to 0.3-0.5 K, the dispersion never learnt, false alarms)
+    fast = st[RATE] >= pr[PR_RFAST]
+    for j, o, cap, p0 in ((0, PBB, 1.0, pr[PR_PB0]), (2, PTT, pr[PR_TAUMAX] * pr[PR_TAUMAX], pr[PR_PT0])):
+        a, b = st[SWIN + j], st[SWIN + j + 1]
+        if p0 > 0.0 and fast and b > 0.0 and a * a > 9.0 * b:  # (a state not learnt: not let go)
+            d = a / b
+            v = d * d if d * d < cap else cap
+            if v > st[o]:
+                st[o] = v
+                st[PBT] = 0.0
+    for j in range(4):
+        st[SWIN + j] = 0.0
+    st[SWIN + 4] = t
+
+
+@_inline
+def _bead_predict(st):
+    """The pipe thermocouple's bead through the sample, before the model's step (it follows the
+    pipe's temperature at the sample's start): ``m <- (1 - a) T_w + a m``, its covariance with the
+    state ``c <- Phi ((1 - a) P[:, 0] + a c)`` (rows 2 and 4 of ``Phi`` unit rows; ``P`` still the
+    sample's posterior), its variance, and the slow states' sensitivities of it."""
+    a = st[LAGA]
+    b1 = 1.0 - a
+    c0 = st[CM]
+    v0 = b1 * st[P] + a * c0
+    v1 = b1 * st[P + 1] + a * st[CM + 1]
+    v2 = b1 * st[P + 2] + a * st[CM + 2]
+    v3 = b1 * st[P + 3] + a * st[CM + 3]
+    v4 = b1 * st[P + 4] + a * st[CM + 4]
+    st[PMM] = b1 * v0 + a * (b1 * c0 + a * st[PMM])
+    st[XM] = b1 * st[X] + a * st[XM]
+    st[VBM] = b1 * st[VB] + a * st[VBM]
+    st[VT + 5] = b1 * st[VT] + a * st[VT + 5]
+    # c's rows 0, 1, 3 through Phi come in _slow_predict (Phi's rows read there once): v kept
+    st[CM], st[CM + 1], st[CM + 2], st[CM + 3], st[CM + 4] = v0, v1, v2, v3, v4
+
+
+@_inline
+def _slow_predict(st, pr, F, x0):
+    """The two-stage filter's prediction: the sensitivities ``V <- Phi V`` (of the offset and
+    the lag), the bead's covariance ``c <- Phi c``; the slow states' random walks; and the lag's
+    regressor, the model's pipe rate over the sample (``x0`` the pipe's temperature at its start)
+    through the lag once and twice."""
+    a0, a1, a2, a3, a4 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4]
+    b0, b1, b2, b3, b4 = F[1, 0], F[1, 1], F[1, 2], F[1, 3], F[1, 4]
+    c0, c1, c2, c3, c4 = F[3, 0], F[3, 1], F[3, 2], F[3, 3], F[3, 4]
+    for o in (VB, VT, CM):
+        v0, v1, v2, v3, v4 = st[o], st[o + 1], st[o + 2], st[o + 3], st[o + 4]
+        st[o] = a0 * v0 + a1 * v1 + a2 * v2 + a3 * v3 + a4 * v4
+        st[o + 1] = b0 * v0 + b1 * v1 + b2 * v2 + b3 * v3 + b4 * v4
+        st[o + 3] = c0 * v0 + c1 * v1 + c2 * v2 + c3 * v3 + c4 * v4
+    ts = pr[PR_TS]
+    if st[PBB] > 0.0:
+        st[PBB] += pr[PR_SB] * ts
+    if st[PTT] > 0.0:
+        st[PTT] += pr[PR_ST] * ts
+    la = st[LAGA]
+    lb = 1.0 - la
+    r = (st[X] - x0) / ts
+    r = -1e3 if r < -1e3 else (1e3 if r > 1e3 else r)  # a pipe moves far slower than 1000 K/s
+    w1 = la * st[WL1] + lb * r
+    st[WL1] = w1
+    st[WL2] = la * st[WL2] + lb * w1
 
 
 @_inline
@@ -1187,7 +1857,8 @@ def _keep_event(events, ne, ev):
 def run(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive, fresh,
         out, events, ev, marks):
     """:func:`step` over arrays; fills ``out`` (rows: q_i_hat, dq_i_hat, q estimate, its sd,
-    contact, gap, the sheet's estimated temperature T_g, their covariance), ``events``
+    contact, gap, the sheet's estimated temperature T_g, their covariance, the learnt offset of
+    the T_p readings beyond the configured one and its sd), ``events``
     (``ev``: a scratch event row) and ``marks`` (the rows where a contact started or ended:
     row, those step-result bits, the contact's onset; the re-dating's clock); returns the
     event count and the mark count. :func:`step` inlined (LLVM's inlining, which adds little to
@@ -1225,6 +1896,9 @@ def _outputs(st, out, k):
     out[5, k] = st[GAP]
     out[6, k] = st[X + 1]
     out[7, k] = st[P + 7]
+    out[8, k] = st[BD]  # the learnt offset of the T_p readings (beyond the configured), K
+    pb = st[PBB]
+    out[9, k] = math.sqrt(pb) if pb > 0.0 else 0.0
 
 
 # ---------------------------------------------------------------- many patches
@@ -1240,12 +1914,19 @@ def _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m):
     return PR[m], Phi[m], Gam[m], Qi[m], Qc[m], Phi_a[m], Q_a[m], Rw[m]
 
 
-@njit(**_FAST)
-def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
-              fresh, codes, EV):
-    """One sample of every patch: the readings are arrays over patches; ``codes[i]`` its bits,
-    ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``). For a few patches, on one
-    core (many go to :func:`step_many_parallel`); :func:`step` inlined, as there."""
+def fixed(PR: np.ndarray) -> bool:
+    """Whether every model in ``PR`` (one row a model) has nothing learnt nor carried of its
+    sensors: no reading variance learnt (``PR_TAUR`` 0), no dispersion (``PR_RHOW`` 0), neither
+    bead nor slow state (``PR_SLOWON`` 0), as ``estimation.model.fixed_sensors`` makes them (a
+    skin's patch). Such patches are stepped by the ``*_fixed`` loops, whose step has none of that
+    code: on one core 1000 patches tick in about 0.7 of the time (``benchmarks/patches.py``)."""
+    return bool(PR.shape[0] == 0 or ((PR[:, PR_TAUR] == 0.0) & (PR[:, PR_RHOW] == 0.0)
+                                     & (PR[:, PR_SLOWON] == 0.0)).all())
+
+
+@_inline
+def _step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
+               fresh, codes, EV, learning):
     m = mid[0] if ST.shape[0] > 0 else 0
     pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
     for i in range(ST.shape[0]):
@@ -1253,7 +1934,26 @@ def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T
             m = mid[i]
             pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
         codes[i] = step(ST[i], pr, F, G, Q1, Q2, Fa, Qa, R, t,
-                        T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
+                        T_w[i], T_p[i], T_a[i], T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i],
+                        learning)
+
+
+@njit(**_FAST)
+def step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
+              fresh, codes, EV):
+    """One sample of every patch: the readings are arrays over patches; ``codes[i]`` its bits,
+    ``EV[i]`` its ended contact (where ``codes[i]`` has ``C_ENDED``). For a few patches, on one
+    core (many go to :func:`step_many_parallel`); :func:`step` inlined, as there."""
+    _step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
+               fresh, codes, EV, True)
+
+
+@njit(**_FAST)
+def step_many_fixed(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv,
+                    drive, fresh, codes, EV):
+    """:func:`step_many` for patches with nothing learnt nor carried (:func:`fixed`)."""
+    _step_many(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv, drive,
+               fresh, codes, EV, False)
 
 
 #: Patches a thread claims at a time in :func:`step_many_parallel` (about 3 µs of work).
@@ -1301,7 +2001,31 @@ def step_many_parallel(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_
                     m = mid[i]
                     pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
                 codes[i] = step(ST[i], pr, F, G, Q1, Q2, Fa, Qa, R, t, T_w[i], T_p[i], T_a[i],
-                                T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i])
+                                T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i], True)
+
+
+@njit(parallel=True, **_FAST)
+def step_many_parallel_fixed(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a,
+                             T_w_cmd, iv, drive, fresh, codes, EV, claims):
+    """:func:`step_many_parallel` for patches with nothing learnt nor carried (:func:`fixed`).
+    (Its loop written out as there: through an inlined helper, LLVM contracted the sums into
+    fused multiply-adds otherwise than in :func:`step_many`, and the two parted by an ulp.)"""
+    n = ST.shape[0]
+    nw = _claims_open(claims, n)
+    for w in prange(nw):
+        s = 0
+        while True:
+            lo, hi, s = _claim(claims, w, s, n)
+            if lo < 0:
+                break
+            m = mid[lo]
+            pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
+            for i in range(lo, hi):
+                if mid[i] != m:
+                    m = mid[i]
+                    pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
+                codes[i] = step(ST[i], pr, F, G, Q1, Q2, Fa, Qa, R, t, T_w[i], T_p[i], T_a[i],
+                                T_w_cmd[i], iv[i], drive[i], fresh[i], EV[i], False)
 
 
 @_inline
@@ -1336,14 +2060,10 @@ def _claim(claims, w, s, n):
     return -1, -1, s
 
 
-@njit(nogil=True, **_FAST)
-def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd, iv,
-             drive, fresh, out, events, ev_patch, ev):
-    """A long-format log (one row per sample and patch, in time order): each row steps its
-    patch's state; fills ``out`` per row (as :func:`run`), ``events`` and ``ev_patch`` (the
-    patch of each; ``ev`` a scratch event row); returns the event count. :func:`step` inlined
-    (LLVM's inlining, which no longer lengthens the compile much): 149-157 ns a row against
-    187-193 ns calling it (9 patches, the same outputs)."""
+@_inline
+def _run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd, iv,
+              drive, fresh, out, events, ev_patch, ev, learning):
+    """:func:`run_rows`'s loop, ``learning`` a constant (:func:`step`)."""
     n = t.shape[0]
     ne = 0
     cap = events.shape[0]
@@ -1356,7 +2076,7 @@ def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, 
             pr, F, G, Q1, Q2, Fa, Qa, R = _model(PR, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, m)
         st = ST[i]
         c = step(st, pr, F, G, Q1, Q2, Fa, Qa, R, t[k], T_w[k], T_p[k], T_a[k], T_w_cmd[k], iv[k],
-                 drive[k], fresh[k], ev)
+                 drive[k], fresh[k], ev, learning)
         _outputs(st, out, k)
         if c & C_ENDED:
             if ne < cap:
@@ -1364,6 +2084,26 @@ def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, 
                 ev_patch[ne] = i
             ne += 1
     return ne
+
+
+@njit(nogil=True, **_FAST)
+def run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd, iv,
+             drive, fresh, out, events, ev_patch, ev):
+    """A long-format log (one row per sample and patch, in time order): each row steps its
+    patch's state; fills ``out`` per row (as :func:`run`), ``events`` and ``ev_patch`` (the
+    patch of each; ``ev`` a scratch event row); returns the event count. :func:`step` inlined
+    (LLVM's inlining, which no longer lengthens the compile much): 149-157 ns a row against
+    187-193 ns calling it (9 patches, the same outputs)."""
+    return _run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd,
+                     iv, drive, fresh, out, events, ev_patch, ev, True)
+
+
+@njit(nogil=True, **_FAST)
+def run_rows_fixed(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd,
+                   iv, drive, fresh, out, events, ev_patch, ev):
+    """:func:`run_rows` for patches with nothing learnt nor carried (:func:`fixed`)."""
+    return _run_rows(ST, PR, mid, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, patch, t, T_w, T_p, T_a, T_w_cmd,
+                     iv, drive, fresh, out, events, ev_patch, ev, False)
 
 
 @njit(**_FAST)

@@ -155,10 +155,12 @@ class ModelTables:
             raise KeyError(f"no model tables for v = {v!r} m/s") from None
 
 
-def measurement_variance(cfg: Config) -> float:
-    """Thermocouple variance assumed by the estimator: ``noise_T² + quantum_T²/12`` (K²)."""
+def measurement_variance(cfg: Config, channel: str = "T_w") -> float:
+    """A channel's reading variance as configured (the estimator's prior; it learns the
+    readings' own): ``noise² + quantum_T²/12`` (K²), ``noise`` the channel's
+    (``sensor.noise_T_w`` etc., or ``noise_T``)."""
     s = cfg.sensor
-    return s.noise_T**2 + s.quantum_T**2 / 12.0 + 1e-12
+    return s.noise(channel) ** 2 + s.quantum_T**2 / 12.0 + 1e-12
 
 
 def build_tables(cfg: Config, t_s: float, v_values: tuple[float, ...] | list[float]) -> ModelTables:
@@ -186,6 +188,16 @@ def build_tables(cfg: Config, t_s: float, v_values: tuple[float, ...] | list[flo
     Phi_a, _, Q_a = van_loan(Aa, np.zeros(2), Sa, t_s)
     return ModelTables(t_s=t_s, v_values=vs, Phi=Phi, Gam=Gam, Q=Q, Q_idle=Q_idle, Phi_a=Phi_a, Q_a=Q_a,
                        R_T=measurement_variance(cfg), amb_idx=1 if tau_a > 0.0 else 0)
+
+
+def fixed_sensors(cfg: Config) -> Config:
+    """``cfg`` with nothing learnt of the sensors: each channel's variance as configured
+    (``estimator.tau_noise`` 0), the offsets and the pipe thermocouple's lag as configured
+    (``sensor.offset_sd``, ``sensor.lag_sd`` 0) and no dispersion (``detector.rho_window`` 0):
+    the filter as it was before it learnt them, linear in its readings (the tests of a
+    mechanism that learning would blur use it)."""
+    return cfg.replace(estimator={"tau_noise": 0.0}, sensor={"offset_sd": 0.0, "lag_sd": 0.0},
+                       detector={"rho_window": 0.0})
 
 
 def sheet_equilibrium(cfg: Config, T_w: float, T_a: float) -> float:

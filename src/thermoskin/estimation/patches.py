@@ -67,6 +67,12 @@ class PatchEstimators:
         self._tabs = tuple(np.ascontiguousarray(np.stack([t[j] for t in tabs]))
                            for j in range(len(tabs[0])))
         self.PR = np.ascontiguousarray(np.stack([m.pr for m in self._models]))
+        # patches with nothing learnt nor carried of their sensors (a skin's): the loops whose
+        # step has none of that code (the same results, in about 0.7 of the time)
+        fx = K.fixed(self.PR)
+        self._step_many = K.step_many_fixed if fx else K.step_many
+        self._step_many_parallel = K.step_many_parallel_fixed if fx else K.step_many_parallel
+        self._run_rows = K.run_rows_fixed if fx else K.run_rows
 
     def reset(self) -> None:
         """Every patch afresh."""
@@ -121,11 +127,11 @@ class PatchEstimators:
         conversions, for a caller that keeps its arrays ready. Bits in ``codes``, ended
         contacts in ``EV``."""
         if self._claims is None:
-            K.step_many(self.ST, self.PR, self.mid, *self._tabs, t, T_w, T_p, T_a, T_w_cmd, iv,
-                        drive, fresh, self.codes, self.EV)
+            self._step_many(self.ST, self.PR, self.mid, *self._tabs, t, T_w, T_p, T_a, T_w_cmd,
+                            iv, drive, fresh, self.codes, self.EV)
         else:
-            K.step_many_parallel(self.ST, self.PR, self.mid, *self._tabs, t, T_w, T_p, T_a,
-                                 T_w_cmd, iv, drive, fresh, self.codes, self.EV, self._claims)
+            self._step_many_parallel(self.ST, self.PR, self.mid, *self._tabs, t, T_w, T_p, T_a,
+                                     T_w_cmd, iv, drive, fresh, self.codes, self.EV, self._claims)
 
     def column(self, offset: int) -> Array:
         """One state field of every patch (e.g. ``kernel.DQ``)."""
@@ -147,10 +153,10 @@ class PatchEstimators:
             return np.full(n, fill) if x is None else np.require(x, dtype=float, requirements="CW")
         fr = (np.full(n, 7, dtype=np.int64) if fresh is None
               else np.ascontiguousarray(fresh, dtype=np.int64))
-        out = np.empty((8, n))
+        out = np.empty((K.NOUT, n))
         events = np.empty((max(16, n // 50), K.NEV))
         ev_patch = np.empty(len(events), dtype=np.int64)
-        ne = K.run_rows(self.ST, self.PR, self.mid, *self._tabs, p,
+        ne = self._run_rows(self.ST, self.PR, self.mid, *self._tabs, p,
                         np.ascontiguousarray(t, dtype=float), f(T_w, math.nan), f(T_p, math.nan),
                         f(T_a, math.nan), f(T_w_cmd, math.nan), self.index(v), f(drive, math.nan), fr,
                         out, events, ev_patch, self._ev)

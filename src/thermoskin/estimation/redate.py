@@ -69,8 +69,11 @@ NUISANCE_S = 1.0   #: evidence used before the earliest candidate, to pin the st
 HISTORY_S = 5.0    #: the detection-free filter runs this long before that, s
 LONGEST_S = 30.0   #: a contact longer than this has its release alone dated again, s
 NCOL = 8           #: the input buffer's columns: t, T_w, T_p, T_a, T_w_cmd, pump row, drive, fresh
-NREC = 2 * K.NUR + 4  #: per row of the trace: the two updates, the pump row, ready, switch corrections
-RIV, RREADY, RSWB, RSWA = 2 * K.NUR, 2 * K.NUR + 1, 2 * K.NUR + 2, 2 * K.NUR + 3
+NREC = 2 * K.NUR + 5  #: per row of the trace: the two updates, the pump row, ready, switch corrections,
+#                        the pipe thermocouple's bead weight a
+RIV, RREADY, RSWB, RSWA, RLAGA = (2 * K.NUR, 2 * K.NUR + 1, 2 * K.NUR + 2, 2 * K.NUR + 3,
+                                  2 * K.NUR + 4)
+NS = 6  #: the filter's states the signatures carry: the patch's five and the pipe thermocouple's bead
 
 
 @njit(cache=True, nogil=True)
@@ -89,25 +92,29 @@ def trace(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, i
         rec[k, RREADY] = st[K.READY]
         rec[k, RSWB] = st[K.SWB]
         rec[k, RSWA] = st[K.SWA]
+        rec[k, RLAGA] = st[K.LAGA]
 
 
 @njit(cache=True, nogil=True, forceinline=True)
-def _left_mul(A, B, col, tmp):
-    """``B[:, col] = A @ B[:, col]`` (5 x 5), in place."""
-    for m in range(5):
+def _left_mul(F, la, B, col, tmp):
+    """``B[:, col] = Phi_aug @ B[:, col]`` (``NS`` x ``NS``, in place): the model's step of the
+    patch's five states (``F``, rows 2 and 4 unit rows as any) and the bead's,
+    ``m <- (1 - a) T_w + a m`` (``la`` = a), from the column before the step."""
+    for m in range(NS):
         tmp[m] = B[m, col]
     for m in range(5):
         s = 0.0
         for q in range(5):
-            s += A[m, q] * tmp[q]
+            s += F[m, q] * tmp[q]
         B[m, col] = s
+    B[5, col] = (1.0 - la) * tmp[0] + la * tmp[5]
 
 
 @njit(cache=True, nogil=True, forceinline=True)
 def _switch(M, c):
     """A coarse log's pump-switch correction on the map: ``x_Tw += c (x_Tp - x_Tw)``."""
     if c != 0.0:
-        for q in range(5):
+        for q in range(NS):
             M[0, q] += c * (M[3, q] - M[0, q])
 
 
@@ -121,85 +128,93 @@ def _idle(col, no, nc, p_on, p_off):
 def _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off):
     """Add a stretch's sums to the fit's (``a += v' mu``, ``G += mu' W mu`` for the blocks
     kept) and carry the active columns over it (``mu <- M mu``)."""
-    for col in range(nc + 5):
+    for col in range(nc + NS):
         if _idle(col, no, nc, p_on, p_off):
             continue
         s = 0.0
-        for m in range(5):
+        for m in range(NS):
             s += v[m] * mu[m, col]
         a[col] += s
-        for m in range(5):
+        for m in range(NS):
             s = 0.0
-            for q in range(5):
+            for q in range(NS):
                 s += W[m, q] * mu[q, col]
             WM[m, col] = s
-    for m in range(5):  # the nuisance's block
-        for q in range(5):
+    for m in range(NS):  # the nuisance's block
+        for q in range(NS):
             s = 0.0
-            for l_ in range(5):
+            for l_ in range(NS):
                 s += mu[l_, nc + m] * WM[l_, nc + q]
             nn[m, q] += s
     for col in range(nc):
         if _idle(col, no, nc, p_on, p_off):
             continue
         s = 0.0
-        for l_ in range(5):
+        for l_ in range(NS):
             s += mu[l_, col] * WM[l_, col]
         d[col] += s
-        for m in range(5):
+        for m in range(NS):
             s = 0.0
-            for l_ in range(5):
+            for l_ in range(NS):
                 s += mu[l_, col] * WM[l_, nc + m]
             cn[col, m] += s
     for c in range(p_on):
         for b in range(p_off):
             s = 0.0
-            for l_ in range(5):
+            for l_ in range(NS):
                 s += mu[l_, c] * WM[l_, no + b]
             x[c, b] += s
-    tmp = np.empty(5)
-    for col in range(nc + 5):
+    tmp = np.empty(NS)
+    for col in range(nc + NS):
         if not _idle(col, no, nc, p_on, p_off):
-            _left_mul(M, mu, col, tmp)
+            for m in range(NS):
+                tmp[m] = mu[m, col]
+            for m in range(NS):
+                s = 0.0
+                for q in range(NS):
+                    s += M[m, q] * tmp[q]
+                mu[m, col] = s
 
 
 @njit(cache=True, nogil=True)
 def pulse_sums(rec, Phi, j_first, s_on, s_off):
     """The fit's sums over the trace's rows ``j_first..``: with the candidates' columns (onsets
-    ``s_on``, releases ``s_off``: the rows they start at, ascending) and the five nuisance
-    columns (a unit error of each state at ``j_first``), ``a = R z`` and the blocks of ``R R'``
-    the fit reads: ``d`` (candidates' diagonal), ``cn`` (candidates x nuisance), ``nn``,
-    ``x`` (onsets x releases). ``R``'s column for a reading is ``rho / sqrt(S)``, ``z = e /
-    sqrt(S)``, ``rho`` a column's signature at that reading.
+    ``s_on``, releases ``s_off``: the rows they start at, ascending) and the ``NS`` nuisance
+    columns (a unit error of each state, the pipe thermocouple's bead included, at ``j_first``),
+    ``a = R z`` and the blocks of ``R R'`` the fit reads: ``d`` (candidates' diagonal), ``cn``
+    (candidates x nuisance), ``nn``, ``x`` (onsets x releases). ``R``'s column for a reading is
+    ``rho / sqrt(S)``, ``z = e / sqrt(S)``, ``rho`` a column's signature at that reading (the
+    pipe's reading reads ``(1 - a) T_w + a m``, the bead's weighed in).
 
     Between two candidate starts every column is carried by the same map ``M`` (the filter's
-    ``I - K H``, a coarse log's switch correction and ``Phi``, multiplied together), so a
-    reading's ``rho = h' mu0`` with ``h`` row ``i`` of ``M`` and ``mu0`` the columns where the
-    stretch began: the stretch's readings add ``v = sum w z h`` and ``W = sum w^2 h h'`` (``w =
-    1/sqrt(S)``), and the columns are touched once a stretch, not once a reading (the same
-    sums, in another order)."""
+    ``I - K H``, a coarse log's switch correction and ``Phi`` with the bead's step, multiplied
+    together), so a reading's ``rho = h' mu0`` with ``h`` its row of ``M`` and ``mu0`` the
+    columns where the stretch began: the stretch's readings add ``v = sum w z h`` and ``W = sum
+    w^2 h h'`` (``w = 1/sqrt(S)``), and the columns are touched once a stretch, not once a
+    reading (the same sums, in another order)."""
     no, nc = s_on.shape[0], s_on.shape[0] + s_off.shape[0]
     nf = nc - no
-    mu = np.zeros((5, nc + 5))
-    for m in range(5):
+    mu = np.zeros((NS, nc + NS))
+    for m in range(NS):
         mu[m, nc + m] = 1.0
-    a = np.zeros(nc + 5)
+    a = np.zeros(nc + NS)
     d = np.zeros(nc)
-    cn = np.zeros((nc, 5))
-    nn = np.zeros((5, 5))
+    cn = np.zeros((nc, NS))
+    nn = np.zeros((NS, NS))
     x = np.zeros((no, nf))
-    M = np.eye(5)
-    v = np.zeros(5)
-    W = np.zeros((5, 5))
-    WM = np.zeros((5, nc + 5))
-    tmp = np.zeros(5)
+    M = np.eye(NS)
+    v = np.zeros(NS)
+    W = np.zeros((NS, NS))
+    WM = np.zeros((NS, nc + NS))
+    tmp = np.zeros(NS)
+    h = np.zeros(NS)
     p_on = p_off = 0
     n = rec.shape[0]
     for j in range(j_first, n):
         if (p_on < no and s_on[p_on] <= j) or (p_off < nf and s_off[p_off] <= j):
             _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off)
             M[:, :] = 0.0
-            for m in range(5):
+            for m in range(NS):
                 M[m, m] = 1.0
             v[:] = 0.0
             W[:, :] = 0.0
@@ -214,26 +229,31 @@ def pulse_sums(rec, Phi, j_first, s_on, s_off):
             o = u * K.NUR
             if rec[j, o] == 0.0:
                 continue
-            i = 0 if u == 0 else 3
+            if u == 0:  # the pipe's reading: its bead, (1 - a) T_w + a m
+                la = rec[j, o + 10]
+                for q in range(NS):
+                    h[q] = (1.0 - la) * M[0, q] + la * M[5, q]
+            else:
+                for q in range(NS):
+                    h[q] = M[3, q]
             if rec[j, o + 3] != 0.0:  # evidence
                 w = 1.0 / math.sqrt(rec[j, o + 2])
                 wz = rec[j, o + 1] * w * w
                 w2 = w * w
-                for m in range(5):
-                    hm = M[i, m]
+                for m in range(NS):
+                    hm = h[m]
                     v[m] += wz * hm
-                    for q in range(5):
-                        W[m, q] += w2 * hm * M[i, q]
-            for q in range(5):  # M <- (I - K H) M
-                tmp[q] = M[i, q]
-            for m in range(5):
-                km = rec[j, o + 4 + m]
-                for q in range(5):
-                    M[m, q] -= km * tmp[q]
+                    for q in range(NS):
+                        W[m, q] += w2 * hm * h[q]
+            for m in range(NS):  # M <- (I - K h') M, the bead's gain last
+                km = rec[j, o + 4 + m] if m < 5 else rec[j, o + 9]
+                for q in range(NS):
+                    M[m, q] -= km * h[q]
         _switch(M, rec[j, RSWA])  # after them
-        F = Phi[int(rec[j, RIV])]  # M <- Phi M
-        for q in range(5):
-            _left_mul(F, M, q, tmp)
+        F = Phi[int(rec[j, RIV])]  # M <- Phi_aug M
+        la = rec[j, RLAGA]
+        for q in range(NS):
+            _left_mul(F, la, M, q, tmp)
     _flush(mu, M, v, W, WM, a, d, cn, nn, x, no, nc, p_on, p_off)
     return a, d, cn, nn, x
 
@@ -311,6 +331,16 @@ def load(est: TracedModel) -> None:
     pulse_sums(rec, est.tabs[0], 0, one, one + 1)
 
 
+def held(pr: Array, learnt: Array | None) -> None:
+    """``pr`` (a copy of the kernel's parameters) for a filter that holds what the live one had
+    learnt (``learnt``: a contact's kernel record, ``EV_RW`` on) instead of learning it again."""
+    pr[K.PR_LEARN] = 0.0
+    if learnt is not None:
+        pr[K.PR_RW0], pr[K.PR_RP0], pr[K.PR_RA0] = learnt[K.EV_RW], learnt[K.EV_RP], learnt[K.EV_RA]
+        pr[K.PR_BD0], pr[K.PR_LAG0] = learnt[K.EV_BD], learnt[K.EV_LAG]
+    pr[K.PR_PB0] = pr[K.PR_PT0] = 0.0
+
+
 class _Model(NamedTuple):
     """The estimator's parameters and tables as they were when a fit was handed over."""
 
@@ -357,6 +387,7 @@ class Redater:
         self.n_handed = 0  # rows pushed and gone from the list (to the buffer, or the worker)
         self.rows: list[tuple[float, ...]] = []  # rows pushed one at a time, not yet written
         self.pending: ContactEvent | None = None
+        self.learnt: Array | None = None  # the pending contact's kernel record (what was learnt)
         self.due = math.inf
         self.last_release = -math.inf  # the release of the last contact written
         self._pool: ThreadPoolExecutor | None = None  # the worker (background), until closed
@@ -456,33 +487,36 @@ class Redater:
 
     # -- the contacts -----------------------------------------------------------------------
     def on_row(self, est: TracedModel, k: int, t: float, onset_started: float,
-               ended: ContactEvent | None, block: tuple[Array, ...] | None = None, n0: int = 0
-               ) -> list[ContactEvent]:
+               ended: ContactEvent | None, block: tuple[Array, ...] | None = None, n0: int = 0,
+               learnt: Array | None = None) -> list[ContactEvent]:
         """Row ``k`` at ``t``: a contact started there (its onset; NaN if none) or ended
-        there (its event as the detector has it). Returns the events to write now: the one
-        waiting, dated again from the rows before its due time (or before the new contact's
-        onset), once that time has come or a contact has started."""
+        there (its event as the detector has it; ``learnt``: the kernel's event record, whose
+        fields from ``EV_RW`` on say what the estimator had learnt of the sensors then).
+        Returns the events to write now: the one waiting, dated again from the rows before its
+        due time (or before the new contact's onset), once that time has come or a contact has
+        started."""
         out: list[ContactEvent] = []
         if self.pending is not None and (onset_started == onset_started or t >= self.due):
             t_end = min(self.due, onset_started) if onset_started == onset_started else self.due
-            out.extend(self._date(est, self.pending, k, t_end, block, n0))
+            out.extend(self._date(est, self.pending, k, t_end, block, n0, self.learnt))
             self.pending, self.due = None, math.inf
         if ended is not None:
             self.pending, self.due = ended, ended.release + self.tail
+            self.learnt = None if learnt is None else np.array(learnt, dtype=float)
             if t >= self.due:
-                out.extend(self._date(est, ended, k, self.due, block, n0))
+                out.extend(self._date(est, ended, k, self.due, block, n0, self.learnt))
                 self.pending, self.due = None, math.inf
         return out
 
     def _date(self, est: TracedModel, e: ContactEvent, k: int, t_end: float,
-              block: tuple[Array, ...] | None, n0: int) -> list[ContactEvent]:
+              block: tuple[Array, ...] | None, n0: int, learnt: Array | None) -> list[ContactEvent]:
         """``e`` dated again now; or, in the background (a live row), handed to the worker:
         nothing now, the event from :meth:`ready`."""
         if self._pool is None or block is not None:
-            return [self.redate(est, e, k, t_end, block, n0)]
+            return [self.redate(est, e, k, t_end, block, n0, learnt=learnt)]
         self._write()  # the rows up to k into the buffer, which alone the worker reads
         model = _Model(est.pr, est.tabs)  # as they are now (a new pump velocity adds tables)
-        self._jobs.append(self._pool.submit(self.redate, model, e, k, t_end))
+        self._jobs.append(self._pool.submit(self.redate, model, e, k, t_end, learnt=learnt))
         return []
 
     @property
@@ -518,7 +552,7 @@ class Redater:
         if self.pending is None:
             return out
         e, self.pending, self.due = self.pending, None, math.inf
-        return [*out, self.redate(est, e, self.n - 1, math.inf)]
+        return [*out, self.redate(est, e, self.n - 1, math.inf, learnt=self.learnt)]
 
     def close(self) -> None:
         """Stop the worker (after the fits handed over)."""
@@ -527,18 +561,21 @@ class Redater:
             self._pool = None
 
     def redate(self, est: TracedModel, e: ContactEvent, k_now: int, t_end: float,
-               block: tuple[Array, ...] | None = None, n0: int = 0, open_end: bool = False
-               ) -> ContactEvent:
+               block: tuple[Array, ...] | None = None, n0: int = 0, open_end: bool = False,
+               learnt: Array | None = None) -> ContactEvent:
         """``e`` dated again from the rows before ``t_end`` that the buffer holds at row
         ``k_now`` (its last ``nr``); ``e`` itself where the readings came fast, or no pulse
         of its sign fits. ``open_end``: the contact had not ended (the log or the run did):
-        its onset alone is dated again. Nothing is dated into the contact written before."""
-        out = self._redate(est, e, k_now, t_end, block, n0, open_end)
+        its onset alone is dated again. Nothing is dated into the contact written before.
+        ``learnt``: the contact's kernel record; the filter run again holds what the live one
+        had learnt of the sensors when the contact ended (their variances, the offset)."""
+        out = self._redate(est, e, k_now, t_end, block, n0, open_end, learnt)
         self.last_release = out.release
         return out
 
     def _redate(self, est: TracedModel, e: ContactEvent, k_now: int, t_end: float,
-                block: tuple[Array, ...] | None, n0: int, open_end: bool) -> ContactEvent:
+                block: tuple[Array, ...] | None, n0: int, open_end: bool,
+                learnt: Array | None) -> ContactEvent:
         if self.most <= 0:
             return e
         k_lo, k_hi = max(0, k_now + 1 - self.nr), k_now + 1
@@ -567,6 +604,7 @@ class Redater:
         pr = est.pr.copy()
         pr[K.PR_TRACE] = 1.0
         pr[K.PR_OSJ] = 0.0  # no step signatures: nothing jumps
+        held(pr, learnt)
         rec = np.zeros((len(tw), NREC))
         trace(K.new_state(), pr, *est.tabs, tw, w[1], w[2], w[3], w[4], w[5].astype(np.int64),
               w[6], w[7].astype(np.int64), rec, np.zeros(K.NEV))

@@ -5,6 +5,15 @@ The same algorithm as :mod:`thermoskin.estimation.kernel` (see its docstring and
 observer (eq. 8) from :class:`thermoskin.estimation.observer.ThermalExchangeObserver`, the detector as a
 small state machine. It is slow (tens of µs a sample) and not used at run time; the tests and
 ``benchmarks/patches.py`` hold the kernel to it.
+
+The filter's state is the patch's five (``T_w, T_g, q_i, T_p, r_p``) and the pipe
+thermocouple's bead ``m`` (its first-order lag: the pipe's reading is ``(1 - a) T_w + a m``,
+``m <- (1 - a) T_w + a m`` a sample, ``a = exp(-t_s / tau)``), six in all, with a full 6 x 6
+covariance: the kernel keeps the bead's row apart (nothing depends on it). What the estimator
+learns of its sensors (each channel's reading variance, its converter's step, the tank
+readings' offset against the pipe's and the pipe thermocouple's lag) is learnt here the same
+way: the offset and the lag as the slow states of a two-stage filter (``V`` the state's
+sensitivity to their errors, ``P_B`` their covariance).
 """
 
 from __future__ import annotations
@@ -26,6 +35,7 @@ from thermoskin.estimation.model import (
     RATE_TOL,
     ModelTables,
     build_tables,
+    measurement_variance,
 )
 from thermoskin.estimation.observer import ThermalExchangeObserver
 from thermoskin.params import Config
@@ -34,8 +44,13 @@ from thermoskin.physics.convection import FlowResistance
 Array = NDArray[np.float64]
 
 
+I_M = 5
+"""The pipe thermocouple's bead in the reference's six states."""
+NA = 6
+
+
 def _unit_q() -> Array:
-    mu = np.zeros(5)
+    mu = np.zeros(NA)
     mu[I_Q] = 1.0
     return mu
 
@@ -57,6 +72,41 @@ class _Cusum:
         self.mu = _unit_q()
 
 
+#: The kernel's fixed constants of learning (``estimation.estimator.kernel_params``).
+R_RANGE = 400.0      # a learnt reading variance stays within this factor of its prior
+ETA_MAX = 0.01       # a reading's largest weight in a variance's tracker
+DB_MAX = 1e-3        # the most a reading moves the learnt offset, K
+DT_MAX = 5e-4        # ... and the lag, s
+LEARN_DELAY = 0.5    # the slow states learn from this long after the filter's start, s
+RHO_ETA = 0.03       # the dispersion tracker's least step
+RHO_FIRST = 16       # the dispersion is the median of the first windows' first
+RHO_PRIOR = 2.0      # (before the third: this, a little wary; at most RHO_CAP: a touch among them)
+RHO_CAP = 1e6
+RHO_PB = 0.03**2     # ... once the offset's variance is below this, K^2,
+RHO_PT = 0.01**2     # and the lag's below this, s^2
+RHO_MOVED = (0.02, 0.005)  # a window over which the offset (K) or the lag (s) moved this much,
+RHO_EARLY = 10.0             # in the filter's first seconds: not taken
+RHO_SETTLE = 0.5     # its windows begin this long after a release, s
+IRATE_TAU = 10.0     # the information rate's time constant, s
+SLOW_WINDOW = 0.4    # the slow states' window, s
+SLOW_HOLD_CU = 0.25  # the slow states do not learn while an onset CUSUM is above this share of h
+SLOW_TS_MAX = 0.0100001  # ... and are learnt from logs of 100 Hz and faster only, s
+QFINE_SD = 2.0       # ... and while both converter steps are at most this times the T_w reading's sd
+R_SLOT = 0.5         # the pipe reading variance's steps are gathered in slots this long, s
+FAST_READINGS = 200.0  # ... learnt from pipe readings this many a second or more
+N_SLOTS = 4          # and taken into it N_SLOTS - 1 slots late (dropped at a detection)
+
+
+def fgcd(g: float, d: float) -> float:
+    """Euclid's greatest common divisor of two positive numbers, to within 1e-9."""
+    a, b = (g, d) if g > d else (d, g)
+    for _ in range(64):
+        if b <= 1e-9:
+            break
+        a, b = b, a % b
+    return a
+
+
 @dataclass
 class ReferenceEstimator:
     """One patch: eq. 8, the Kalman filter on the network, the detector (plain Python)."""
@@ -72,8 +122,7 @@ class ReferenceEstimator:
         self.tables = build_tables(self.cfg, self.t_s, (0.0, self.cfg.pump.v_on))
         self.eq8 = ThermalExchangeObserver(self.cfg.skin, self.cfg.observer, self.t_s)
         self.R_w = FlowResistance(self.cfg.skin)
-        d, es = self.cfg.detector, self.cfg.estimator
-        self.R = self.tables.R_T
+        d, es, sn = self.cfg.detector, self.cfg.estimator, self.cfg.sensor
         self.n_warm = max(2, round(d.t_warmup / self.t_s))
         self.stride = max(1, math.ceil(self.n_warm / 256))
         self.n_arm = max(1, round(d.t_arm / self.t_s))
@@ -83,15 +132,42 @@ class ReferenceEstimator:
         self.up, self.down = math.exp(0.5 * eta), math.exp(-0.5 * eta)
         self.a_b = min(1.0, 1.25 * self.t_s / d.tau_baseline)
         self.a_lvl = min(1.0, self.t_s / d.tau_level)
-        self.t_amb_hold = d.t_air + 3.0 * self.cfg.sensor.lag_T_a
+        self.t_amb_hold = d.t_air + 3.0 * sn.lag_T_a
         self.vsw = 0.29 if self.t_s > 1.5 * self.cfg.sampling.t_s else 0.0
+        # what is learnt of the sensors: priors (the configuration)
+        self.R0 = {ch: measurement_variance(self.cfg, ch) for ch in ("T_w", "T_p", "T_a")}
+        self.q_fine = QFINE_SD * math.sqrt(self.R0["T_w"])
+        self.R = dict(self.R0)
+        self.r_slots, self.r_slot, self.t_rslot = [0.0] * N_SLOTS, 0, 0.0
+        self.r_count = dict.fromkeys(self.R0, 0)
+        self.quantum = {ch: 1e300 for ch in self.R0}
+        self.last_y = {ch: math.nan for ch in self.R0}
+        self.prev_y = {"T_p": math.nan, "T_a": math.nan}
+        self.offsets = (sn.offset_T_w, sn.offset_T_p, sn.offset_T_a)
+        #: the learning on (off: the re-dating's filter holds what it is given)
+        self.learn = True
+        self.b_hat, self.tau = 0.0, sn.lag_T_w  # the slow states: offset (K), lag (s)
+        slow_ok = self.t_s <= SLOW_TS_MAX  # (kernel: the estimator's PR_PB0, PR_PT0)
+        self.P_B = np.diag([sn.offset_sd**2, sn.lag_sd**2]) if slow_ok else np.zeros((2, 2))
+        self.slow_prior = self.P_B.diagonal() > 0  # a state with no prior is not let go
+        self.window = np.zeros(4)  # the slow states' window: sum s e/S, s^2/S (offset, lag)
+        self.t_window = 0.0
+        self.t_init = -1e300
+        self.rho = RHO_PRIOR if self.cfg.detector.rho_window > 0 else 1.0
+        self.rho_n, self.rho_first = 0, []
+        self.rho_from = (0.0, 0.0)  # the slow states where the window began
+        self.rho_win, self.t_rho = np.zeros(2), 0.0
+        self.info_rate = 0.0
+        self.w1 = self.w2 = 0.0  # the model's pipe rate through the lag once and twice
         self.events: list[ContactEvent] = []
         self.ready = False
-        self.x = np.zeros(5)
-        self.P = np.zeros((5, 5))
+        self.x = np.zeros(NA)
+        self.P = np.zeros((NA, NA))
+        self.V = np.zeros((NA, 2))  # the state's sensitivity to errors of (offset, lag)
         self.xa = np.zeros(2)
         self.Pa = np.zeros((2, 2))
         self.kappa, self.rate, self.t_last_w = 1.0, 0.0, -1e300
+        self.t_last_p = self.t_last_a = -1e300
         self.rate_h, self.h = 0.0, math.nan  # the onset threshold and the rate it is for
         self.t_fresh_w = -1e300  # the last pipe reading flagged fresh, NaN or not
         self.gap_run = 0
@@ -100,8 +176,8 @@ class ReferenceEstimator:
         self.tpl = np.zeros((2, max(1, self.cfg.estimator.switch_bins)))
         self.cmd = math.nan
         self.armed, self.n_in = False, 0
-        self.updates: list[tuple[int, float, float, Array, bool]] | None = None
-        # with updates recorded: also each pump-switch correction, as (-1, c, 0, K, False),
+        self.updates: list[tuple[int, float, float, Array, bool, Array]] | None = None
+        # with updates recorded: also each pump-switch correction, as (-1, c, 0, K, False, h),
         # x_Tw += c (x_Tp - x_Tw) (the re-dating's signatures carry it)
         self.record_switches = False
         self.mode, self.n_seen, self.warm = "warm", 0, []
@@ -117,49 +193,193 @@ class ReferenceEstimator:
         self.contact = 0
         self.dq = 0.0
 
+    @property
+    def a(self) -> float:
+        """The bead's weight a sample, ``exp(-t_s / tau)`` (0 without a lag)."""
+        return math.exp(-self.t_s / self.tau) if self.tau > 0 else 0.0
+
+    def hold(self, R: dict[str, float], b_hat: float, tau: float) -> None:
+        """Hold what is learnt of the sensors at these values (the re-dating's filter)."""
+        self.learn = False
+        self.rho = 1.0
+        self.R0 = dict(R)
+        self.b_hat, self.tau = b_hat, tau
+        self.P_B = np.zeros((2, 2))
+
+    # ---------------------------------------------------------------- the sensors
+    def _coarse(self) -> bool:
+        """A converter step of T_w or T_p known and coarser than the slow states learn from."""
+        qw, qp = self.quantum["T_w"], self.quantum["T_p"]
+        return qw < 1e299 and qp < 1e299 and (qw > self.q_fine or qp > self.q_fine)
+
+    def _r_step(self, ch: str, up: bool, eta: float) -> None:
+        """A reading variance's median tracker (kernel: ``_r_step``)."""
+        r = self.R[ch] * (1 + eta) if up else self.R[ch] / (1 + eta)
+        q = self.quantum[ch]
+        lo = max(self.R0[ch] / R_RANGE, q * q / 12 if q < 1e299 else 0.0)
+        self.R[ch] = min(max(r, lo), self.R0[ch] * R_RANGE)
+
+    def _r_slots(self, t: float) -> None:
+        """The oldest slot of the pipe reading variance's steps into it; a fresh slot begun."""
+        k = (self.r_slot + 1) % N_SLOTS
+        if self.r_slots[k] != 0:
+            q = self.quantum["T_w"]
+            lo = max(self.R0["T_w"] / R_RANGE, q * q / 12 if q < 1e299 else 0.0)
+            self.R["T_w"] = min(max(self.R["T_w"] * math.exp(self.r_slots[k]), lo), self.R0["T_w"] * R_RANGE)
+        self.r_slots[k] = 0.0
+        self.r_slot, self.t_rslot = k, t
+
+    def _eta(self, ch: str, dt: float) -> float:
+        """A reading's weight in ``ch``'s variance tracker: at first ``1/(n + 4)`` (a running
+        median), then ``min(0.01, dt/tau_noise)`` (kernel: ``_eta``)."""
+        n = self.r_count[ch]
+        self.r_count[ch] = n + 1
+        return max(min(ETA_MAX, dt / self.cfg.estimator.tau_noise), 1.0 / (n + 4.0))
+
+    def _sensor(self, ch: str, y: float, dt: float) -> None:
+        """A fresh reading of ``ch``: its second difference (the tank's, the air's variance)
+        and its converter's step (the changes' greatest common divisor)."""
+        if not math.isfinite(y):
+            return
+        learn_r = self.learn and self.cfg.estimator.tau_noise > 0
+        if ch != "T_w":
+            y1, y2 = self.last_y[ch], self.prev_y[ch]
+            self.prev_y[ch] = y1
+            if learn_r and y1 == y1 and y2 == y2:
+                d2 = y - 2 * y1 + y2
+                self._r_step(ch, d2 * d2 > 6 * 0.4549 * self.R[ch], self._eta(ch, dt))
+        d = abs(y - self.last_y[ch])
+        if d > 1e-9:
+            g = self.quantum[ch]
+            self.quantum[ch] = d if g >= 1e299 else fgcd(g, d)
+        self.last_y[ch] = y
+
     # ---------------------------------------------------------------- the filter
-    def _update(self, i: int, y: float) -> tuple[float, float]:
-        """Scalar update of state ``i``; returns the evidence ``(g e / S, g² / S)``. Where
-        :attr:`updates` is a list, each update is appended to it as ``(i, e, κ² S, K,
-        evidence)`` (the benchmarks that date touches from the filter's own updates)."""
-        S = self.P[i, i] + self.R
-        e = y - self.x[i]
-        sS = math.sqrt(S)
-        k2 = self.kappa**2
-        ge = gg = 0.0
-        evidence = not (i == I_TP and abs(e) > self.cfg.estimator.tank_jump * self.kappa * sS)
-        if not evidence:  # the tank manoeuvres: its slope let go, no evidence about q_i
-            self.P[I_TP, I_TP] += e * e
-            self.P[I_DTP, I_DTP] += (e / self.cfg.estimator.tank_jump_s) ** 2
-            S = self.P[i, i] + self.R
+    def _update(self, i: int, y: float, slow: bool, eta: float) -> tuple[float, float]:
+        """Scalar update with the pipe's reading (``i`` = 0: its bead, ``(1 - a) T_w + a m``) or the
+        tank's (3); returns the evidence ``(g e / S, g² / S)``. Where :attr:`updates` is a list,
+        each update is appended to it as ``(i, e, κ² S, K, evidence, h)``. The slow states
+        (offset, lag) learn from it where ``slow``; the pipe's reading variance where ``eta``."""
+        a = self.a
+        h = np.zeros(NA)
+        C = np.zeros(2)
+        if i == I_TW:
+            h[I_TW], h[I_M] = 1.0 - a, a
+            C[1] = -self.w2  # the lag's derivative: -s/(tau s + 1)^2 of the pipe's temperature
+            R = self.R["T_w"]
         else:
-            g = self.P[i, I_Q] / self.P[I_Q, I_Q] if self.P[I_Q, I_Q] > 0 else 0.0
-            ge, gg = g * e / (k2 * S), g * g / (k2 * S)
-            self.kappa *= self.up if abs(e) > 0.6745 * self.kappa * sS else self.down
-        K = self.P[:, i] / S
+            h[I_TP] = 1.0
+            C[0] = 1.0  # the offset of the tank's readings
+            R = self.R["T_p"]
+        s = C - h @ self.V
+        # (not with a coarse converter: the slow states are not learnt from its readings, nor
+        # their uncertainty taken into the innovations' variance)
+        sps = 0.0 if self._coarse() else float(s @ self.P_B @ s)
+        e = y - h @ self.x
+        k2 = self.kappa**2
+        man = False
+        if i == I_TP:
+            man = abs(e) > self.cfg.estimator.tank_jump * self.kappa * math.sqrt(h @ self.P @ h + R + sps)
+            if man:  # the tank manoeuvres: its slope let go, no evidence about q_i
+                self.P[I_TP, I_TP] += e * e
+                self.P[I_DTP, I_DTP] += (e / self.cfg.estimator.tank_jump_s) ** 2
+        r = self.P @ h  # the reading's covariance with the state
+        S = float(h @ r) + R
+        Sf = S + sps
+        ge = gg = 0.0
+        if not man:
+            g = r[I_Q] / self.P[I_Q, I_Q] if self.P[I_Q, I_Q] > 0 else 0.0
+            ge, gg = g * e / (k2 * Sf), g * g / (k2 * Sf)
+            self.kappa *= self.up if abs(e) > 0.6745 * self.kappa * math.sqrt(Sf) else self.down
+            if self.kappa < 1.0 and self.learn and self._coarse():
+                self.kappa = 1.0  # (a coarse step's innovations: mostly nought, their median no scale)
+            if eta > 0 and i == I_TW:  # a step of its variance's tracker, into this slot
+                self.r_slots[self.r_slot] += (1 if e * e > 0.4549 * Sf else -1) * math.log(1 + eta)
+        K = r / S
         if self.updates is not None:
-            self.updates.append((i, e, k2 * S, K, evidence))
-        for c in self.cusums:  # the step signatures: mu <- (I - K H) mu
-            c.mu = c.mu - K * c.mu[i]
+            self.updates.append((i, e, k2 * Sf, K, not man, h))
+        for c in self.cusums:  # the step signatures: mu <- (I - K h') mu
+            c.mu = c.mu - K * (h @ c.mu)
         self.x = self.x + K * e
-        self.P = self.P - np.outer(K, self.P[i, :])
+        self.V = self.V + np.outer(K, s)  # V <- V - K (h' V - C)
+        if slow and sps > 0 and not man and e * e < 64 * Sf:  # (an outlier: no evidence)
+            self.window += (s[0] * e / Sf, s[0] ** 2 / Sf, s[1] * e / Sf, s[1] ** 2 / Sf)
+            hB = self.P_B @ s
+            kB = hB / Sf
+            dB = kB * e
+            f = 1.0  # a reading moves them by at most DB_MAX, DT_MAX (its share of one)
+            if abs(dB[0]) > DB_MAX:
+                f = DB_MAX / abs(dB[0])
+            if abs(dB[1]) > DT_MAX:
+                f = min(f, DT_MAX / abs(dB[1]))
+            dB = dB * f
+            self.P_B = self.P_B - f * np.outer(kB, hB)
+            self.b_hat += dB[0]
+            tau = min(max(self.tau + dB[1], 0.0), max(self.cfg.estimator.lag_max, self.cfg.sensor.lag_T_w))
+            dB[1] = tau - self.tau
+            self.tau = tau
+            self.b -= self.V[I_Q] @ dB  # the no-touch baseline moves with the estimate
+            self.x = self.x - self.V @ dB
+        self.P = self.P - np.outer(K, r)
         return ge, gg
 
     def _ambient(self, t: float, y: float) -> None:
         idx = self.tables.amb_idx
-        S = self.Pa[idx, idx] + self.R
+        S = self.Pa[idx, idx] + self.R["T_a"]
         e = y - self.xa[idx]
         z = e / math.sqrt(S)
         self.air_up = max(0.0, self.air_up + z - 1.0)
         self.air_down = max(0.0, self.air_down - z - 1.0)
         if self.air_up > 8.0 or self.air_down > 8.0:
             self.Pa[0, 0] += 1.0
-            S = self.Pa[idx, idx] + self.R
+            S = self.Pa[idx, idx] + self.R["T_a"]
             self.t_air = t
             self.air_up = self.air_down = 0.0
         K = self.Pa[:, idx] / S
         self.xa = self.xa + K * e
         self.Pa = self.Pa - np.outer(K, self.Pa[idx, :])
+
+    def _slow_window(self) -> None:
+        """A window's evidence says a slow state is off by more than 3 sd: let its variance go
+        to the square of that difference (kernel: ``_slow_window``)."""
+        tau_max = max(self.cfg.estimator.lag_max, self.cfg.sensor.lag_T_w)
+        for j, k, cap in ((0, 0, 1.0), (2, 1, tau_max**2)):
+            A, Bw = self.window[j], self.window[j + 1]
+            if (self.slow_prior[k] and self.rate >= FAST_READINGS and Bw > 0 and 9 * Bw < A * A
+                    and min((A / Bw) ** 2, cap) > self.P_B[k, k]):
+                self.P_B[k, k] = min((A / Bw) ** 2, cap)
+                self.P_B[0, 1] = self.P_B[1, 0] = 0.0
+        self.window[:] = 0.0
+
+    def _dispersion(self, t: float, ge: float, gg: float, on: bool) -> None:
+        """The onset evidence's dispersion and the information rate (kernel: ``_dispersion``)."""
+        rw = self.cfg.detector.rho_window
+        if not on:
+            self.rho_win[:] = 0.0
+            self.t_rho = t
+            self.rho_from = (self.b_hat, self.tau)
+            return
+        self.info_rate += min(1.0, self.t_s / IRATE_TAU) * (gg * self._irho() / self.t_s - self.info_rate)
+        self.rho_win += (ge, gg)
+        if t - self.t_rho >= rw:
+            A, Bw = self.rho_win
+            moved = t - self.t_init < RHO_EARLY and (abs(self.b_hat - self.rho_from[0]) > RHO_MOVED[0]
+                                                     or abs(self.tau - self.rho_from[1]) > RHO_MOVED[1])
+            if Bw > 0 and not moved:  # (a window over which the slow states moved: not taken)
+                self.rho_n += 1
+                if self.rho_n <= RHO_FIRST:  # the first windows: their median (from the third)
+                    self.rho_first.append(A * A / (0.4549 * Bw))
+                    if self.rho_n >= 3:
+                        self.rho = min(max(1e-3, float(np.median(self.rho_first))), RHO_CAP)
+                else:  # then a tracker of it
+                    eta = max(RHO_ETA, 1.0 / self.rho_n)
+                    self.rho = max(1e-3, self.rho * math.exp(eta if 0.4549 * self.rho * Bw < A * A else -eta))
+            self.rho_win[:] = 0.0
+            self.t_rho = t
+            self.rho_from = (self.b_hat, self.tau)
+
+    def _irho(self) -> float:
+        return 1.0 / max(1.0, self.rho / self.cfg.detector.rho_deadband)
 
     # ---------------------------------------------------------------- one sample
     def step(self, t: float, T_w: float, T_p: float, v: float, T_a: float,
@@ -188,16 +408,38 @@ class ReferenceEstimator:
         self.gap = not (math.isfinite(T_w) and math.isfinite(T_p) and math.isfinite(T_a) and v == v)
         ge = gg = 0.0
         self.q_prior = self.x[I_Q]
+        # the sensors' own figures (raw readings), then the configured offsets off the readings
+        if fresh & 1:
+            self._sensor("T_w", T_w, 0.0)
+        if fresh & 2:
+            self._sensor("T_p", T_p, t - self.t_last_p)
+        if fresh & 4:
+            self._sensor("T_a", T_a, t - self.t_last_a)
+        T_w_raw = T_w
+        T_w, T_p, T_a = T_w - self.offsets[0], T_p - self.offsets[1], T_a - self.offsets[2]
+        learn_r = (self.learn and self.cfg.estimator.tau_noise > 0 and self.mode != "contact"
+                   and t - self.t_rel >= self.cfg.detector.t_settle and self.rate >= FAST_READINGS)
+        if self.learn and t - self.t_rslot >= R_SLOT:
+            self._r_slots(t)
+        slow = (self.learn and self.mode != "contact" and t - self.t_rel >= self.cfg.detector.t_settle
+                and t - self.t_init >= LEARN_DELAY and self.quantum["T_w"] <= self.q_fine
+                and self.quantum["T_p"] <= self.q_fine)
+        # nor while the detector's evidence of an onset builds (the window goes on without them)
+        learn_slow = slow and not (self.mode == "idle"
+                                   and any(c.g > SLOW_HOLD_CU * self.h for c in self.cusums))
         if not self.ready:
             if self.gap:
                 return self.contact
-            self._init(T_w, T_p, T_a)
+            self._init(T_w, T_p - self.b_hat, T_a)
+            self.t_init = self.t_last_p = self.t_last_a = t
         else:
             if fresh & 4 and math.isfinite(T_a):
                 self._ambient(t, T_a)
+                self.t_last_a = t
                 if self.t_air == t and self.mode == "contact" and t - self.detected < 1.0:
                     self.mode, self.contact = "idle", 0
                     self.x[I_Q] = self.b
+                    self.V[I_Q] = 0.0
                     self._reset_cusums(t)
             if fresh & 1 and math.isfinite(T_w):
                 y = T_w
@@ -208,7 +450,8 @@ class ReferenceEstimator:
                     if self.mode != "contact":
                         self.tpl[j] = corr + self.cfg.estimator.switch_learn * (T_w - self.x[I_TW] - corr)
                     y = T_w - corr
-                a, c = self._update(I_TW, y)
+                eta = min(ETA_MAX, (t - self.t_last_w) / self.cfg.estimator.tau_noise) if learn_r else 0.0
+                a, c = self._update(I_TW, y, learn_slow, eta)
                 ge, gg = ge + a, gg + c
                 self.gap_run = 0
                 dt = t - self.t_last_w
@@ -219,10 +462,22 @@ class ReferenceEstimator:
             else:
                 self.gap_run += 1
             if fresh & 2 and math.isfinite(T_p):
-                a, c = self._update(I_TP, T_p)
+                a, c = self._update(I_TP, T_p - self.b_hat, learn_slow, 0.0)
                 ge, gg = ge + a, gg + c
+                self.t_last_p = t
         if iv_old is not None:
             self._switch_correction(iv_old, iv)
+        if slow and t - self.t_window >= SLOW_WINDOW:
+            self._slow_window()
+            self.t_window = t
+        elif not slow:
+            self.window[:] = 0.0
+            self.t_window = t
+        if self.cfg.detector.rho_window > 0 and self.learn:
+            self._dispersion(t, ge, gg, not self.gap and self.mode != "contact"
+                             and t - self.t_air >= self.t_amb_hold and t - self.t_rel >= RHO_SETTLE
+                             and ((self.P_B[0, 0] <= RHO_PB and self.P_B[1, 1] <= RHO_PT)
+                                  or self._coarse()))
         self.sd = math.sqrt(self.P[I_Q, I_Q]) if self.ready else math.nan
         if T_w_cmd == T_w_cmd:
             if self.cmd == self.cmd and abs(T_w_cmd - self.cmd) > 1e-9:
@@ -232,7 +487,7 @@ class ReferenceEstimator:
         if not self.armed:
             if T_w_cmd != T_w_cmd:
                 self.armed = True
-            elif math.isfinite(T_w) and abs(T_w - T_w_cmd) <= self.cfg.detector.arm_band:
+            elif math.isfinite(T_w_raw) and abs(T_w_raw - T_w_cmd) <= self.cfg.detector.arm_band:
                 self.n_in += 1
                 self.armed = self.n_in >= self.n_arm
             else:
@@ -244,15 +499,31 @@ class ReferenceEstimator:
             code = self._detect(t, ge, gg)
         else:
             self.dq = self.x[I_Q] - self.b
-        # predict
+        # predict: the bead (from the pipe at the sample's start), then the model
         self.xa = tb.Phi_a @ self.xa
         self.Pa = tb.Phi_a @ self.Pa @ tb.Phi_a.T + tb.Q_a
         Q = tb.Q[iv] if self.mode == "contact" else tb.Q_idle[iv]
         u = np.array([self.xa[0], drive if drive == drive else 0.0])
-        self.x = tb.Phi[iv] @ self.x + tb.Gam[iv] @ u
-        self.P = tb.Phi[iv] @ self.P @ tb.Phi[iv].T + Q
+        a = self.a
+        F = np.zeros((NA, NA))
+        F[:5, :5] = tb.Phi[iv]
+        F[I_M, I_TW], F[I_M, I_M] = 1.0 - a, a
+        QA = np.zeros((NA, NA))
+        QA[:5, :5] = Q
+        x0 = self.x[I_TW]
+        self.x = F @ self.x
+        self.x[:5] += tb.Gam[iv] @ u
+        self.P = F @ self.P @ F.T + QA
+        self.V = F @ self.V
         for c in self.cusums:
-            c.mu = tb.Phi[iv] @ c.mu
+            c.mu = F @ c.mu
+        if self.P_B[0, 0] > 0:
+            self.P_B[0, 0] += self.cfg.estimator.offset_drift * self.t_s
+        if self.P_B[1, 1] > 0:
+            self.P_B[1, 1] += self.cfg.estimator.lag_drift * self.t_s
+        rate = min(max((self.x[I_TW] - x0) / self.t_s, -1e3), 1e3)  # a pipe moves slower than 1000 K/s
+        self.w1 = a * self.w1 + (1 - a) * rate
+        self.w2 = a * self.w2 + (1 - a) * self.w1
         if self.gap_run > self.max_gap:
             self.ready = False
         return code
@@ -263,16 +534,22 @@ class ReferenceEstimator:
         share = (1 / self.R_w(vs[iv]) - 1 / self.R_w(vs[iv_old])) * self.t_s / self.cfg.skin.C_w
         dT = (self.x[I_TP] - self.x[I_TW]) * share
         self.x[I_TW] += 0.5 * dT
+        self.V[I_TW] += 0.5 * share * (self.V[I_TP] - self.V[I_TW])
         self.P[I_TW, I_TW] += (self.vsw * dT) ** 2
         if self.updates is not None and self.record_switches:
-            self.updates.append((-1, 0.5 * share, 0.0, np.zeros(5), False))
+            self.updates.append((-1, 0.5 * share, 0.0, np.zeros(NA), False, np.zeros(NA)))
 
     def _init(self, T_w: float, T_p: float, T_a: float) -> None:
-        Rg, Rag, R = self.cfg.skin.R_g, self.cfg.skin.R_ag, self.R
-        self.x = np.array([T_w, (T_w / Rg + T_a / Rag) / (1 / Rg + 1 / Rag), 0.0, T_p, 0.0])
-        self.P = np.diag([R, R, 1.0, R, 1e-4])
+        Rg, Rag = self.cfg.skin.R_g, self.cfg.skin.R_ag
+        R, Rp = self.R["T_w"], self.R["T_p"]
+        self.x = np.array([T_w, (T_w / Rg + T_a / Rag) / (1 / Rg + 1 / Rag), 0.0, T_p, 0.0, T_w])
+        self.P = np.diag([R, R, 1.0, Rp, 1e-4, R])
+        self.P[I_TW, I_M] = self.P[I_M, I_TW] = R  # the bead at the pipe's reading
+        self.V = np.zeros((NA, 2))
+        self.V[I_TP, 0] = 1.0  # the tank's state is its reading: its offset's error is all in it
+        self.w1 = self.w2 = 0.0
         self.xa = np.array([T_a, T_a])
-        self.Pa = np.full((2, 2), R)
+        self.Pa = np.full((2, 2), self.R["T_a"])
         for c in self.cusums:
             c.mu = _unit_q()
         self.ready = True
@@ -318,8 +595,9 @@ class ReferenceEstimator:
                     self.glr.append([t, ge, gg])
                     self.glr_t0 = t
             fire, best, quiet = None, 0.0, True
+            irho = self._irho()
             for k, c in enumerate(self.cusums):
-                g = c.g + c.design * ge - 0.5 * c.design**2 * gg
+                g = c.g + (c.design * ge - 0.5 * c.design**2 * gg) * irho  # the dispersion weighs it
                 if t - self.t_air < self.t_amb_hold or (
                         t - self.t_rel < d.t_refractory and np.sign(c.design) != self.last_sign):
                     g = 0.0
@@ -366,6 +644,7 @@ class ReferenceEstimator:
                 self.run_rel = self.run_lik = 0.0
                 self.t_below = self.t_lik = t
                 self._reset_cusums(t)
+                self.r_slots = [0.0] * N_SLOTS  # the variance's steps not yet taken: the onset's
                 self.dq = q - self.b
                 return 3
             if quiet and t - self.t_rel >= d.t_settle:
@@ -403,6 +682,7 @@ class ReferenceEstimator:
                 # never confirmed by a reading since the detection, and over at once: noise
                 self.mode, self.contact = "idle", 0
                 self.x[I_Q] = b
+                self.V[I_Q] = 0.0
                 self.P[I_Q, I_Q] += 0.25 * self.level**2
                 self.dq = 0.0
                 self._reset_cusums(t)
@@ -413,6 +693,7 @@ class ReferenceEstimator:
                 t_rel = self.t_below
             self._end(t_rel)
             self.x[I_Q] = b
+            self.V[I_Q] = 0.0
             self.P[I_Q, I_Q] += 0.25 * self.level**2
             self.dq = 0.0
             return 4

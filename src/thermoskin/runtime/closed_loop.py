@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from thermoskin.control.probe import SetpointProbe
 from thermoskin.estimation.events import ContactEvent
 from thermoskin.logio.plausible import admit, limits
-from thermoskin.params import Config
+from thermoskin.params import Config, SensorParams
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.controller import SkinController
 from thermoskin.sim.plant import SimulatedPlant
@@ -66,7 +66,8 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
                     progress: Callable[[float], None] | None = None,
                     on_block: Callable[[dict[str, Any]], None] | None = None,
                     block: int = 1000, stop: Any = None,
-                    probe: SetpointProbe | None = None, keep: bool = True) -> LoopResult:
+                    probe: SetpointProbe | None = None, keep: bool = True,
+                    boards: SensorParams | None = None) -> LoopResult:
     """Run ``scenario`` (its touches at their times) in closed loop from ambient.
 
     ``skin_model``: ``"network"`` (two-node, as the observer assumes) or ``"spatial"``.
@@ -79,8 +80,10 @@ def run_closed_loop(scenario: Scenario, cfg: Config, *, skin_model: str = "netwo
     ``keep``: the result holds every row (``LoopResult.columns``); False holds only the
     current block (``columns`` empty), so memory does not grow with the run's length
     (``thermoskin run``, whose ``on_block`` writes them). ``summary["rows"]`` counts the rows.
+    ``boards``: the simulated thermocouple boards as they truly are (``sim.boards``); by default
+    the config's ``[sensor]``, which the estimator takes them to be.
     """
-    plant = SimulatedPlant(cfg, scenario, skin_model=skin_model)
+    plant = SimulatedPlant(cfg, scenario, skin_model=skin_model, boards=boards)
     ctrl = SkinController(cfg, probe)
     ctrl.reset(scenario.T_a)
     n, t_s = plant.n, cfg.sampling.t_s

@@ -26,7 +26,7 @@ JITTER_CHUNK = 64
 
 @njit(cache=True)
 def _read(x, noise, pos, y, a, b, lagged, noise_T, quantum, period, t_s, jit, jpos, jlen, jidx, nxt, k,
-          value, fresh):  # pragma: no cover - compiled
+          value, fresh, offset):  # pragma: no cover - compiled
     """One sample of every board (``Board.read``, term for term); returns False if a board ran
     out of jitter draws before scheduling its next conversion (then nothing was changed)."""
     nb = x.shape[0]
@@ -56,7 +56,7 @@ def _read(x, noise, pos, y, a, b, lagged, noise_T, quantum, period, t_s, jit, jp
                     break
             jidx[i] = j
             nxt[i] = kn
-        r = yi + noise_T[i] * noise[i, pos]
+        r = yi + offset[i] + noise_T[i] * noise[i, pos]
         q = quantum[i]
         if q > 0.0:
             r = q * math.floor(r / q + 0.5)
@@ -77,6 +77,7 @@ class BoardBank:
         self.b = np.array([b._b for b in boards])
         self.lagged = np.array([b._lagged for b in boards])
         self.noise_T = np.array([b.noise_T for b in boards])
+        self.offset = np.array([b.offset for b in boards])
         self.quantum = np.array([b.quantum_T for b in boards])
         self.period = np.array([b.period for b in boards])
         self.J = np.array([b.jitter for b in boards])
@@ -131,6 +132,6 @@ class BoardBank:
                 self.noise[i] = rng.standard_normal(BLOCK)
         while not _read(x, self.noise, pos, self.y, self.a, self.b, self.lagged, self.noise_T, self.quantum,
                         self.period, self.t_s, self.jit, self.jpos, self.jlen, self.jidx, self.nxt, k,
-                        self.value, self.fresh):
+                        self.value, self.fresh, self.offset):
             self._refill_jitter()
         self.k = k + 1

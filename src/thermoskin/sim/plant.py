@@ -21,8 +21,9 @@ Per sample ``k`` (``t_k = k t_s``)::
 - **touches** ``G_c, T_f`` (``physics.finger.contact_profile``) and the **true ambient**
   ``scenario.T_a_at(t)`` drive the skin (and the tank's loss to the air); with
   ``repeat=True`` both repeat every ``scenario.duration`` and the plant runs for ever;
-- **sensors** (``sim.sensors.Sensors``, ``[sensor]``) read ``T_w``, ``T_p`` and the true
-  ambient once per sample;
+- **sensors** (``sim.sensors.Sensors``) read ``T_w``, ``T_p`` and the true ambient once per
+  sample: the boards ``boards`` (their true offsets, noise, lags: ``sim.boards``), by default
+  the config's ``[sensor]`` (what the lab believes its boards are);
 - **touchers** (a touch naming ``toucher``, :mod:`thermoskin.physics.contact`): a body of
   its own behind the touch's ramped conductance ``G_j(t)``, stepped against the sheet every
   sample. Over sample ``k`` toucher ``j`` is exactly a conductance ``G_eff,j`` to a source
@@ -57,7 +58,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from thermoskin.params import Config
+from thermoskin.params import Config, SensorParams
 from thermoskin.physics.convection import FlowResistance
 from thermoskin.physics.finger import T_F_IDLE, Touch, body_temperature, contact_profile, full_conductance
 from thermoskin.physics.peltier import PeltierTank
@@ -91,7 +92,7 @@ class SimulatedPlant:
 
     def __init__(self, cfg: Config, scenario: Scenario, n: int | None = None,
                  skin_model: str = "network", *, tank: str = "peltier", repeat: bool = False,
-                 spatial: SpatialParams | None = None) -> None:
+                 spatial: SpatialParams | None = None, boards: SensorParams | None = None) -> None:
         if skin_model not in SKIN_MODELS:
             raise ValueError(f"unknown skin_model {skin_model!r} (network or spatial)")
         if tank not in TANKS:
@@ -113,7 +114,8 @@ class SimulatedPlant:
         self.prescribed = tank == "prescribed"
         self.tank = PeltierTank(cfg.peltier, t_s, (cfg.control.drive_min, cfg.control.drive_max))
         self.R_w = FlowResistance(cfg.skin)
-        self.sensors = Sensors(cfg.sensor, t_s)
+        self.boards = cfg.sensor if boards is None else boards
+        self.sensors = Sensors(self.boards, t_s)
         self._init_touchers(scenario)
         self._w0, self._w1 = 0, 0  # the profiles' window: samples [w0, w1) (``_window``)
         self.k = 0

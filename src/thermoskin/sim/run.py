@@ -32,7 +32,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from thermoskin.control.pump import PumpLogic
-from thermoskin.params import Config
+from thermoskin.params import Config, SensorParams
 from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import Scenario, get_scenario
 
@@ -45,24 +45,27 @@ BLOCK = 65_536
 
 
 def simulate(scenario: Scenario | str, cfg: Config, duration: float | None = None,
-             progress: Callable[[float], None] | None = None) -> dict[str, np.ndarray]:
+             progress: Callable[[float], None] | None = None,
+             boards: SensorParams | None = None) -> dict[str, np.ndarray]:
     """Simulate ``scenario`` (or its name) for its duration (or ``duration`` s); see the module doc.
     The whole log in memory: :func:`simulate_blocks` joined."""
-    blocks = list(simulate_blocks(scenario, cfg, duration, progress))
+    blocks = list(simulate_blocks(scenario, cfg, duration, progress, boards=boards))
     return {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
 
 
 def simulate_blocks(scenario: Scenario | str, cfg: Config, duration: float | None = None,
                     progress: Callable[[float], None] | None = None,
-                    block: int = BLOCK) -> Iterator[dict[str, np.ndarray]]:
+                    block: int = BLOCK, boards: SensorParams | None = None
+                    ) -> Iterator[dict[str, np.ndarray]]:
     """:func:`simulate`, its log given ``block`` samples at a time (``thermoskin simulate`` writes
     each as it comes): the same samples, and only a block's columns held at once (the plant
-    holds a window of its scenario's profiles), so memory does not grow with the duration."""
+    holds a window of its scenario's profiles), so memory does not grow with the duration.
+    ``boards``: the thermocouple boards as they truly are (default: the config's ``[sensor]``)."""
     sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
     if duration is not None:
         sc = sc.with_duration(duration)
     t_s = cfg.sampling.t_s
-    plant = SimulatedPlant(cfg, sc, tank="prescribed")
+    plant = SimulatedPlant(cfg, sc, tank="prescribed", boards=boards)
     n = plant.n
     pump = PumpLogic(cfg.pump, t_s)
     v_const = cfg.pump.v_on if sc.pump == "on" else 0.0

@@ -15,8 +15,9 @@ At sample ``k`` (``t_k = k t_s``), with ``x_k`` the true temperature there:
    sample ``k_j = floor(t_j / t_s + 1/2)`` (the loop sees time on its sample grid);
    ``period = 0``: a conversion every sample.
 3. **Reading.** A conversion at sample ``k`` reads
-   ``r_k = q floor((y_k + noise_T n_k) / q + 1/2)`` with ``n_k`` standard normal and
-   ``q = quantum_T`` (no rounding when ``q = 0``).
+   ``r_k = q floor((y_k + b + noise_T n_k) / q + 1/2)`` with ``n_k`` standard normal,
+   ``b = offset`` (K: the board's cold junction and the wire's tolerance, reading minus truth)
+   and ``q = quantum_T`` (no rounding when ``q = 0``).
 4. **Hold.** Between conversions the last reading is repeated and the channel is not
    fresh. ``fresh`` is a bit mask over the channels: ``T_w`` = 1, ``T_p`` = 2, ``T_a`` = 4
    (the link protocol's ``CH_W, CH_P, CH_A``).
@@ -73,16 +74,18 @@ class Board:
 
     __slots__ = ("_a", "_b", "_buf", "_j", "_jitter_rng", "_jitter_seed", "_lagged", "_next",
                  "_noise_rng", "_noise_seed", "_periodic", "_pos", "_y", "bit", "fresh", "jitter",
-                 "k", "lag", "name", "noise_T", "period", "quantum_T", "t_s", "value")
+                 "k", "lag", "name", "noise_T", "offset", "period", "quantum_T", "t_s", "value")
 
     def __init__(self, name: str, *, period: float = 0.0, jitter: float = 0.0, lag: float = 0.0,
                  noise_T: float = 0.0, quantum_T: float = 0.0, t_s: float | None = None,
                  noise_seed: np.random.SeedSequence | None = None,
-                 jitter_seed: np.random.SeedSequence | None = None) -> None:
+                 jitter_seed: np.random.SeedSequence | None = None, offset: float = 0.0) -> None:
         for what, val in (("period", period), ("jitter", jitter), ("lag", lag), ("noise_T", noise_T),
                           ("quantum_T", quantum_T)):
             if not (val >= 0.0 and math.isfinite(val)):
                 raise ValueError(f"Board {name}: {what} = {val} must be a finite number >= 0")
+        if not math.isfinite(offset):
+            raise ValueError(f"Board {name}: offset = {offset} must be finite")
         if (period > 0.0 or lag > 0.0) and not (t_s is not None and t_s > 0.0):
             raise ValueError(f"Board {name}: a period or a lag needs the sample time t_s")
         if period > 0.0 and t_s is not None and period < t_s:
@@ -97,6 +100,7 @@ class Board:
         self.lag = float(lag)
         self.noise_T = float(noise_T)
         self.quantum_T = float(quantum_T)
+        self.offset = float(offset)
         self.t_s = float(t_s) if t_s is not None else math.nan
         self._periodic = self.period > 0.0
         self._lagged = self.lag > 0.0
@@ -187,7 +191,7 @@ class Board:
             return self.value
         if self._periodic:
             self._advance(k)
-        r = y + self.noise_T * buf[pos]
+        r = y + self.offset + self.noise_T * buf[pos]
         q = self.quantum_T
         if q > 0.0:
             r = q * math.floor(r / q + 0.5)
@@ -214,7 +218,7 @@ class Board:
             raise ValueError(f"Board {self.name}: read_array continues a log only on a board "
                              "without lag or period (reset first)")
         y = self.lagged(x)
-        r = quantise_array(y + self.noise(n), self.quantum_T)
+        r = quantise_array(y + self.offset + self.noise(n), self.quantum_T)
         conv = self.conversions(n)
         if self._periodic and n:
             idx = np.maximum.accumulate(np.where(conv, np.arange(n), 0))
@@ -228,6 +232,9 @@ class Board:
 
 class Sensors:
     """The three thermocouple boards of the skin from ``[sensor]``; ``t_s`` the sample time, s.
+
+    Each channel has its noise (``noise_T_w`` etc., or ``noise_T``), its offset
+    (``offset_T_w`` etc.), its lag and period; the quantum ``quantum_T`` is the converter's.
 
     Per sample: ``read(T_w, T_p, T_a)`` -> the three readings, and ``fresh`` (bit mask).
     Over a whole log from a reset: :meth:`read_arrays`. ``measure``/``measure_one`` are the
@@ -245,8 +252,9 @@ class Sensors:
         seqs = np.random.SeedSequence(int(sensor.seed)).spawn(2 * len(CHANNELS))
         self.boards: dict[str, Board] = {
             ch: Board(ch, period=getattr(sensor, f"period_{ch}"), jitter=sensor.jitter,
-                      lag=getattr(sensor, f"lag_{ch}"), noise_T=self.noise_T, quantum_T=self.quantum_T,
-                      t_s=t_s, noise_seed=seqs[i], jitter_seed=seqs[len(CHANNELS) + i])
+                      lag=getattr(sensor, f"lag_{ch}"), noise_T=sensor.noise(ch),
+                      quantum_T=self.quantum_T, t_s=t_s, noise_seed=seqs[i],
+                      jitter_seed=seqs[len(CHANNELS) + i], offset=getattr(sensor, f"offset_{ch}"))
             for i, ch in enumerate(CHANNELS)}
         self._w, self._p, self._a = (self.boards[ch] for ch in CHANNELS)
         self.fresh = 0

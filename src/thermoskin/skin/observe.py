@@ -62,6 +62,7 @@ from numpy.typing import NDArray
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.events import ContactEvent
 from thermoskin.estimation.freshness import CHANNEL_BITS, FreshInference, loop_t_s
+from thermoskin.estimation.model import fixed_sensors
 from thermoskin.estimation.patches import PatchEstimators
 from thermoskin.logio.units import Units
 from thermoskin.params import Config
@@ -174,8 +175,10 @@ def patch_config(skin: Skin, i: int, boards_period: float | None = None) -> Conf
     es = {k: max(v, getattr(cfg.estimator, k)) for k, v in own.items()}
     de = {k: max(v, getattr(cfg.detector, k)) for k, v in SKIN_DETECTOR.items()}
     de["onset_state_jump"] = SKIN_ONSET_STATE_JUMP
-    return dataclasses.replace(cfg, estimator=dataclasses.replace(cfg.estimator, **es),
-                               detector=dataclasses.replace(cfg.detector, **de))
+    # a patch keeps its sensors as configured (fixed_sensors): what the one-patch estimator
+    # learns of its boards (offsets, lag, noise) is not learnt per patch of a skin
+    return fixed_sensors(dataclasses.replace(cfg, estimator=dataclasses.replace(cfg.estimator, **es),
+                                             detector=dataclasses.replace(cfg.detector, **de)))
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,172 @@
+"""What the estimator has learnt of its sensors, the one-finger SNR, and what to say of it once.
+
+The kernel learns each channel's reading variance and converter step, the tank readings'
+offset against the pipe's, the pipe thermocouple's lag and the evidence's dispersion from the
+readings (``docs/model.md``, Sensors that calibrate themselves); :func:`learnt` reads them from a
+patch's state as a :class:`Learnt`, and :func:`notices` says, each at most once, where they tell
+the user something: a fingertip's touch below the noise, readings that do not fit the model, an
+offset, a lag or a noise unlike the configured ones (with the key that sets it).
+
+The one-finger SNR: a fingertip (0.05 W/K to a body at 33 °C) brings ``0.05 (33 - T_g)`` W to
+the sheet; the readings bring ``I`` W⁻² a second of information on a lasting change of ``q_i``
+(over the dispersion), so 0.3 s of them estimate it to ``1/sqrt(0.3 I)``:
+``SNR = 0.05 (33 - T_g) sqrt(0.3 I)``. At 5 a step of that size builds a log-likelihood ratio of
+``SNR²/2 = 12.5`` in 0.3 s, the detector's threshold with slow boards.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.params import Config
+
+CHANNELS = ("T_w", "T_p", "T_a")
+#: A fingertip: its contact conductance (W/K) and the body's temperature behind it (°C).
+FINGER_G = 0.05
+FINGER_T = 33.0
+#: Seconds of readings the one-finger SNR is figured over (the latency the detector aims at).
+SNR_WINDOW = 0.3
+#: Below this SNR a fingertip's touch is said to be below the noise.
+SNR_MIN = 5.0
+#: Above this dispersion (over the detector's dead band) the readings are said not to fit.
+RHO_MISFIT = 2.0
+
+
+@dataclass(frozen=True)
+class Learnt:
+    """What the estimator has learnt of its sensors (``noise`` K rms per channel, ``quantum`` K
+    per channel, 0 where no step was found; ``offset_p`` K: the T_p readings' offset against the
+    T_w readings', configured plus learnt, with its sd; ``lag_w`` s: the T_w thermocouple's lag,
+    with its sd; ``rho``: the evidence's dispersion, 1 where the model fits; ``info_rate``
+    W⁻²/s; ``snr``: the one-finger SNR, NaN before any information; ``T_g`` °C: the sheet)."""
+
+    noise: dict[str, float]
+    quantum: dict[str, float]
+    offset_p: float
+    offset_p_sd: float
+    lag_w: float
+    lag_w_sd: float
+    rho: float
+    info_rate: float
+    snr: float
+    T_g: float
+
+    def lines(self) -> list[str]:
+        """The figures, a line or two for a summary."""
+        q = ", ".join(f"{ch} {self.noise[ch]:.3f} K" + (f" (step {self.quantum[ch]:.4g} K)"
+                                                        if self.quantum[ch] > 0 else "")
+                      for ch in CHANNELS)
+        snr = f"{self.snr:.1f}" if math.isfinite(self.snr) else "not known yet"
+        return [f"learnt: noise {q}",
+                f"learnt: T_p offset against T_w {self.offset_p:+.3f} ± {self.offset_p_sd:.3f} K, "
+                f"T_w lag {self.lag_w * 1e3:.1f} ± {self.lag_w_sd * 1e3:.1f} ms, dispersion "
+                f"{self.rho:.2f}, one-finger SNR {snr}"]
+
+
+def one_finger_snr(info_rate: float, T_g: float) -> float:
+    """A fingertip's touch (:data:`FINGER_G` to :data:`FINGER_T`) over the sd of its estimate from
+    :data:`SNR_WINDOW` s of readings bringing ``info_rate`` W⁻²/s; NaN without information."""
+    if not (info_rate > 0.0 and math.isfinite(T_g)):
+        return math.nan
+    return FINGER_G * (FINGER_T - T_g) * math.sqrt(SNR_WINDOW * info_rate)
+
+
+def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
+    """What a patch's kernel state ``st`` has learnt (before the filter's start: the priors)."""
+    sn = cfg.sensor
+    started = st[K.LINIT] != 0.0
+    R = (st[K.RW], st[K.RP], st[K.RA]) if started else None
+    noise = {ch: (math.sqrt(R[i]) if R is not None else math.sqrt(sn.noise(ch) ** 2
+                                                                   + sn.quantum_T**2 / 12.0))
+             for i, ch in enumerate(CHANNELS)}
+    quantum = {ch: (float(st[k]) if st[k] < 1e299 and st[k] > 1e-6 else 0.0)
+               for ch, k in zip(CHANNELS, (K.QW, K.QP, K.QA), strict=True)}
+    bd = float(st[K.BD]) if started else 0.0
+    pbb = float(st[K.PBB]) if started else sn.offset_sd**2
+    lag = float(st[K.LAGT]) if started else sn.lag_T_w
+    ptt = float(st[K.PTT]) if started else sn.lag_sd**2
+    # the information rate's exponential mean, its start's bias taken off (the weight it has
+    # given its samples: 1 - (1 - w)^n after n)
+    rate = float(st[K.IRATE]) / float(st[K.IRN]) if st[K.IRN] > 0 else 0.0
+    T_g = float(st[K.X + 1]) if started else math.nan
+    return Learnt(noise=noise, quantum=quantum, offset_p=sn.offset_T_p - sn.offset_T_w + bd,
+                  offset_p_sd=math.sqrt(max(pbb, 0.0)), lag_w=lag, lag_w_sd=math.sqrt(max(ptt, 0.0)),
+                  rho=float(st[K.RHO]), info_rate=rate, snr=one_finger_snr(rate, T_g), T_g=T_g)
+
+
+def snr_line(snr: float, where: str = "these readings") -> str:
+    """The line that says a fingertip's touch is below the noise (SNR below :data:`SNR_MIN`)."""
+    return (f"a fingertip's touch (0.05 W/K at 33 degC) has a one-finger SNR of {snr:.1f} with "
+            f"{where}: below {SNR_MIN:g}, expect such touches found late or missed (contacts are "
+            "not invented: the detector keeps its false-alarm rate)")
+
+
+def notices(lt: Learnt, cfg: Config) -> dict[str, str]:
+    """What the learnt figures say, keyed so that each is said once: ``snr`` (a fingertip below
+    the noise), ``misfit`` (the readings do not fit the model: an unmodelled lag, a skin unlike
+    its configuration, coarse converters), ``offset``, ``lag``, ``noise_<ch>`` (a sensor unlike
+    its configuration, with the key that sets it)."""
+    out: dict[str, str] = {}
+    sn = cfg.sensor
+    if math.isfinite(lt.snr) and lt.snr < SNR_MIN:
+        out["snr"] = snr_line(lt.snr)
+    rho = lt.rho / cfg.detector.rho_deadband
+    if rho > RHO_MISFIT:
+        out["misfit"] = (f"the readings do not fit the model: their evidence is {lt.rho:.1f} times as "
+                         "spread as white noise's over 0.4 s (an unmodelled lag, a skin unlike its "
+                         "configuration, coarse converters), so the detector asks that much more of a "
+                         "touch; `thermoskin calibrate NO_TOUCH_LOG --config F.toml -o FITTED.toml` "
+                         "fits the skin")
+    cfg_off = sn.offset_T_p - sn.offset_T_w
+    if sn.offset_sd > 0 and abs(lt.offset_p - cfg_off) > max(3.0 * lt.offset_p_sd, 0.05):
+        out["offset"] = (f"the T_p readings are offset by {lt.offset_p:+.3f} ± {lt.offset_p_sd:.3f} K "
+                         f"from the T_w readings (learnt; configured {cfg_off:+.3f} K): "
+                         f"[sensor] offset_T_p = {sn.offset_T_w + lt.offset_p:.3f} starts from it")
+    if sn.lag_sd > 0 and abs(lt.lag_w - sn.lag_T_w) > max(3.0 * lt.lag_w_sd, 0.005):
+        out["lag"] = (f"the T_w thermocouple lags the water by {lt.lag_w * 1e3:.0f} ± "
+                      f"{lt.lag_w_sd * 1e3:.0f} ms (learnt; configured {sn.lag_T_w * 1e3:.0f} ms): "
+                      f"[sensor] lag_T_w = {lt.lag_w:.3f} starts from it")
+    if cfg.estimator.tau_noise > 0:
+        for ch in CHANNELS:
+            prior = math.sqrt(sn.noise(ch) ** 2 + sn.quantum_T**2 / 12.0)
+            if not 0.67 < lt.noise[ch] / prior < 1.5:
+                out[f"noise_{ch}"] = (f"the {ch} readings' noise is {lt.noise[ch]:.3f} K, not the "
+                                      f"configured {prior:.3f} K (learnt): [sensor] noise_{ch} = "
+                                      f"{lt.noise[ch]:.3f} starts from it")
+    return out
+
+
+class Watch:
+    """Says each notice once (:meth:`new`): from ``settle`` s after the detector armed, where it
+    holds at ``checks`` checks ``every`` s apart (what is learnt settles over tens of seconds:
+    a half-learnt sensor looks like a misfit, and says its noise is what it will not be)."""
+
+    def __init__(self, cfg: Config, settle: float = 30.0, every: float = 10.0, checks: int = 3) -> None:
+        self.cfg = cfg
+        self.settle = settle
+        self.every = every
+        self.checks = checks
+        self.said: set[str] = set()
+        self.t_armed = math.nan
+        self.t_check = -math.inf
+        self.held: dict[str, int] = {}
+
+    def new(self, st: NDArray[np.float64], t: float) -> list[str]:
+        """The notices not said before, from state ``st`` at time ``t`` (s)."""
+        if st[K.ARMED] == 0.0:
+            return []
+        if self.t_armed != self.t_armed:
+            self.t_armed = t
+        if t - self.t_armed < self.settle or t - self.t_check < self.every:
+            return []
+        self.t_check = t
+        now = notices(learnt(st, self.cfg), self.cfg)
+        self.held = {key: self.held.get(key, 0) + 1 for key in now}
+        out = [line for key, line in now.items() if self.held[key] >= self.checks and key not in self.said]
+        self.said.update(key for key in now if self.held[key] >= self.checks)
+        return out
