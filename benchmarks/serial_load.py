@@ -14,7 +14,10 @@ max, the log's first ``t`` (0 for a fresh session), the loop's lateness p50/p99/
 overruns and frames late as the run reports them, and the emulator's own stop line.
 
     python benchmarks/serial_load.py --json [--runs 2] [--seconds 75] [--load 2] [--firmware]
-        [--delay 4] [--sessions 2] [--scenario fingers]
+        [--delay 4] [--sessions 2] [--scenario fingers] [--ideal-sensors]
+
+The emulator's boards are its default, a lab's at 10 Hz (``sim/boards.py``); ``--ideal-sensors``
+gives the boards exactly as ``[sensor]`` says (the emulator's default before issue 43).
 """
 
 from __future__ import annotations
@@ -101,13 +104,14 @@ def one_session(folder: Path, link: Path, truth: Path, i: int, seconds: float, p
 
 
 def one_run(folder: Path, seconds: float, delay: float, sessions: int, firmware: bool,
-            scenario: str, normal: bool, config: str | None) -> dict[str, Any]:
+            scenario: str, normal: bool, config: str | None, ideal: bool = False) -> dict[str, Any]:
     link, truth = folder / "skin", folder / "truth.csv"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     pre = ["setpriv", "--inh-caps=-sys_nice", "--bounding-set=-sys_nice"] if normal else []
     extra = ["--config", config] if config else []
     emu = subprocess.Popen([*pre, *CMD, "device-emulator", "--link", str(link), "--truth", str(truth),
-                            "--scenario", scenario, *(["--firmware"] if firmware else [])],
+                            "--scenario", scenario, *(["--firmware"] if firmware else []),
+                            *(["--ideal-sensors"] if ideal else [])],
                            stderr=subprocess.PIPE, text=True, env=env)
     runs = []
     try:
@@ -135,6 +139,8 @@ def main() -> None:
     ap.add_argument("--sessions", type=int, default=1, help="runs in a row on one emulator")
     ap.add_argument("--firmware", action="store_true", help="the firmware's code behind the pty")
     ap.add_argument("--scenario", default="fingers")
+    ap.add_argument("--ideal-sensors", action="store_true",
+                    help="the emulator's boards exactly as [sensor] says (default: a lab's, 10 Hz)")
     ap.add_argument("--normal-priority", action="store_true",
                     help="withhold CAP_SYS_NICE (setpriv): both processes at normal priority, as on a "
                          "machine without real-time scheduling")
@@ -143,7 +149,7 @@ def main() -> None:
     a = ap.parse_args()
     result: dict[str, Any] = {"cores": os.cpu_count(), "load_processes": a.load, "seconds": a.seconds,
                               "device": "firmware" if a.firmware else "emulator",
-                              "scenario": a.scenario, "delay_s": a.delay,
+                              "scenario": a.scenario, "ideal_sensors": a.ideal_sensors, "delay_s": a.delay,
                               "priority": ("normal" if a.normal_priority else
                                            "as shipped (SCHED_FIFO where allowed)"),
                               "config": a.config,
@@ -155,7 +161,7 @@ def main() -> None:
                 folder = Path(a.keep) / f"run{j}" if a.keep else Path(d)
                 folder.mkdir(parents=True, exist_ok=True)
                 runs.append(one_run(folder, a.seconds, a.delay, a.sessions, a.firmware, a.scenario,
-                                    a.normal_priority, a.config))
+                                    a.normal_priority, a.config, a.ideal_sensors))
         result["runs"] = runs
         ses = [s for r in runs for s in r["sessions"]]
         result["total"] = {k: sum(s.get(k, 0) or 0 for s in ses)
