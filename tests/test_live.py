@@ -149,14 +149,25 @@ def test_a_live_run_goes_at_wall_clock_pace_unless_asked_otherwise(tmp_path: Pat
     reports its lateness), so that a viewer sees it as it goes; `--no-realtime` runs it flat out
     in this process; a run without --live is not paced. Read from what the run says it does, not
     from how long it took."""
+    from thermoskin.logio import read_log
+    from thermoskin.params import load_config
+    from thermoskin.sim.boards import lab_boards
+
     port = free_port_pair()
     log = ["--duration", "0.5", "--log", str(tmp_path / "r.csv")]
+    boards = lab_boards(load_config().sensor)  # the default boards: a lab's, seed 0
     for extra, paced in (([], True), (["--no-realtime"], False)):
         p = subprocess.run([*CMD, "run", *log, "--live", f"127.0.0.1:{port}", *extra], env=ENV,
                            capture_output=True, text=True, timeout=120)
         assert p.returncode == 0, p.stdout + p.stderr
         assert ("at wall-clock speed" in p.stdout) == paced, p.stdout
         assert ("loop: 500 steps" in p.stdout) == paced, p.stdout  # the fixed-rate loop's report
+        # paced or not, the simulated skin is read through the same boards as a lab buys them
+        assert "boards as a lab buys them" in p.stdout, p.stdout
+        # (their offset, and their bead's first-order lag behind the warming water: -tau dT/dt)
+        d = read_log(tmp_path / "r.csv", required=("t", "T_w", "T_w_true"))
+        lagged = boards.offset_T_w - boards.lag_T_w * np.gradient(d["T_w_true"], d["t"])
+        assert abs(float((d["T_w"] - d["T_w_true"] - lagged)[100:].mean())) < 0.01
     p = subprocess.run([*CMD, "run", *log], env=ENV, capture_output=True, text=True, timeout=120)
     assert p.returncode == 0 and "wall-clock" not in p.stdout, p.stdout + p.stderr
     forearm = str(Path(__file__).parents[1] / "examples" / "forearm.toml")

@@ -46,7 +46,7 @@ from thermoskin.cli.common import (
 )
 from thermoskin.cli.observe import _skin_report
 from thermoskin.estimation.events import ContactEvent
-from thermoskin.params import Config
+from thermoskin.params import Config, SensorParams
 
 #: Samples a paced ``run --skin`` steps between two looks at the wall clock (0.1 s at 1 kHz).
 PACED_BLOCK = 100
@@ -187,7 +187,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                   + (", " if serial else f" ({len(sc.touches)} touches), ")
                   + f"T_w_cmd {cmd_txt}, {sc.duration:g} s at {1 / cfg.sampling.t_s:.0f} Hz")
     boards = None
-    if not serial and not realtime:  # the simulated boards (--realtime: its device's own, configured)
+    if not serial:  # the simulated skin's boards (paced or not)
         boards, said = _boards(cfg, ideal_sensors)
         console.print(said, markup=False)
     if watch.start_line:
@@ -258,7 +258,7 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
             # (before it opens the device)
             _note_compile(ESTIMATOR_KERNEL)
             if serial or realtime:
-                res = _run_fixed_rate(sc, cfg, device, on_block, stop, on_event)
+                res = _run_fixed_rate(sc, cfg, device, on_block, stop, on_event, boards)
             else:
                 with _progress_bar("running") as bar:
                     task = bar.add_task("closed loop", total=1.0)
@@ -630,7 +630,8 @@ def _loop_figures(res: Any, n: int) -> None:
 
 
 def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[str, Any]], None],
-                    stop: Any, on_event: Callable[[ContactEvent], None] | None = None) -> Any:
+                    stop: Any, on_event: Callable[[ContactEvent], None] | None = None,
+                    boards: SensorParams | None = None) -> Any:
     """The fixed-rate loop process; contacts and faults printed as they come."""
     from thermoskin.devices.protocol import ST_OVERRUN
     from thermoskin.runtime.realtime import LoopSpec, run_realtime
@@ -653,7 +654,7 @@ def _run_fixed_rate(sc: Any, cfg: Config, device: str, on_block: Callable[[dict[
                 state["contact"] = int(c[ok][-1])
         on_block(block)
 
-    spec = LoopSpec(cfg, sc, device=device, duration=sc.duration)
+    spec = LoopSpec(cfg, sc, device=device, duration=sc.duration, boards=boards)
     res = run_realtime(spec, on_rows=on_rows, stop=stop, on_event=on_event, keep=False)
     res.summary["late_counts"] = late
     err = res.summary.get("error")

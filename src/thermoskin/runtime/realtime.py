@@ -61,7 +61,7 @@ from numpy.typing import NDArray
 from thermoskin.devices.base import DeviceError
 from thermoskin.estimation.events import ContactEvent
 from thermoskin.logio.plausible import admit, limits
-from thermoskin.params import Config
+from thermoskin.params import Config, SensorParams
 from thermoskin.runtime import supervisor as sv
 from thermoskin.runtime.closed_loop import COLUMNS, LoopResult
 from thermoskin.sim.scenarios import Scenario
@@ -100,6 +100,9 @@ class LoopSpec:
     parent_pid: int = 0
     """The process the loop serves (set by :func:`run_realtime`); the loop stops, in the safe
     state, as soon as that process is gone (0: the parent at start-up)."""
+    boards: SensorParams | None = None
+    """The simulated skin's thermocouple boards as they truly are (``sim.boards``; default: the
+    config's ``[sensor]``)."""
 
 
 class RealtimeResult(LoopResult):
@@ -205,7 +208,7 @@ def _make_device(spec: LoopSpec) -> Any:
     if spec.device == "sim":
         from thermoskin.devices.sim_device import SimDevice
 
-        return SimDevice(spec.cfg, spec.scenario, skin_model=spec.skin_model)
+        return SimDevice(spec.cfg, spec.scenario, skin_model=spec.skin_model, boards=spec.boards)
     if spec.device.startswith("serial://"):
         from thermoskin.devices.serial_device import SerialDevice
 
