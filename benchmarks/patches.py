@@ -191,6 +191,15 @@ def peer_kernel(src: str) -> ModuleType:
         if getattr(mod, name, None) != getattr(K, name):
             raise SystemExit(f"--peer {src}: its kernel's {name} is {getattr(mod, name, None)}, "
                              f"this one's {getattr(K, name)}: not the same layout")
+    # the peer compiles apart, without numba's cache: its kernel file may be this checkout's, and
+    # its code cached under the module name it has here (``_peer_kernel``, which no other
+    # process can import) would be loaded by the next process that looks the kernel up there
+    from numba.core.caching import NullCache
+    from numba.core.registry import CPUDispatcher
+
+    for obj in vars(mod).values():
+        if isinstance(obj, CPUDispatcher):
+            obj._cache = NullCache()
     return mod
 
 
