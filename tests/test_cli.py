@@ -323,8 +323,9 @@ def test_observe_says_when_it_compiles(sim_log: Path, tmp_path: Path, monkeypatc
 @pytest.mark.parametrize("device", ["sim", "realtime", "serial"])
 def test_run_says_when_it_compiles_on_every_device(tmp_path: Path, monkeypatch, device: str) -> None:  # type: ignore[no-untyped-def]
     """`run` in this process, `--realtime` and `--device serial://` compile the same estimator
-    kernel (the last two in the fixed-rate loop process): each asks the cache for it and, on a
-    cold cache only, says so once, before the loop starts; a warm cache prints nothing more."""
+    kernels (the whole-log loop for the sensors' watch, then the sample step the loop uses, in
+    the fixed-rate loop process for the last two): each asks the cache for them and, on a cold
+    cache only, says so once, before the loop starts; a warm cache prints nothing more."""
     from thermoskin import _numba_cache, cli
     from thermoskin.runtime import closed_loop
 
@@ -341,7 +342,8 @@ def test_run_says_when_it_compiles_on_every_device(tmp_path: Path, monkeypatch, 
         monkeypatch.setattr(_numba_cache, "has_compiled", lambda w, c=cached, a=asked: a.append(w) or c)
         code, _, err = invoke("run", "--duration", "1", "--log", str(tmp_path / "run.csv"), *args)
         lines = err.strip().splitlines()
-        assert code == 2 and asked == ["estimation/kernel.step"], (asked, err)
+        want = ["estimation/kernel.run", "estimation/kernel.step"] if cached else ["estimation/kernel.run"]
+        assert code == 2 and asked == want, (asked, err)
         assert lines[-1] == "thermoskin: error: the loop would start here"
         if cached:
             assert "compiling" not in err
@@ -532,3 +534,21 @@ def test_replay_and_reproduce_say_when_they_compile(tmp_path: Path, monkeypatch)
         code, _, err = invoke("reproduce", "--only", "fig15", "--out", str(tmp_path / "repro"))
         assert code == 130, err
         assert err.count("thermoskin: compiling the estimator") == (not cached), err
+
+
+def test_run_says_it_compiles_before_it_runs_the_estimator(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """`run` runs the estimator before its first line (what the configured sensors should give,
+    ``_SensorWatch``): on a cold cache that compiles it for about 10 s, so the notice comes
+    before it (a fresh clone's first `run` was silent for those 10 s, the notice coming after)."""
+    from thermoskin import _numba_cache
+    from thermoskin.cli import run as run_mod
+
+    order: list[str] = []
+    watch, note = run_mod._SensorWatch, run_mod._note_compile
+    monkeypatch.setattr(_numba_cache, "has_compiled", lambda where: False)
+    monkeypatch.setattr(run_mod, "_SensorWatch", lambda *a: order.append("estimator") or watch(*a))
+    monkeypatch.setattr(run_mod, "_note_compile", lambda *a, **k: order.append("notice") or note(*a, **k))
+    code, _, err = invoke("run", "--duration", "1", "--log", str(tmp_path / "r.csv"))
+    assert code == 0, err
+    assert "estimator" in order and order.index("notice") < order.index("estimator"), order
+    assert err.startswith("thermoskin: compiling the estimator"), err

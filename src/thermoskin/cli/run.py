@@ -181,7 +181,9 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
     where = (f"the device at {device[len('serial://'):]}" if serial else
              "the simulated skin" + (" at wall-clock speed" if realtime else ""))
     # what the configured sensors should give (a short simulation: before the first line, which
-    # a caller may take for the loop's start)
+    # a caller may take for the loop's start); it runs the estimator first, so a cold cache
+    # compiles it here: said before (it was silent for 10 s on a fresh install)
+    _note_compile(("estimation/kernel.run", ESTIMATOR_KERNEL))
     watch = _SensorWatch(cfg, sc)
     console.print(f"[bold]thermoskin run[/]: closed loop on {where}, scenario '{sc.name}'"
                   + (", " if serial else f" ({len(sc.touches)} touches), ")
@@ -254,9 +256,8 @@ def run(scenario: str, duration: float | None, setpoint: float | None,
                     evstream.add(e)
                 digest.event(e)
 
-            # the same kernel either way: the fixed-rate loop process compiles it as it starts
-            # (before it opens the device)
-            _note_compile(ESTIMATOR_KERNEL)
+            # (the estimator's kernel, which the fixed-rate loop process too loads as it starts, was
+            # asked for and said above, before the sensors' watch ran it)
             if serial or realtime:
                 res = _run_fixed_rate(sc, cfg, device, on_block, stop, on_event, boards)
             else:
