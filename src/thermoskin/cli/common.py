@@ -374,11 +374,11 @@ IDEAL_SENSORS_OPT = click.option(
 def _boards(cfg: Any, ideal: bool) -> Any:
     """The simulated boards: ``[sensor]`` itself (``--ideal-sensors``) or a lab's, drawn from its
     seed (``sim.boards.lab_boards``); and a line saying which."""
-    from thermoskin.sim.boards import describe, lab_boards
+    from thermoskin.sim.boards import describe, simulated_boards
 
+    b = simulated_boards(cfg.sensor, ideal)
     if ideal:
-        return cfg.sensor, "boards: as configured (--ideal-sensors)"
-    b = lab_boards(cfg.sensor)
+        return b, "boards: as configured (--ideal-sensors)"
     return b, f"boards as a lab buys them (seed {b.seed}; --ideal-sensors for the configured): {describe(b)}"
 
 

@@ -68,7 +68,7 @@ import numpy as np
 
 from thermoskin.devices import protocol as proto
 from thermoskin.params import Config
-from thermoskin.sim.boards import describe
+from thermoskin.sim.boards import said, simulated_boards
 from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import DEFAULT_SCENARIO, SCENARIOS, Scenario, get_scenario
 
@@ -156,9 +156,7 @@ class DeviceCore:
         self.session_timeout = float(session_timeout)
         """The host's silence (s) after which its session is over (the device idles until a HELLO)."""
         self.device_id = device_id
-        from thermoskin.sim.boards import lab_boards as draw
-
-        self.boards = draw(cfg.sensor) if lab_boards else cfg.sensor
+        self.boards = simulated_boards(cfg.sensor, ideal=not lab_boards)
         """The boards the plant reads through (their true offsets, noise, lags)."""
         self.plant = SimulatedPlant(cfg, scenario, repeat=True, boards=self.boards)
         self.skin = self.plant.skin
@@ -796,8 +794,7 @@ def main(link: str, scenario: str = DEFAULT_SCENARIO, faults: Sequence[str] = ()
               + (f" +- {j * 1e3:g} ms" if j else "")
               + (f", faults {', '.join(faults)}" if faults else "")
               + (f", truth to {truth}" if truth is not None else "")
-              + ("; boards as configured" if ideal_sensors else
-                 f"; boards as a lab buys them: {describe(core.boards)}")
+              + f"; {said(core.boards, ideal_sensors)}"
               + "); waiting for the host",
               file=sys.stderr, flush=True)
 

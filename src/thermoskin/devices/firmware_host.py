@@ -53,7 +53,7 @@ from thermoskin.devices.emulator import (
     write_pending,
 )
 from thermoskin.params import Config
-from thermoskin.sim.boards import describe
+from thermoskin.sim.boards import said, simulated_boards
 from thermoskin.sim.plant import SimulatedPlant
 from thermoskin.sim.scenarios import Scenario
 
@@ -227,9 +227,7 @@ class World:
                  tc_period: float | None = None, jitter: float | None = None,
                  truth: TruthWriter | None = None, lab_boards: bool = False) -> None:
         s = cfg.sensor
-        from thermoskin.sim.boards import lab_boards as draw
-
-        self.boards = draw(s) if lab_boards else s
+        self.boards = simulated_boards(s, ideal=not lab_boards)
         """The sensing elements' offsets, noise and lags: a lab's drawn from ``[sensor]`` seed
         (``sim.boards``) with ``lab_boards``, else ``[sensor]``'s."""
         # the sensing elements (lag, noise, offsets) read every sample: the converters'
@@ -697,8 +695,7 @@ def main(link: str, cfg: Config, scenario: Scenario, faults: Sequence[FaultSpec]
               f"models of its hardware; scenario {scenario.name}, conversions every {period}"
               + (f", faults {', '.join(f'{f.kind}@{f.t:g}' for f in faults)}" if faults else "")
               + (f", truth to {truth}" if truth is not None else "")
-              + ("; boards as configured" if ideal_sensors else
-                 f"; boards as a lab buys them: {describe(world.boards)}")
+              + f"; {said(world.boards, ideal_sensors)}"
               + "); waiting for the host",
               file=sys.stderr, flush=True)
 

@@ -405,13 +405,14 @@ def _p_put(st, p):
 
 
 @_inline
-def _update(st, pr, i, y, p, eta, slow, learning):
+def _update(st, pr, i, y, p, eta, slow, learning, coarse):
     """Scalar measurement: the pipe's reading (``i`` 0) or the tank's (3), with the learnt variance
     of its readings; adds its evidence about a change of ``q_i``. ``p``: the covariance
     (:func:`_p_get`), returned updated; the pipe's and the tank's updates of a sample pass it
     from one to the other in registers, and the state takes it once. ``eta``: the weight of
     this reading in the variance's tracker (0: not learnt); ``slow``: the slow states learn from
-    it; ``learning`` (a constant where it is inlined): False for a patch with nothing learnt nor
+    it; ``coarse``: a converter step too coarse to learn from (:func:`_coarse`, taken once a
+    sample); ``learning`` (a constant where it is inlined): False for a patch with nothing learnt nor
     carried (:func:`fixed`), whose code then has neither the bead nor the slow states.
 
     The pipe's reading is its thermocouple's bead, ``y = (1 - a) T_w + a m`` (:data:`XM`), so
@@ -453,7 +454,7 @@ def _update(st, pr, i, y, p, eta, slow, learning):
     # (not with a coarse converter: the slow states are not learnt from its readings, nor their
     # uncertainty taken into the innovations' variance, which drove the learnt noise down)
     sps = (sb * sb * pbb + 2.0 * sb * stau * pbt + stau * stau * ptt
-           if learning and not _coarse(st, pr) else 0.0)
+           if learning and not coarse else 0.0)
     e = y - yhat
     kap = st[KAPPA]
     man = False
@@ -499,7 +500,7 @@ def _update(st, pr, i, y, p, eta, slow, learning):
             # not below 1 with a coarse converter: its readings hold still between steps, so
             # most innovations are nought and their median is no scale (kappa fell to 0.17 with
             # a 1/4 K step at 1 kHz, every reading's evidence taken 35 times over: a flood)
-            if learning and st[KAPPA] < 1.0 and pr[PR_LEARN] != 0.0 and _coarse(st, pr):
+            if learning and st[KAPPA] < 1.0 and pr[PR_LEARN] != 0.0 and coarse:
                 st[KAPPA] = 1.0
         if eta > 0.0 and i == 0:
             # the pipe reading's variance: its median tracker, e²/S at chi2(1)'s median 0.4549
@@ -1526,6 +1527,8 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         if learn_r:
             _noise2(st, pr, RA, PR_RA0, QA, LYA, LY2A, T_a, t - st[TLA])
         _quantum(st, QA, LYA, T_a)
+    # a converter step too coarse to learn the slow states from (the steps as they now stand)
+    coarse = learning and _coarse(st, pr)
     # the configured offsets off the readings (the learnt one of the tank's at its update)
     T_w_raw = T_w
     T_w = T_w - pr[PR_OFW]
@@ -1587,7 +1590,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                     st[j] = c + pr[PR_APH] * (T_w - st[X] - c)
                 y = T_w - c
             p = _update(st, pr, 0, y, p, _eta_w(pr, t - st[TLW]) if learn else 0.0, learn_slow,
-                        learning)
+                        learning, coarse)
             st[GAPRUN] = 0.0
             dt = t - st[TLW]
             if dt > 0.0:  # the board's rate: a running mean of 1/interval, first value as is
@@ -1599,7 +1602,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             st[GAPRUN] += 1.0
         if upd_p:
             p = _update(st, pr, 3, T_p - pr[PR_OFP] - (st[BD] if learning else pr[PR_BD0]), p, 0.0,
-                        learn_slow, learning)
+                        learn_slow, learning, coarse)
             if learning:
                 st[TLP] = t
         if upd_w or upd_p:
@@ -1617,7 +1620,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         # its start; but with a coarse converter, which they never learn from, at once)
         _dispersion(st, pr, t, st[SGE], st[SGG], not gap and st[MODE] != INCONTACT
                     and t - st[TAMB] >= pr[PR_TAMBH] and t - st[TREL] >= pr[PR_RHOSET]
-                    and ((st[PBB] <= pr[PR_RHOPB] and st[PTT] <= pr[PR_RHOPT]) or _coarse(st, pr)))
+                    and ((st[PBB] <= pr[PR_RHOPB] and st[PTT] <= pr[PR_RHOPT]) or coarse))
     st[Q] = st[X + 2]
     pq = st[P + 12]
     st[SQ] = math.sqrt(pq) if pq > 0.0 else 1e-12

@@ -21,8 +21,8 @@ they come out of the box, one set per seed (:data:`LAB`, with the sources of eac
 - **period** and **jitter**: as configured (the emulator's boards convert every 0.1 s, a
   MAX31856 at its 50/60 Hz filter and one-sample averaging).
 
-:func:`ideal_boards` is the configuration itself (``--ideal-sensors``: every reading exactly as
-the estimator assumes, what the simulator did before boards were drawn).
+:func:`simulated_boards` picks them or the configuration itself (``--ideal-sensors``: every
+reading exactly as the estimator assumes, what the simulator did before boards were drawn).
 """
 
 from __future__ import annotations
@@ -63,9 +63,15 @@ def lab_boards(sensor: SensorParams, seed: int | None = None) -> SensorParams:
     return dataclasses.replace(sensor, quantum_T=float(LAB["quantum"]), seed=s, **kw)
 
 
-def ideal_boards(sensor: SensorParams) -> SensorParams:
-    """The boards exactly as configured (``--ideal-sensors``)."""
-    return sensor
+def simulated_boards(sensor: SensorParams, ideal: bool) -> SensorParams:
+    """The boards a simulated skin reads through: exactly as configured (``ideal``,
+    ``--ideal-sensors``) or a lab's, drawn from ``sensor.seed`` (:func:`lab_boards`)."""
+    return sensor if ideal else lab_boards(sensor)
+
+
+def said(boards: SensorParams, ideal: bool) -> str:
+    """Which boards, in a device's banner: ``boards as configured`` or a lab's, described."""
+    return "boards as configured" if ideal else f"boards as a lab buys them: {describe(boards)}"
 
 
 def describe(boards: SensorParams) -> str:
