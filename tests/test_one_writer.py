@@ -35,6 +35,16 @@ def invoke(*args: str) -> tuple[int, str, str]:
     return r.exit_code, r.stdout, r.stderr
 
 
+def _held(out: Path, pid: int) -> bool:
+    """Whether process ``pid`` holds the lock on ``out``: its lock file names it, written just
+    after the lock was taken (the file alone is made a moment before: a process stopped between
+    the two holds nothing, and a second command then takes the lock and runs)."""
+    try:
+        return lock_file(out).read_text().startswith(f"{pid} ")
+    except OSError:
+        return False
+
+
 def test_two_runs_on_one_log(tmp_path: Path) -> None:
     """The issue's case: a second `run --log` on the path of a run under way is refused at once
     (exit 2, one line with the first's pid); the first ends alone and its log reads back whole."""
@@ -42,7 +52,7 @@ def test_two_runs_on_one_log(tmp_path: Path) -> None:
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
     try:
         t_end = time.monotonic() + 120
-        while not lock_file(tmp_path / "x.csv").exists():
+        while not _held(tmp_path / "x.csv", first.pid):
             assert first.poll() is None, first.communicate()
             assert time.monotonic() < t_end
             time.sleep(0.02)
@@ -79,7 +89,7 @@ def test_two_sweeps_on_one_output(tmp_path: Path) -> None:
                              stderr=subprocess.PIPE, text=True, env=ENV)
     try:
         t_end = time.monotonic() + 120
-        while not lock_file(out).exists():
+        while not _held(out, first.pid):
             assert first.poll() is None, first.communicate()
             assert time.monotonic() < t_end
             time.sleep(0.02)
