@@ -12,13 +12,12 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_patches_benchmark_prints_its_json_line() -> None:
-    """A small run (80 patches: the parallel kernel), with a skin's detector and this checkout
-    as its own peer: one line of JSON with the contract's keys, each patch within 1e-9 W of the
-    reference, and the peer's states equal to the kernel's bit for bit (the same code: this
-    checks the peer's wiring, not another kernel)."""
+    """A small run (80 patches: the parallel kernel), with a skin's detector: one line of JSON
+    with the contract's keys, each patch within 1e-9 W of the reference. (``--peer`` is left to
+    the benchmark's users: a peer is compiled without numba's cache, 13 s of the suite's CPU.)"""
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "patches.py"), "--n", "80",
-                        "--ticks", "300", "--check", "1", "--skin-detector", "--peer",
-                        str(ROOT / "src"), "--json"], capture_output=True, text=True, timeout=300)
+                        "--ticks", "300", "--check", "1", "--skin-detector", "--json"],
+                       capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     lines = r.stdout.strip().splitlines()
     assert len(lines) == 1, r.stdout
@@ -27,5 +26,4 @@ def test_patches_benchmark_prints_its_json_line() -> None:
     assert 0.0 < out["p50_us"] <= out["p99_us"]
     assert out["checked_patches"] == 1 and out["max_abs_diff_W"] <= 1e-9
     assert out["skin_detector"]["checked_patches"] == 1 and out["skin_detector"]["max_abs_diff_W"] <= 1e-9
-    # the peer's wiring (its own copy of the states, stepped in turn): the same code, the same states
-    assert out["same_as_peer"] is True and out["peer"]["p50_us"] > 0.0
+    assert "peer" not in out

@@ -32,7 +32,11 @@ def logs():  # type: ignore[no-untyped-def]
     for name in ("boards-10hz", "ambient-step", "cold", "setpoints"):
         cond = get_condition(name, 4242)
         c = cond.config(cfg)
-        yield name, c, simulate(cond.scenario.with_duration(40.0 if name != "setpoints" else 130.0), c)
+        sc = cond.scenario.with_duration(40.0)
+        if name == "setpoints":  # its command changes (first at 83 s) brought early: up, then down
+            sc = dataclasses.replace(cond.scenario.with_duration(70.0),
+                                     setpoints=((0.0, 24.0), (15.0, 26.0), (45.0, 23.0)))
+        yield name, c, simulate(sc, c)
     # logs coarser than the loop (the pump-switch correction): 1 kHz thermocouples logged at
     # 50 Hz (the correction at the row), and 10 Hz boards logged at 100 Hz (a board's reading
     # new in a switch's row comes first, the correction after it)
