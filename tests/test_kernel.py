@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import pytest
@@ -16,44 +17,58 @@ from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS
 
 
-def logs():  # type: ignore[no-untyped-def]
+@functools.cache
+def _one() -> dict[str, np.ndarray]:
+    log = simulate(SCENARIOS["one-finger"].with_duration(25.0), load_config())
+    log["T_w"][9000:9050] = np.nan  # a loose thermocouple
+    return log
+
+
+def _case(name: str):  # type: ignore[no-untyped-def]
+    """The case's configuration and log, made by the worker that runs it (not at collection)."""
     cfg = load_config()
-    one = simulate(SCENARIOS["one-finger"].with_duration(25.0), cfg)
-    one["T_w"][9000:9050] = np.nan  # a loose thermocouple
-    yield "1 kHz, a NaN burst", cfg, one
-    # the pump-cycle correction (16 bins: the 50 ms phases clip at the last bin)
-    es = dataclasses.replace(cfg.estimator, switch_bins=16, switch_learn=0.05)
-    sc = dataclasses.replace(cfg, estimator=es)
-    yield "pump-cycle correction", sc, one
-    # a skin patch's onset: q_i alone jumps (the kernel then keeps no step signatures; the
-    # reference still carries them, unread)
-    de = dataclasses.replace(cfg.detector, onset_state_jump=0.0)
-    yield "q_i alone jumps at an onset", dataclasses.replace(cfg, detector=de), one
-    for name in ("boards-10hz", "ambient-step", "cold", "setpoints"):
+    if name == "1 kHz, a NaN burst":
+        return cfg, _one()
+    if name == "pump-cycle correction":  # 16 bins: the 50 ms phases clip at the last bin
+        es = dataclasses.replace(cfg.estimator, switch_bins=16, switch_learn=0.05)
+        return dataclasses.replace(cfg, estimator=es), _one()
+    if name == "q_i alone jumps at an onset":
+        # a skin patch's onset: the kernel then keeps no step signatures; the reference still
+        # carries them, unread
+        de = dataclasses.replace(cfg.detector, onset_state_jump=0.0)
+        return dataclasses.replace(cfg, detector=de), _one()
+    if name in ("boards-10hz", "ambient-step", "cold", "setpoints"):
         cond = get_condition(name, 4242)
         c = cond.config(cfg)
         sc = cond.scenario.with_duration(40.0)
         if name == "setpoints":  # its command changes (first at 83 s) brought early: up, then down
             sc = dataclasses.replace(cond.scenario.with_duration(70.0),
                                      setpoints=((0.0, 24.0), (15.0, 26.0), (45.0, 23.0)))
-        yield name, c, simulate(sc, c)
+        return c, simulate(sc, c)
     # logs coarser than the loop (the pump-switch correction): 1 kHz thermocouples logged at
     # 50 Hz (the correction at the row), and 10 Hz boards logged at 100 Hz (a board's reading
     # new in a switch's row comes first, the correction after it)
-    for name, factor in (("log-100hz", 20), ("boards-10hz", 10)):
-        cond = get_condition(name, 4243)
-        c = cond.config(cfg)
-        slow = decimate(simulate(cond.scenario.with_duration(60.0), c), factor)
-        if name == "log-100hz":  # a NaN reading (flagged fresh) in the row before some switches:
-            # the next reading is still one a row, its switch corrected before it
-            sw = np.flatnonzero(np.diff(slow["v"]) != 0)[5:60:5]
-            slow["T_w"][sw] = np.nan
-        slow["fresh"] = infer_fresh(slow)[0].astype(float)
-        yield f"{name} logged every {factor} ms", c, slow
+    cname, factor = {"log-100hz logged every 20 ms": ("log-100hz", 20),
+                     "boards-10hz logged every 10 ms": ("boards-10hz", 10)}[name]
+    cond = get_condition(cname, 4243)
+    c = cond.config(cfg)
+    slow = decimate(simulate(cond.scenario.with_duration(60.0), c), factor)
+    if cname == "log-100hz":  # a NaN reading (flagged fresh) in the row before some switches:
+        # the next reading is still one a row, its switch corrected before it
+        sw = np.flatnonzero(np.diff(slow["v"]) != 0)[5:60:5]
+        slow["T_w"][sw] = np.nan
+    slow["fresh"] = infer_fresh(slow)[0].astype(float)
+    return c, slow
 
 
-@pytest.mark.parametrize(("name", "cfg", "log"), list(logs()), ids=lambda x: x if isinstance(x, str) else "")
-def test_kernel_equals_reference(name: str, cfg, log) -> None:  # type: ignore[no-untyped-def]
+CASES = ["1 kHz, a NaN burst", "pump-cycle correction", "q_i alone jumps at an onset", "boards-10hz",
+         "ambient-step", "cold", "setpoints", "log-100hz logged every 20 ms",
+         "boards-10hz logged every 10 ms"]
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_kernel_equals_reference(name: str) -> None:
+    cfg, log = _case(name)
     t_s = float(log["t"][1] - log["t"][0])
     t_s = cfg.sampling.t_s if abs(t_s - cfg.sampling.t_s) < 1e-9 else round(t_s, 6)
     # the detector's own events: the reference has no re-dating (tests/test_redate.py holds it)
