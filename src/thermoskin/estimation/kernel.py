@@ -213,7 +213,20 @@ WBD = RHOB + 2 * NRB  # the learnt offset and lag where the dispersion's window 
 WLT = WBD + 1
 IRN = WLT + 1      # the weight the information rate's mean has given its samples (1 - (1 - w)^n:
 #                    its start's bias, taken off where it is read)
-NSTATE = IRN + 1
+ARMLP = IRN + 1    # the arming: the T_w readings' mean over about ARM_TAU s, degC,
+ARMREF = IRN + 2   # where it last settled, degC,
+NSTEADY = IRN + 3  # and the samples it has held within ARM_STEADY x arm_band of that since
+NSTATE = IRN + 4
+
+#: The arming's mean of the T_w readings: a first-order lag of this time constant (s), so that
+#: the pump's ripple and the readings' noise do not break a hold (0.3 K off its command plus
+#: 0.05 K of noise and the ripple broke it now and then, forever: the detector never armed).
+ARM_TAU = 1.0
+#: The detector also arms once that mean has held within this fraction of ``arm_band`` of one
+#: value for ARM_HOLD x ``t_arm``: a skin settled away from its command (a T_w board's offset
+#: the controller did not see, or a command it cannot reach) is settled all the same.
+ARM_STEADY = 0.2
+ARM_HOLD = 3.0
 
 WARM, IDLE, INCONTACT = 0, 1, 2
 
@@ -369,6 +382,7 @@ def new_state() -> np.ndarray:
     st[TAMB] = -1e300
     st[CMD] = np.nan
     st[QIH] = np.nan
+    st[ARMLP] = st[ARMREF] = np.nan
     st[QW] = st[QP] = st[QA] = 1e300
     st[LYW] = st[LYP] = st[LYA] = np.nan
     st[LY2P] = st[LY2A] = np.nan
@@ -1632,14 +1646,13 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             st[P + 24] += (dc / pr[PR_TCMD]) ** 2
             _cusums_reset(st, t)
         st[CMD] = T_w_cmd
-    # arming: once T_w has held within the band of its command (no command: at once)
+    # arming (no command: at once): once the T_w readings' mean has held within the band of
+    # their command for t_arm, or settled (within ARM_STEADY of the band) for ARM_HOLD x t_arm
     if st[ARMED] == 0.0:
         if T_w_cmd != T_w_cmd:
             st[ARMED] = 1.0
-        elif math.isfinite(T_w_raw) and abs(T_w_raw - T_w_cmd) <= pr[PR_BAND]:
-            st[NIN] += 1.0
-            if st[NIN] >= pr[PR_NARM]:
-                st[ARMED] = 1.0
+        elif math.isfinite(T_w_raw):
+            _arm(st, pr, T_w_raw, T_w_cmd)
         else:
             st[NIN] = 0.0
     code = 0
@@ -1664,6 +1677,27 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     if st[GAPRUN] > pr[PR_MAXGAP]:
         st[READY] = 0.0  # restart from the next valid readings
     return code
+
+
+@_inline
+def _arm(st, pr, T_w_raw, T_w_cmd):
+    """One reading into the arming: its mean (a first-order lag, ARM_TAU), the hold within the
+    band of the command, the hold of the mean itself; armed once either is long enough."""
+    lp = st[ARMLP]
+    a = pr[PR_TS] / ARM_TAU
+    lp = T_w_raw if lp != lp else lp + (a if a < 1.0 else 1.0) * (T_w_raw - lp)
+    st[ARMLP] = lp
+    if abs(lp - T_w_cmd) <= pr[PR_BAND]:
+        st[NIN] += 1.0
+    else:
+        st[NIN] = 0.0
+    if abs(lp - st[ARMREF]) <= ARM_STEADY * pr[PR_BAND]:  # (a NaN: the first reading)
+        st[NSTEADY] += 1.0
+    else:
+        st[ARMREF] = lp
+        st[NSTEADY] = 0.0
+    if st[NIN] >= pr[PR_NARM] or st[NSTEADY] >= ARM_HOLD * pr[PR_NARM]:
+        st[ARMED] = 1.0
 
 
 @_inline

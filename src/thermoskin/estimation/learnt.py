@@ -43,7 +43,9 @@ class Learnt:
     per channel, 0 where no step was found; ``offset_p`` K: the T_p readings' offset against the
     T_w readings', configured plus learnt, with its sd; ``lag_w`` s: the T_w thermocouple's lag,
     with its sd; ``rho``: the evidence's dispersion, 1 where the model fits; ``info_rate``
-    W⁻²/s; ``snr``: the one-finger SNR, NaN before any information; ``T_g`` °C: the sheet)."""
+    W⁻²/s; ``snr``: the one-finger SNR, NaN before any information; ``T_g`` °C: the sheet;
+    ``armed``: the detector armed; ``arm_off`` K: the T_w readings' mean less their command where
+    the arming last looked, NaN without a command)."""
 
     noise: dict[str, float]
     quantum: dict[str, float]
@@ -55,6 +57,8 @@ class Learnt:
     info_rate: float
     snr: float
     T_g: float
+    armed: bool = True
+    arm_off: float = math.nan
 
     def lines(self) -> list[str]:
         """The figures, a line or two for a summary."""
@@ -96,7 +100,8 @@ def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
     T_g = float(st[K.X + 1]) if started else math.nan
     return Learnt(noise=noise, quantum=quantum, offset_p=sn.offset_T_p - sn.offset_T_w + bd,
                   offset_p_sd=math.sqrt(max(pbb, 0.0)), lag_w=lag, lag_w_sd=math.sqrt(max(ptt, 0.0)),
-                  rho=float(st[K.RHO]), info_rate=rate, snr=one_finger_snr(rate, T_g), T_g=T_g)
+                  rho=float(st[K.RHO]), info_rate=rate, snr=one_finger_snr(rate, T_g), T_g=T_g,
+                  armed=bool(st[K.ARMED] != 0.0), arm_off=float(st[K.ARMLP] - st[K.CMD]))
 
 
 def snr_line(snr: float, where: str = "these readings") -> str:
@@ -110,9 +115,21 @@ def notices(lt: Learnt, cfg: Config) -> dict[str, str]:
     """What the learnt figures say, keyed so that each is said once: ``snr`` (a fingertip below
     the noise), ``misfit`` (the readings do not fit the model: an unmodelled lag, a skin unlike
     its configuration, coarse converters), ``offset``, ``lag``, ``noise_<ch>`` (a sensor unlike
-    its configuration, with the key that sets it)."""
+    its configuration, with the key that sets it), ``unarmed`` (the detector has not armed:
+    nothing is reported), ``off_command`` (it armed on readings settled off their command)."""
     out: dict[str, str] = {}
     sn = cfg.sensor
+    d = cfg.detector
+    if not lt.armed:
+        off = f"{lt.arm_off:+.2f} K from" if math.isfinite(lt.arm_off) else "not yet near"
+        out["unarmed"] = (f"the detector has not armed, so no contact is reported: the T_w readings' "
+                          f"mean is {off} its command and has neither held within {d.arm_band:g} K "
+                          f"of it for {d.t_arm:g} s nor settled (within {K.ARM_STEADY * d.arm_band:g} K "
+                          f"for {K.ARM_HOLD * d.t_arm:g} s); [detector] arm_band and t_arm set these")
+    elif math.isfinite(lt.arm_off) and abs(lt.arm_off) > d.arm_band:
+        out["off_command"] = (f"the T_w readings settled {lt.arm_off:+.2f} K from their command (a T_w "
+                              "board's offset the controller does not see, or a command the skin "
+                              "cannot reach): the detector armed on their settling")
     if math.isfinite(lt.snr) and lt.snr < SNR_MIN:
         out["snr"] = snr_line(lt.snr)
     rho = lt.rho / cfg.detector.rho_deadband
@@ -153,13 +170,20 @@ class Watch:
         self.checks = checks
         self.said: set[str] = set()
         self.t_armed = math.nan
+        self.t_first = math.nan
         self.t_check = -math.inf
         self.held: dict[str, int] = {}
 
     def new(self, st: NDArray[np.float64], t: float) -> list[str]:
-        """The notices not said before, from state ``st`` at time ``t`` (s)."""
+        """The notices not said before, from state ``st`` at time ``t`` (s); that the detector
+        has not armed, once, ``settle`` s after the first call."""
+        if self.t_first != self.t_first:
+            self.t_first = t
         if st[K.ARMED] == 0.0:
-            return []
+            if t - self.t_first < self.settle or "unarmed" in self.said:
+                return []
+            self.said.add("unarmed")
+            return [notices(learnt(st, self.cfg), self.cfg)["unarmed"]]
         if self.t_armed != self.t_armed:
             self.t_armed = t
         if t - self.t_armed < self.settle or t - self.t_check < self.every:

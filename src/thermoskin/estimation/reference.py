@@ -95,6 +95,9 @@ QFINE_SD = 2.0       # ... and while both converter steps are at most this times
 R_SLOT = 0.5         # the pipe reading variance's steps are gathered in slots this long, s
 FAST_READINGS = 200.0  # ... learnt from pipe readings this many a second or more
 N_SLOTS = 4          # and taken into it N_SLOTS - 1 slots late (dropped at a detection)
+ARM_TAU = 1.0        # the arming's mean of the T_w readings: a first-order lag this long, s
+ARM_STEADY = 0.2     # armed also once that mean held within this share of arm_band of one value
+ARM_HOLD = 3.0       # ... for this many times t_arm
 
 
 def fgcd(g: float, d: float) -> float:
@@ -176,6 +179,7 @@ class ReferenceEstimator:
         self.tpl = np.zeros((2, max(1, self.cfg.estimator.switch_bins)))
         self.cmd = math.nan
         self.armed, self.n_in = False, 0
+        self.arm_mean, self.arm_ref, self.n_steady = math.nan, math.nan, 0
         self.updates: list[tuple[int, float, float, Array, bool, Array]] | None = None
         # with updates recorded: also each pump-switch correction, as (-1, c, 0, K, False, h),
         # x_Tw += c (x_Tp - x_Tw) (the re-dating's signatures carry it)
@@ -487,9 +491,8 @@ class ReferenceEstimator:
         if not self.armed:
             if T_w_cmd != T_w_cmd:
                 self.armed = True
-            elif math.isfinite(T_w_raw) and abs(T_w_raw - T_w_cmd) <= self.cfg.detector.arm_band:
-                self.n_in += 1
-                self.armed = self.n_in >= self.n_arm
+            elif math.isfinite(T_w_raw):
+                self._arm(T_w_raw, T_w_cmd)
             else:
                 self.n_in = 0
         code = 0
@@ -565,6 +568,21 @@ class ReferenceEstimator:
             return
         self.rate_h = rate
         self.h = max(d.h_on + d.h_rate * math.log(max(rate, 1.0)), d.h_min)
+
+    def _arm(self, T_w_raw: float, T_w_cmd: float) -> None:
+        """Armed once the T_w readings' mean (a first-order lag of ARM_TAU) has held within
+        arm_band of the command for t_arm, or within ARM_STEADY x arm_band of one value for
+        ARM_HOLD x t_arm (a skin settled off its command)."""
+        band = self.cfg.detector.arm_band
+        w = min(1.0, self.t_s / ARM_TAU)
+        m = T_w_raw if math.isnan(self.arm_mean) else self.arm_mean + w * (T_w_raw - self.arm_mean)
+        self.arm_mean = m
+        self.n_in = self.n_in + 1 if abs(m - T_w_cmd) <= band else 0
+        if not math.isnan(self.arm_ref) and abs(m - self.arm_ref) <= ARM_STEADY * band:
+            self.n_steady += 1
+        else:
+            self.arm_ref, self.n_steady = m, 0
+        self.armed = self.n_in >= self.n_arm or self.n_steady >= ARM_HOLD * self.n_arm
 
     def _reset_cusums(self, t: float) -> None:
         for c in self.cusums:

@@ -1,0 +1,117 @@
+"""The detector's arming on readings unlike the configured ones: the T_w readings' mean (a
+first-order lag of 1 s) held within ``arm_band`` of the command for ``t_arm``, or settled for
+three times that. Each arming time against a closed form, in the kernel and in the plain-Python
+reference alike, and what is said when it does not arm.
+
+Before this, arming asked the raw reading itself to stay within the band for ``t_arm`` without a
+break: a 0.3 K offset, 0.05 K of noise and the pump's ripple broke it now and then, forever, and
+``observe`` of such a log found none of its 9 touches, saying nothing of why."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from thermoskin.estimation import kernel as K  # noqa: N812
+from thermoskin.estimation.estimator import TouchEstimator
+from thermoskin.estimation.learnt import Watch, learnt, notices
+from thermoskin.estimation.reference import ReferenceEstimator
+from thermoskin.params import load_config
+from thermoskin.sim.run import simulate
+from thermoskin.sim.scenarios import SCENARIOS
+
+CMD = 24.0
+T_S = 1e-3
+
+
+def _log(duration: float, T_w: np.ndarray) -> dict[str, np.ndarray]:
+    """A no-touch log of the default skin, its T_w readings replaced by ``T_w`` (the arming
+    reads only them and the command)."""
+    log = simulate(SCENARIOS["none"].with_duration(duration), load_config())
+    log["T_w"] = T_w[: len(log["t"])]
+    log["T_w_cmd"] = np.full(len(log["t"]), CMD)
+    return log
+
+
+def _armed_at(log: dict[str, np.ndarray], reference: bool = False) -> float:
+    """The time of the first sample after which the detector is armed (inf: never)."""
+    cfg = load_config()
+    est = ReferenceEstimator(cfg, T_S) if reference else TouchEstimator(cfg)
+    for i, t in enumerate(log["t"]):
+        est.step(float(t), float(log["T_w"][i]), float(log["T_p"][i]), float(log["v"][i]),
+                 float(log["T_a"][i]), CMD, int(log["fresh"][i]))
+        if (est.armed if reference else est.st[K.ARMED] != 0.0):
+            return float(t)
+    return math.inf
+
+
+def _longest_raw_hold(T_w: np.ndarray, band: float) -> int:
+    """The old rule's streak: the most samples in a row with the raw reading within the band."""
+    best = run = 0
+    for inside in np.abs(T_w - CMD) <= band:
+        run = run + 1 if inside else 0
+        best = max(best, run)
+    return best
+
+
+@pytest.mark.parametrize("reference", [False, True], ids=["kernel", "reference"])
+def test_offset_noise_and_ripple_arm_after_t_arm(reference: bool) -> None:
+    """0.3 K above the command, a ±0.2 K square ripple at 1 Hz and 0.05 K of noise: the mean
+    (0.3 K off, the ripple through a 1 s lag within ±0.05 K) is within 0.5 K from the first
+    readings, so the detector arms t_arm = 3 s in. The raw readings never held 3 s."""
+    t = np.arange(12_000) * T_S
+    rng = np.random.default_rng(5)
+    T_w = CMD + 0.3 + 0.2 * np.sign(np.sin(2 * np.pi * t + 0.1)) + rng.normal(0.0, 0.05, len(t))
+    assert _longest_raw_hold(T_w, 0.5) < 3000  # the case that never armed
+    assert 2.99 <= _armed_at(_log(12.0, T_w), reference) <= 3.2  # its 3000th reading
+
+
+@pytest.mark.parametrize("reference", [False, True], ids=["kernel", "reference"])
+def test_a_skin_settled_off_its_command_arms_once_settled(reference: bool) -> None:
+    """1 K above the command, steady: never within the band, settled from the start: armed at
+    3 t_arm = 9 s, and the summary says it armed on readings settled +1.00 K off."""
+    rng = np.random.default_rng(6)
+    T_w = CMD + 1.0 + rng.normal(0.0, 0.05, 12_000)
+    assert 8.99 <= _armed_at(_log(12.0, T_w), reference) <= 9.01
+    if not reference:
+        cfg = load_config()
+        est = TouchEstimator(cfg)
+        log = _log(12.0, T_w)
+        est.run(log["t"], log["T_w"], log["T_p"], log["v"], log["T_a"], T_w_cmd=log["T_w_cmd"],
+                fresh=log["fresh"])
+        said = notices(learnt(est.st, cfg), cfg)
+        assert "unarmed" not in said and "+1.00 K from their command" in said["off_command"]
+
+
+@pytest.mark.parametrize("reference", [False, True], ids=["kernel", "reference"])
+def test_a_warming_skin_arms_t_arm_after_its_mean_reaches_the_band(reference: bool) -> None:
+    """A ramp at 0.05 K/s from 3 K below the command (never settled: 0.1 K in 2 s), held at the
+    command from 60 s. A first-order lag of 1 s follows a ramp 0.05 K behind (once its start has
+    decayed), so the mean reaches 0.5 K below the command when the readings are 0.45 K below,
+    at 51 s; armed t_arm later, 54 s."""
+    t = np.arange(58_000) * T_S
+    T_w = np.minimum(CMD - 3.0 + 0.05 * t, CMD)
+    assert 53.95 <= _armed_at(_log(58.0, T_w), reference) <= 54.05
+
+
+def test_a_skin_that_never_settles_is_said_once() -> None:
+    """Readings swinging 1 K about 2 K below the command every 20 s: never within the band,
+    never settled, never armed; the watch says so once, 30 s in, with what to set, and the
+    summary's notices say it too."""
+    cfg = load_config()
+    t = np.arange(70_000) * T_S
+    T_w = CMD - 2.0 + np.sin(2 * np.pi * t / 20.0)
+    log = _log(70.0, T_w)
+    est, watch = TouchEstimator(cfg), Watch(cfg)
+    said: list[tuple[float, str]] = []
+    for i in range(len(log["t"])):
+        est.step(float(log["t"][i]), float(log["T_w"][i]), float(log["T_p"][i]), float(log["v"][i]),
+                 float(log["T_a"][i]), CMD, int(log["fresh"][i]))
+        if i % 100 == 0:
+            said += [(float(log["t"][i]), line) for line in watch.new(est.st, float(log["t"][i]))]
+    assert est.st[K.ARMED] == 0.0 and not est.events
+    assert len(said) == 1 and 30.0 <= said[0][0] <= 30.2
+    assert "has not armed" in said[0][1] and "arm_band" in said[0][1]
+    assert "has not armed" in notices(learnt(est.st, cfg), cfg)["unarmed"]
