@@ -284,7 +284,9 @@ def test_slow_states_not_learnt_while_the_evidence_builds() -> None:
 def test_slow_states_learnt_from_fast_logs_only() -> None:
     """A 50 Hz log (1 kHz readings decimated by 20, an offset of 0.2 K on T_p): the offset is not
     learnt (its prior is 0, it stays at the configured 0); the same readings at 100 Hz learn it
-    within 20 mK. Both the kernel's parameters and the reference's prior say the same."""
+    within 20 mK. Both the kernel's parameters and the reference's prior say the same, and the
+    summary says the 50 Hz log's offset and lag are the configured ones, not learnt (not
+    "+0.000 ± 0.000 K", as if measured exactly), with what measures them."""
     from thermoskin.estimation.reference import ReferenceEstimator
     from thermoskin.sim.conditions import decimate
 
@@ -296,10 +298,14 @@ def test_slow_states_learnt_from_fast_logs_only() -> None:
         ref = ReferenceEstimator(cfg, t_s=factor * cfg.sampling.t_s)
         lt = est.learnt()
         assert (est.pr[K.PR_PB0] > 0) == learns and bool(ref.P_B[0, 0] > 0) == learns
+        said = notices(lt, cfg)
         if learns:
             assert lt.offset_p == pytest.approx(0.2, abs=0.02)
+            assert "not_learnt" not in said and "(not learnt)" not in lt.lines()[1]
         else:
             assert lt.offset_p == 0.0 and lt.lag_w == 0.0
+            assert "as configured (not learnt)" in lt.lines()[1] and "±" not in lt.lines()[1]
+            assert "1 kHz no-touch log" in said["not_learnt"] and "offset" not in said
 
 
 def test_a_slow_state_not_learnt_is_not_let_go() -> None:

@@ -45,7 +45,8 @@ class Learnt:
     with its sd; ``rho``: the evidence's dispersion, 1 where the model fits; ``info_rate``
     W⁻²/s; ``snr``: the one-finger SNR, NaN before any information; ``T_g`` °C: the sheet;
     ``armed``: the detector armed; ``arm_off`` K: the T_w readings' mean less their command where
-    the arming last looked, NaN without a command)."""
+    the arming last looked, NaN without a command; ``slow_learnt``: the offset and the lag are
+    learnt, False where these readings cannot teach them: rows slower than 100 a second)."""
 
     noise: dict[str, float]
     quantum: dict[str, float]
@@ -59,6 +60,7 @@ class Learnt:
     T_g: float
     armed: bool = True
     arm_off: float = math.nan
+    slow_learnt: bool = True
 
     def lines(self) -> list[str]:
         """The figures, a line or two for a summary."""
@@ -66,10 +68,12 @@ class Learnt:
                                                         if self.quantum[ch] > 0 else "")
                       for ch in CHANNELS)
         snr = f"{self.snr:.1f}" if math.isfinite(self.snr) else "not known yet"
-        return [f"learnt: noise {q}",
-                f"learnt: T_p offset against T_w {self.offset_p:+.3f} ± {self.offset_p_sd:.3f} K, "
-                f"T_w lag {self.lag_w * 1e3:.1f} ± {self.lag_w_sd * 1e3:.1f} ms, dispersion "
-                f"{self.rho:.2f}, one-finger SNR {snr}"]
+        slow = (f"T_p offset against T_w {self.offset_p:+.3f} ± {self.offset_p_sd:.3f} K, "
+                f"T_w lag {self.lag_w * 1e3:.1f} ± {self.lag_w_sd * 1e3:.1f} ms"
+                if self.slow_learnt else
+                f"T_p offset against T_w {self.offset_p:+.3f} K and T_w lag {self.lag_w * 1e3:.1f} ms "
+                "as configured (not learnt)")
+        return [f"learnt: noise {q}", f"learnt: {slow}, dispersion {self.rho:.2f}, one-finger SNR {snr}"]
 
 
 def one_finger_snr(info_rate: float, T_g: float) -> float:
@@ -101,7 +105,8 @@ def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
     return Learnt(noise=noise, quantum=quantum, offset_p=sn.offset_T_p - sn.offset_T_w + bd,
                   offset_p_sd=math.sqrt(max(pbb, 0.0)), lag_w=lag, lag_w_sd=math.sqrt(max(ptt, 0.0)),
                   rho=float(st[K.RHO]), info_rate=rate, snr=one_finger_snr(rate, T_g), T_g=T_g,
-                  armed=bool(st[K.ARMED] != 0.0), arm_off=float(st[K.ARMLP] - st[K.CMD]))
+                  armed=bool(st[K.ARMED] != 0.0), arm_off=float(st[K.ARMLP] - st[K.CMD]),
+                  slow_learnt=not started or pbb > 0.0 or ptt > 0.0)
 
 
 def snr_line(snr: float, where: str = "these readings") -> str:
@@ -116,7 +121,8 @@ def notices(lt: Learnt, cfg: Config) -> dict[str, str]:
     the noise), ``misfit`` (the readings do not fit the model: an unmodelled lag, a skin unlike
     its configuration, coarse converters), ``offset``, ``lag``, ``noise_<ch>`` (a sensor unlike
     its configuration, with the key that sets it), ``unarmed`` (the detector has not armed:
-    nothing is reported), ``off_command`` (it armed on readings settled off their command)."""
+    nothing is reported), ``off_command`` (it armed on readings settled off their command),
+    ``not_learnt`` (the offset and the lag cannot be learnt from these readings)."""
     out: dict[str, str] = {}
     sn = cfg.sensor
     d = cfg.detector
@@ -140,7 +146,14 @@ def notices(lt: Learnt, cfg: Config) -> dict[str, str]:
                          "touch; `thermoskin calibrate NO_TOUCH_LOG --config F.toml -o FITTED.toml` "
                          "fits the skin")
     cfg_off = sn.offset_T_p - sn.offset_T_w
-    if sn.offset_sd > 0 and abs(lt.offset_p - cfg_off) > max(3.0 * lt.offset_p_sd, 0.05):
+    if not lt.slow_learnt and (sn.offset_sd > 0 or sn.lag_sd > 0):
+        out["not_learnt"] = ("the T_p offset and the T_w lag are not learnt from these readings "
+                             "(rows slower than 100 a second: the pump switches between rows, and "
+                             "the model's misfit there would look like an offset), the configured "
+                             f"ones are used (offset {cfg_off:+.3f} K, lag {sn.lag_T_w * 1e3:.0f} ms); "
+                             "`thermoskin check` or `calibrate` of a 1 kHz no-touch log from the same "
+                             "boards measures them")
+    elif sn.offset_sd > 0 and abs(lt.offset_p - cfg_off) > max(3.0 * lt.offset_p_sd, 0.05):
         out["offset"] = (f"the T_p readings are offset by {lt.offset_p:+.3f} ± {lt.offset_p_sd:.3f} K "
                          f"from the T_w readings (learnt; configured {cfg_off:+.3f} K): "
                          f"[sensor] offset_T_p = {sn.offset_T_w + lt.offset_p:.3f} starts from it")
