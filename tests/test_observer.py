@@ -19,11 +19,11 @@ docstring and docs/model.md define, so that they are exact at the samples:
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 import pytest
-from CoolProp.CoolProp import PropsSI
 from numpy.typing import NDArray
 from scipy.linalg import expm
 from scipy.signal import lsim
@@ -47,8 +47,12 @@ class Net:
     tau_r: float = 0.05
 
 
+@functools.cache
 def _hand_R_w() -> tuple[float, float]:
-    """R_w flowing (Sieder-Tate) and still (conduction over L) for water at 24 degC, Table I geometry."""
+    """R_w flowing (Sieder-Tate) and still (conduction over L) for water at 24 degC, Table I
+    geometry. (CoolProp imported here: it takes 2 s to import, in every worker that collects.)"""
+    from CoolProp.CoolProp import PropsSI
+
     Tk, P = 297.15, 101_325.0
     k, rho, mu, pr = (PropsSI(q, "T", Tk, "P", P, "Water") for q in ("L", "D", "V", "Prandtl"))
     d, L, A = 3e-3, 0.11, 3.2e-3
@@ -56,15 +60,14 @@ def _hand_R_w() -> tuple[float, float]:
     return 1 / (nu * k / d * A), L / (k * A)
 
 
-RW_ON, RW_OFF = _hand_R_w()
-
 TABLE_I = Net(C_w=0.134, C_g=0.0124, R_g=10.0, R_aw=2100.0, R_ag=1.0)
 CHANGED = Net(C_w=0.268, C_g=0.0372, R_g=5.0, R_aw=2100.0, R_ag=2.0)  # x2, x3, x0.5, x2
 CHANGED2 = Net(C_w=0.067, C_g=0.0062, R_g=30.0, R_aw=1050.0, R_ag=0.5)  # x0.5, x0.5, x3, x0.5, x0.5
 
-# (network, skin params given to the observer, R_w(on), R_w(off) used by the simulator)
+# (network, skin params given to the observer, R_w(on), R_w(off) used by the simulator; None:
+# the hand computation's)
 CASES = {
-    "table1-iapws": (TABLE_I, SkinParams(), RW_ON, RW_OFF),
+    "table1-iapws": (TABLE_I, SkinParams(), None, None),  # R_w by hand: _case
     "changed-configured-Rw": (CHANGED, SkinParams(C_w=0.268, C_g=0.0372, R_g=5.0, R_ag=2.0,
                                                   R_w_flowing=0.25, R_w_stopped=40.0), 0.25, 40.0),
     "changed2-configured-Rw": (CHANGED2, SkinParams(C_w=0.067, C_g=0.0062, R_g=30.0, R_aw=1050.0,
@@ -163,9 +166,15 @@ def scenario(p: Net, Rw_on: float, Rw_off: float, duration: float = 20.0) -> Log
 _LOGS: dict[str, Log] = {}
 
 
+def _case(name: str) -> tuple[Net, SkinParams, float, float]:
+    """A case of :data:`CASES`, its R_w the hand computation's where it has none."""
+    p, skin, on, off = CASES[name]
+    return (p, skin, *_hand_R_w()) if on is None else (p, skin, on, off)  # type: ignore[return-value]
+
+
 def case_log(name: str) -> Log:
     if name not in _LOGS:
-        p, _, on, off = CASES[name]
+        p, _, on, off = _case(name)
         _LOGS[name] = scenario(p, on, off)
     return _LOGS[name]
 
@@ -177,7 +186,7 @@ def _observer(name: str, **params: float) -> ThermalExchangeObserver:
 # ---------------------------------------------------------------------------------------
 
 def test_hand_R_w_matches_model_md() -> None:
-    on, off = RW_ON, RW_OFF
+    on, off = _hand_R_w()
     assert on == pytest.approx(0.19, rel=0.03)
     assert off == pytest.approx(57.0, rel=0.02)
 
@@ -248,7 +257,7 @@ def test_touch_steady_state_by_hand(name: str) -> None:
     Imposed heat flow D: T_g - T_g0 = D/(1/R_g + 1/R_ag), so r -> D R_ag/(R_g + R_ag) and
     dq -> D - (T_g - T_g0)/R_ag = D R_ag/(R_g + R_ag). Contact G_c to T_f: the nodal steady
     state (pump running) gives q_i, T_g and T_g0 = (T_w/R_g + T_a/R_ag)/(1/R_g + 1/R_ag)."""
-    p, skin, on, off = CASES[name]
+    p, skin, on, off = _case(name)
     t = np.arange(42_000) * T_S
     q_x = np.where((t >= 1) & (t < 16), 0.4, 0.0)
     G_c = np.where(t >= 26, 0.05, 0.0)
@@ -318,7 +327,7 @@ def test_no_start_up_spike_on_noisy_log() -> None:
     # averaging phase: q_hat = -mean(q_p - q_aw) of the samples so far (F1(0) = 0, F2(0) = 1)
     # (interval means; the first sample is paired with itself)
     Tm = 0.5 * (np.concatenate([T_w[:1], T_w[:n_init - 1]]) + T_w[:n_init])
-    qn = (T_P - Tm) / RW_ON - (Tm - T_A) / TABLE_I.R_aw
+    qn = (T_P - Tm) / _hand_R_w()[0] - (Tm - T_A) / TABLE_I.R_aw
     running = np.cumsum(qn) / np.arange(1, n_init + 1)
     np.testing.assert_allclose(out.q_hat[:n_init], -running, rtol=0, atol=1e-6)
 

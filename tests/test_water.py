@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import pytest
-from CoolProp.CoolProp import PropsSI
 
 from thermoskin.physics.water import TABLE1_WATER, properties_for, water_properties
 
@@ -30,6 +29,8 @@ def test_matches_textbook(T: float) -> None:
 @pytest.mark.parametrize("T", [1.0, 5.0, 20.0, 24.0, 30.0, 60.0, 95.0])
 def test_matches_coolprop(T: float) -> None:
     """CoolProp (IAPWS-95 and the IAPWS transport formulations) as an independent library."""
+    from CoolProp.CoolProp import PropsSI  # (2 s to import: not in every worker's collection)
+
     Tk, P = T + 273.15, 101_325.0
     w = water_properties(T)
     assert w.rho == pytest.approx(PropsSI("D", "T", Tk, "P", P, "Water"), rel=1e-6)
