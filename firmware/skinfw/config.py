@@ -21,6 +21,10 @@ host's HELLO is refused."""
 CATCHUP_US = const(1_000_000)
 """Samples owed after a stall are sent at once (each with its own time) up to this far back;
 older ones are skipped (counted) and the clock never slips."""
+READ_LATE_US = const(10_000)
+"""A sample sent later than this (catching up after a stall) reads no converter: what converted
+meanwhile is read by the first sample within it, so that no reading is dated more than this
+before the instant it was read."""
 
 # the device's own temperature limits (1/128 K counts): wider than the host's [safety] bounds
 # (7-37 degC on T_p), a backstop that holds when the host does not

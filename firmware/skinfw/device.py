@@ -12,7 +12,9 @@ host, ``thermoskin device-emulator --firmware``). It speaks docs/protocol.md, ve
    period to come; a sample sent late (catching up after a stall) keeps the outputs as they
    were, and says so;
 2. each converter whose ``DRDY`` is low is read (one 5-byte SPI transaction: the reading and
-   its fault bits): a new reading, its counter moved, its ``fresh`` bit set; an open
+   its fault bits): a new reading, its counter moved, its ``fresh`` bit set. A sample sent
+   more than ``READ_LATE_US`` late reads none: what converted during the stall is read by
+   the first sample back on time, not dated into the samples owed before it. An open
    thermocouple or a range fault is a NaN reading, a FAULT frame and the safe state, as is a
    reading beyond the device's own limits (``config.TP_MIN/TP_MAX/TW_MAX``);
 3. one SAMPLE (50 bytes on the wire) goes out: its fields live in a preallocated packet and
@@ -241,9 +243,10 @@ class Device:
             self.pending = False
             self.apply()
         fresh = 0
+        read = late < C.READ_LATE_US  # a sample owed since a stall reads none (module doc)
         for i in range(3):
             tc = self.tc[i]
-            if force or tc.ready():
+            if force or (read and tc.ready()):
                 tc.read()
                 self._reading(i)
                 fresh |= 1 << i
