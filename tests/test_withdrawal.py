@@ -35,8 +35,10 @@ def test_withdrawn_contacts_are_the_unconfirmed_short_ones(noisy_detector) -> No
     # the detector's own dates (re-dated, a contact's bound is the release written before it,
     # which a withdrawal changes)
     # (nothing learnt of the sensors: learning goes on after a release, not after a withdrawal,
-    # so that the runs would part after the first; the mechanism is what is tested here)
-    cfg = fixed_sensors(cfg).replace(detector={"redate_readings": 0.0})
+    # so that the runs would part after the first; the mechanism is what is tested here; nor
+    # the pairing of a negative onset with the positive evidence before it, which at h = 5
+    # takes noise's negative contacts for the ends of warm ones)
+    cfg = fixed_sensors(cfg).replace(detector={"redate_readings": 0.0, "t_pair": 0.0})
     off = observe(log, cfg.replace(detector={"t_confirm": 0.0}))  # never withdrawn
     on = observe(log, cfg.replace(detector={"t_confirm": 0.2}))
     rises = int((np.diff(on.columns["contact"].astype(int)) == 1).sum())

@@ -259,6 +259,13 @@ class DetectorParams(_Validated):
                               "event); 0: never")
     t_refractory: float = _p(3.0, "s", 0.0, 60.0,
                              doc="after a release, no onset of the opposite sign for this long")
+    t_pair: float = _p(5.0, "s", 0.0, 600.0,
+                       doc="a negative onset this soon after positive evidence above half the "
+                           "threshold that came to no contact is that touch's end (a touch too "
+                           "weak to detect): the estimate takes it, no contact; 0: never")
+    release_readings: float = _p(3.0, "", 0.0, 1000.0,
+                                 doc="a release needs its evidence over at least this many pipe "
+                                     "readings (a slow board's one reading off ends no touch)")
     t_air: float = _p(1.0, "s", 0.0, 600.0,
                       doc="after a sudden change of the air (a door), no onset for this long plus "
                           "three times the air sensor's lag")

@@ -66,6 +66,8 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_HAIR] = 8.0
     pr[K.PR_TRETR] = 1.0
     pr[K.PR_TCONF] = d.t_confirm
+    pr[K.PR_TPAIR] = d.t_pair
+    pr[K.PR_RELN] = d.release_readings
     pr[K.PR_DLO] = d.dq_design_lo
     pr[K.PR_HLO] = d.h_lo
     pr[K.PR_OSJ] = d.onset_state_jump

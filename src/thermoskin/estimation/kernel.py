@@ -216,7 +216,9 @@ IRN = WLT + 1      # the weight the information rate's mean has given its sample
 ARMLP = IRN + 1    # the arming: the T_w readings' mean over about ARM_TAU s, degC,
 ARMREF = IRN + 2   # where it last settled, degC,
 NSTEADY = IRN + 3  # and the samples it has held within ARM_STEADY x arm_band of that since
-NSTATE = IRN + 4
+TXP = IRN + 4      # when a design onset CUSUM of the positive sign was last above PAIR_FLOOR of the
+#                    threshold with no contact since, s (_pair_seen)
+NSTATE = IRN + 5
 
 #: The arming's mean of the T_w readings: a first-order lag of this time constant (s), so that
 #: the pump's ripple and the readings' noise do not break a hold (0.3 K off its command plus
@@ -328,7 +330,14 @@ PR_SLOWCU = 99   # the slow states do not learn while an onset CUSUM is above th
 PR_QFINE = 100   # the slow states learn only while the T_w and T_p readings' converter steps are
                  # at most this, K (a coarser step is not dithered by the noise: its error, a
                  # sawtooth that follows the signal, was learnt as offsets swinging by 0.3 K)
-NPARAM = 101
+PR_TPAIR = 101   # a negative onset this soon after positive evidence (TXP) is that touch's end, s
+PR_RELN = 102    # a release needs its evidence over at least this many pipe readings
+NPARAM = 103
+
+#: An onset CUSUM's excursion that came to no contact pairs with an onset of the other sign
+#: once it rose above this fraction of the threshold (below it, noise's own excursions, about
+#: one in e^(h/2) of them reaching it).
+PAIR_FLOOR = 0.5
 
 #: The slow states (offset, lag) are learnt from logs of this sample period or shorter only, s
 #: (100 Hz and faster): at 50 Hz the pump switches between rows, and the model's misfit there
@@ -375,6 +384,7 @@ def new_state() -> np.ndarray:
     """A fresh (uninitialised) patch state (compiled: the sweep's batch makes its own)."""
     st = np.zeros(NSTATE)
     st[TREL] = -1e300
+    st[TXP] = -1e300
     st[KAPPA] = 1.0
     st[RATE] = 0.0
     st[TLW] = -1e300
@@ -1342,6 +1352,22 @@ def _detect(st, pr, t, ev, learning):
             else:
                 st[X + 2] += jump
                 st[P + 12] += 0.25 * jump * jump
+            if sg < 0.0 and t - st[TXP] < pr[PR_TPAIR]:
+                # the end of a warm touch too weak to detect, whose evidence came to no contact
+                # (_pair_seen): the sheet and the pipe take the change (their error, the heat
+                # the touch left in them), q_i stays at its baseline, and there is no contact;
+                # what follows is as after that touch's release (no negative onset for
+                # t_refractory, the baseline and the slow states settle first)
+                st[TREL] = t
+                st[LASTSIGN] = 1.0
+                st[X + 2] = b
+                st[VB + 2] = st[VT + 2] = 0.0
+                st[Q] = b
+                st[DQ] = 0.0
+                st[TXP] = -1e300
+                _cusums_reset(st, t)
+                _r_drop(st)
+                return 0
             q = st[X + 2]
             st[Q] = q
             st[MODE] = INCONTACT
@@ -1368,8 +1394,10 @@ def _detect(st, pr, t, ev, learning):
             st[SINCE] = 0.0
             _cusums_reset(st, t)
             _r_drop(st)
+            st[TXP] = -1e300
             st[DQ] = q - b
             return C_CONTACT | C_STARTED
+        _pair_seen(st, pr, t, h)
         if quiet and t - st[TREL] >= pr[PR_TSETTLE]:
             # no evidence of a touch: the baseline follows the estimate (a running median)
             step_b = pr[PR_AB] * sq
@@ -1416,6 +1444,11 @@ def _detect(st, pr, t, ev, learning):
         gl = 0.0
     st[RUNL] = gl
     if g > pr[PR_HOFF]:
+        if not (st[TFBL] == st[DETECTED] and t - st[DETECTED] < pr[PR_TCONF]) and (
+                (t - st[TFB]) * st[RATE] < pr[PR_RELN]):
+            # not over enough readings yet: a slow board's one reading off (its noise, a
+            # reading dated at the wrong side of a pump switch) does not end a touch
+            return C_CONTACT
         if st[TFBL] == st[DETECTED] and t - st[DETECTED] < pr[PR_TCONF]:
             # no reading since the detection favoured the contact's level over the baseline
             # (the release evidence never fell back to zero) and it ended at once: the onset
@@ -1444,6 +1477,26 @@ def _detect(st, pr, t, ev, learning):
         st[B] = q
         return C_ENDED
     return C_CONTACT
+
+
+@_inline
+def _pair_seen(st, pr, t, h):
+    """When a positive design onset CUSUM (``D``, ``D_hi``) was last above ``PAIR_FLOOR h``
+    (:data:`TXP`), for :func:`_detect`'s pairing: a warm touch too weak to be detected leaves
+    its heat in the filter's other states (the sheet, the pipe), and their error reads as a
+    fall of the touch heat once it ends (with a lab's 10 Hz boards, contacts of the negative
+    sign 0.2-4 s after the ends of the one-finger touches missed). Only this way round: a
+    negative excursion paired with a positive onset would, now and then, take a real touch
+    (the common one) for a cold object's end. Nor within ``t_refractory + t_pair`` of a cold
+    contact's release: the positive evidence of its end goes on past the hold, and the next
+    cold touch was taken for its pair."""
+    if pr[PR_TPAIR] == 0.0:
+        return
+    if st[LASTSIGN] < 0.0 and t - st[TREL] < pr[PR_TREF] + pr[PR_TPAIR]:
+        return  # the tail of a cold contact's end (held for t_refractory, then rising still)
+    floor = PAIR_FLOOR * h
+    if st[CU] > floor or st[CU + 8] > floor:
+        st[TXP] = t
 
 
 @_inline

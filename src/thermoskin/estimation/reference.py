@@ -98,6 +98,7 @@ N_SLOTS = 4          # and taken into it N_SLOTS - 1 slots late (dropped at a de
 ARM_TAU = 1.0        # the arming's mean of the T_w readings: a first-order lag this long, s
 ARM_STEADY = 0.2     # armed also once that mean held within this share of arm_band of one value
 ARM_HOLD = 3.0       # ... for this many times t_arm
+PAIR_FLOOR = 0.5     # a warm touch's evidence above this share of h pairs with a negative onset
 
 
 def fgcd(g: float, d: float) -> float:
@@ -193,6 +194,7 @@ class ReferenceEstimator:
         self.glr: deque[list[float]] = deque(maxlen=256)
         self.glr_t0 = 0.0  # time of the first reading pooled in the newest entry
         self.t_rel, self.last_sign = -1e300, 0.0
+        self.t_xp = -1e300  # when a positive design CUSUM was last above half the threshold
         self.t_air, self.air_up, self.air_down = -1e300, 0.0, 0.0
         self.contact = 0
         self.dq = 0.0
@@ -652,6 +654,17 @@ class ReferenceEstimator:
                 else:  # q_i alone (a skin's patch)
                     self.x[I_Q] += jump
                     self.P[I_Q, I_Q] += 0.25 * jump**2
+                if sg < 0 and t - self.t_xp < d.t_pair:
+                    # the end of a warm touch too weak to detect: the state takes the change,
+                    # q_i stays at its baseline, no contact; as after that touch's release
+                    self.t_rel, self.last_sign = t, 1.0
+                    self.x[I_Q] = self.b
+                    self.V[I_Q] = 0.0
+                    self.dq = 0.0
+                    self.t_xp = -1e300
+                    self._reset_cusums(t)
+                    self.r_slots = [0.0] * N_SLOTS
+                    return 0
                 q = self.x[I_Q]
                 self.mode, self.contact, self.sign = "contact", 1, sg
                 tau = self._glr_time(fire, sg) if d.onset_glr else fire.t_zero
@@ -663,8 +676,12 @@ class ReferenceEstimator:
                 self.t_below = self.t_lik = t
                 self._reset_cusums(t)
                 self.r_slots = [0.0] * N_SLOTS  # the variance's steps not yet taken: the onset's
+                self.t_xp = -1e300
                 self.dq = q - self.b
                 return 3
+            if (d.t_pair > 0 and max(self.cusums[0].g, self.cusums[2].g) > PAIR_FLOOR * h
+                    and not (self.last_sign < 0 and t - self.t_rel < d.t_refractory + d.t_pair)):
+                self.t_xp = t  # a warm touch's evidence, for pairing its end
             if quiet and t - self.t_rel >= d.t_settle:
                 self.b += self.a_b * sq * (1 if q > self.b else -1)
             self.dq = q - self.b
@@ -696,6 +713,9 @@ class ReferenceEstimator:
             gl = 0.0
         self.run_lik = gl
         if g > d.h_off:
+            confirmed = not (self.t_lik == self.detected and t - self.detected < d.t_confirm)
+            if confirmed and (t - self.t_below) * self.rate < d.release_readings:
+                return 1  # a release over this few readings: one reading off ends no touch
             if self.t_lik == self.detected and t - self.detected < d.t_confirm:
                 # never confirmed by a reading since the detection, and over at once: noise
                 self.mode, self.contact = "idle", 0
