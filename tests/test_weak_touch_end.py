@@ -1,0 +1,73 @@
+"""A warm touch too weak to detect ends with no contact of the other sign, and one reading off
+ends no touch (``detector.t_pair``, ``detector.release_readings``; docs/model.md).
+
+The log is one serial session as a lab's bench gives it, recorded by `thermoskin run --device
+serial://...` against `thermoskin device-emulator --firmware` (the reference firmware on its
+MAX31856 models, a lab's boards drawn from seed 0, converting every 98 ms; scenario `fingers`,
+75 s), its readings and commands only (`tests/data/firmware_10hz_lab_seed0.parquet`). A
+fingertip's SNR there is 1.7: the one-finger touches are below the noise.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thermoskin.analysis.evaluation import match_events
+from thermoskin.analysis.observe import observe
+from thermoskin.logio import read_log
+from thermoskin.params import load_config
+from thermoskin.sim.scenarios import SCENARIOS
+
+LOG = Path(__file__).parent / "data" / "firmware_10hz_lab_seed0.parquet"
+
+
+@pytest.fixture(scope="module")
+def session():  # type: ignore[no-untyped-def]
+    log = read_log(LOG)
+    touches = [t for t in SCENARIOS["fingers"].touches if t.t_off < log["t"][-1]]
+    assert len(touches) == 8 and log["t"][-1] > 74.9
+    return log, touches
+
+
+def _events(log, **detector):  # type: ignore[no-untyped-def]
+    return observe(log, load_config().replace(detector=detector)).events
+
+
+def test_no_contact_of_the_other_sign_after_the_touches_missed(session) -> None:  # type: ignore[no-untyped-def]
+    log, touches = session
+    events = _events(log)
+    m = match_events(touches, events)
+    assert m.false_alarms == 0, [(e.onset, e.detected_at, e.sign) for e in m.spurious]
+    assert all(e.sign > 0 for e in events)
+    assert len(touches) - m.misses >= 6  # every touch of two and three fingers, one of three fingertips
+    assert all(t.n_fingers == 1 for t in m.missed)
+    assert np.median(m.latencies) <= 0.4
+
+
+def test_without_the_pairing_the_ends_of_the_missed_touches_are_contacts(session) -> None:  # type: ignore[no-untyped-def]
+    """The same log with ``t_pair = 0``: contacts of the negative sign, each within 5 s after the
+    end of a one-finger touch (the ends the pairing takes), none of them a touch."""
+    log, touches = session
+    neg = [e for e in _events(log, t_pair=0.0) if e.sign < 0]
+    assert len(neg) >= 2
+    ends = [t.t_off for t in touches if t.n_fingers == 1]
+    for e in neg:
+        assert any(0.0 < e.onset - t_off < 5.0 for t_off in ends), e
+
+
+def test_one_reading_off_ends_no_touch(session) -> None:  # type: ignore[no-untyped-def]
+    """Without the pairing (as before it), the two-finger touch 40.0-42.8 s: one contact with the
+    release over three readings; with a release on one reading (``release_readings = 0``) it is
+    released 1.2 s early and found again, two contacts."""
+    log, _ = session
+
+    def in_touch(**kw):  # type: ignore[no-untyped-def]
+        return [e for e in _events(log, t_pair=0.0, **kw) if 39.0 <= e.detected_at <= 43.3]
+
+    (whole,) = in_touch()
+    assert whole.release == pytest.approx(42.8, abs=0.2)
+    split = in_touch(release_readings=0.0)
+    assert len(split) == 2 and split[0].release < 41.6
