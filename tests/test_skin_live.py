@@ -248,9 +248,9 @@ WITHDRAWN = re.compile(r"t =\s*([\d.]+) s\s+(\S+)\s+withdrawn")
 
 def test_skin_run_live_foxglove_client(tmp_path: Path) -> None:
     """`run --skin --live --record`: the advertised topics are the recording's; the scene comes at
-    once and lights the touched patch; its contact event carries the patch, the printed detection
-    time, within two seconds of the print; the 100 Hz estimates equal the recorded ones; the printed
-    detections are those of `observe --skin` on the log."""
+    once and lights the touched patch; its contact event carries the patch and the printed
+    detection time, sent before the estimates of a second later; the 100 Hz estimates equal the
+    recorded ones; the printed detections are those of `observe --skin` on the log."""
     port = free_port_pair()
     rec = tmp_path / "skin.mcap"
     p, out, err = start_skin_run(tmp_path, port, "--record", str(rec))
@@ -285,9 +285,14 @@ def test_skin_run_live_foxglove_client(tmp_path: Path) -> None:
     assert sent == [x[1:] for x in printed]
     w_event, ev = next((w, m) for w, m in on if m["detail"]["patch"] == "dorsal1")
     assert ev["t"] == pytest.approx(t_detect, abs=5e-4) and sign == 1 and 5.0 <= t_detect <= 7.0
-    # both times are taken in this process (the client's thread, the pipe's reader) while the
-    # run, its recording and the client share two cores: 1.17 s was seen once under CI's load
-    assert abs(w_event - w_print) < 2.0
+    # sent as it happened, in the loop's order: before the estimates of a second after it (a
+    # bound on the wall clock between the print and the event, 2 s, failed once on a machine
+    # running the suite at half its speed beside another run: 2.4 s)
+    i_event = next(i for i, (_, tp, _, m) in enumerate(client.received)
+                   if tp == "/events" and m["kind"] == "contact-on" and m["detail"]["patch"] == "dorsal1")
+    later = [i for i, (_, tp, _, m) in enumerate(client.received)
+             if tp == "/patch/dorsal1/estimate" and m["t"] > t_detect + 1.0]
+    assert later and i_event < later[0]
     print(f"live skin: dorsal1's contact event {(w_event - w_print) * 1e3:+.0f} ms from the printed "
           f"detection; {len(client.received)} messages received")
     # the scene: at once, then with dorsal1 lit at its detection
