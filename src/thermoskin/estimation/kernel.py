@@ -1360,10 +1360,7 @@ def _detect(st, pr, t, ev, learning):
                 # t_refractory, the baseline and the slow states settle first)
                 st[TREL] = t
                 st[LASTSIGN] = 1.0
-                st[X + 2] = b
-                st[VB + 2] = st[VT + 2] = 0.0
-                st[Q] = b
-                st[DQ] = 0.0
+                _q_at(st, b)
                 st[TXP] = -1e300
                 _cusums_reset(st, t)
                 _r_drop(st)
@@ -1444,39 +1441,43 @@ def _detect(st, pr, t, ev, learning):
         gl = 0.0
     st[RUNL] = gl
     if g > pr[PR_HOFF]:
-        if not (st[TFBL] == st[DETECTED] and t - st[DETECTED] < pr[PR_TCONF]) and (
-                (t - st[TFB]) * st[RATE] < pr[PR_RELN]):
+        # no reading since the detection favoured the contact's level over the baseline (the
+        # release evidence never fell back to zero)
+        unconfirmed = st[TFBL] == st[DETECTED] and t - st[DETECTED] < pr[PR_TCONF]
+        if not unconfirmed and (t - st[TFB]) * st[RATE] < pr[PR_RELN]:
             # not over enough readings yet: a slow board's one reading off (its noise, a
             # reading dated at the wrong side of a pump switch) does not end a touch
             return C_CONTACT
-        if st[TFBL] == st[DETECTED] and t - st[DETECTED] < pr[PR_TCONF]:
-            # no reading since the detection favoured the contact's level over the baseline
-            # (the release evidence never fell back to zero) and it ended at once: the onset
-            # was noise, not a touch; withdraw it (no event)
+        if unconfirmed:
+            # and it ended at once: the onset was noise, not a touch; withdraw it (no event)
             st[MODE] = IDLE
             st[CONTACT] = 0.0
-            st[X + 2] = b
-            st[VB + 2] = st[VT + 2] = 0.0  # q_i set: no longer a function of the slow states
+            _q_at(st, b)
             st[P + 12] += 0.25 * lvl * lvl
-            st[Q] = b
-            st[DQ] = 0.0
             st[RUN] = 0.0
             _cusums_reset(st, t)
             return 0
         t_rel = _between(st, st[TFBL], t) if st[DETECTED] <= st[TFBL] < st[TFB] else st[TFB]
         _end(st, t_rel, ev)
         # the touch has gone: the estimate goes back to its baseline, free to correct itself
-        st[X + 2] = b
-        st[VB + 2] = st[VT + 2] = 0.0  # q_i set: no longer a function of the slow states
+        _q_at(st, b)
         st[P + 12] += 0.25 * lvl * lvl
-        st[Q] = b
-        st[DQ] = 0.0
         return C_ENDED
     if st[SINCE] >= pr[PR_NMAX]:  # a drift, not a touch: end it and take it as the baseline
         _end(st, t, ev)
         st[B] = q
         return C_ENDED
     return C_CONTACT
+
+
+@_inline
+def _q_at(st, b):
+    """The ``q_i`` estimate set to ``b`` (its baseline), no longer a function of the slow
+    states (the offset, the lag)."""
+    st[X + 2] = b
+    st[VB + 2] = st[VT + 2] = 0.0
+    st[Q] = b
+    st[DQ] = 0.0
 
 
 @_inline

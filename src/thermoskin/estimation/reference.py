@@ -713,10 +713,10 @@ class ReferenceEstimator:
             gl = 0.0
         self.run_lik = gl
         if g > d.h_off:
-            confirmed = not (self.t_lik == self.detected and t - self.detected < d.t_confirm)
-            if confirmed and (t - self.t_below) * self.rate < d.release_readings:
+            unconfirmed = self.t_lik == self.detected and t - self.detected < d.t_confirm
+            if not unconfirmed and (t - self.t_below) * self.rate < d.release_readings:
                 return 1  # a release over this few readings: one reading off ends no touch
-            if self.t_lik == self.detected and t - self.detected < d.t_confirm:
+            if unconfirmed:
                 # never confirmed by a reading since the detection, and over at once: noise
                 self.mode, self.contact = "idle", 0
                 self.x[I_Q] = b
