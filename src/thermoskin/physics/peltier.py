@@ -40,7 +40,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import brentq
 
 from thermoskin.params import PeltierParams
 
@@ -223,4 +222,6 @@ class PeltierTank:
             lo_T, hi_T = f_lo + T_p, f_hi + T_p
             raise ValueError(f"PeltierTank.drive_for: T_p = {T_p} °C is out of reach "
                              f"({lo_T:.2f} to {hi_T:.2f} °C at T_a = {T_a} °C)")
+        from scipy.optimize import brentq  # here: importing it costs every command 0.4 s
+
         return float(brentq(f, lo, hi, xtol=1e-12))
