@@ -6,6 +6,7 @@ from __future__ import annotations
 import compileall
 import fcntl
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -26,9 +27,79 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 WARM_LOCK = "THERMOSKIN_TESTS_WARM_LOCK"
 """The environment variable naming the lock the estimator's first compile holds (below)."""
 
-_WARM_PROC = pytest.StashKey[subprocess.Popen]()  # type: ignore[type-arg]
+LATER_LOCKS = "THERMOSKIN_TESTS_LATER_LOCKS"
+"""The environment variable naming the locks of the later compiles (:data:`LATER`):
+``group=path`` pairs joined by ``;``."""
+
+_WARM_PROCS = pytest.StashKey[list]()  # type: ignore[type-arg]
 _WARM = ("from thermoskin.estimation.estimator import warm_up; from thermoskin.params import "
          "load_config; warm_up(load_config())")
+
+LATER: dict[str, tuple[str, ...]] = {
+    "patches-fixed": ("thermoskin.estimation.kernel.run_rows_fixed",
+                      "thermoskin.estimation.kernel.step_many_fixed", "thermoskin.estimation.kernel.finish"),
+    "patches": ("thermoskin.estimation.kernel.step_many", "thermoskin.estimation.kernel.run_rows"),
+    "parallel": ("thermoskin.estimation.kernel.step_many_parallel",
+                 "thermoskin.estimation.kernel.step_many_parallel_fixed"),
+    "sweep": ("thermoskin.sweep.kernel.run_rows", "thermoskin.sweep.qp.box_qp"),
+}
+"""The other entry points that inline the estimator's sample step (the patches' loops, the
+sweep's batch), by group, in the order a second process of the controller's compiles them
+while the workers run (:data:`_LATER`). In one process they take about 45 s of one core on a
+fresh clone (the step's parts typed once); compiled by the first tests that call them, in
+three workers and the `thermoskin` processes of the tests, they took about 95 s, one of them
+twice at the same time. A worker's first compile of one of them waits for its group's lock
+(:func:`_wait_for_later_compiles`), then loads it from numba's cache; a test that starts a
+`thermoskin` process needing them waits with :func:`later_kernels`."""
+
+_LATER = """
+import os, sys
+import numpy as np
+from thermoskin.estimation.model import fixed_sensors
+from thermoskin.estimation.patches import PatchEstimators
+from thermoskin.params import load_config
+
+fds = dict(kv.split("=") for kv in sys.argv[1].split(","))
+cfg = load_config()
+x2, x4 = np.full(2, 24.0), np.full(4, 24.0)
+
+
+def patches(c, parallel):
+    PatchEstimators(c, n=2, parallel=parallel).step(0.0, x2, x2, np.zeros(2), x2)
+
+
+def rows(c):
+    pe = PatchEstimators(c, n=2)
+    pe.run_rows(np.array([0, 1, 0, 1]), np.array([0.0, 0.0, 1e-3, 1e-3]), x4, x4, np.zeros(4), x4)
+    pe.finish(1e-3)
+
+
+def done(group):
+    os.close(int(fds[group]))
+
+
+rows(fixed_sensors(cfg)); patches(fixed_sensors(cfg), False); done("patches-fixed")
+patches(cfg, False); rows(cfg); done("patches")
+patches(cfg, True); patches(fixed_sensors(cfg), True); done("parallel")
+from thermoskin.sweep.engine import ScenarioSpec, run_chunk
+run_chunk([(cfg, 1)], ScenarioSpec(duration=1.0, settle=0.5)); done("sweep")
+"""
+
+
+def _locked(path: Path) -> int:
+    """A new lock file at ``path``, held (exclusively) by the open file returned."""
+    fd = os.open(path, os.O_CREAT | os.O_RDWR, 0o600)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    return fd
+
+
+def _wait(path: str) -> None:
+    """Until the lock at ``path`` is free (at once if there is none)."""
+    try:
+        with open(path) as fh:
+            fcntl.flock(fh, fcntl.LOCK_SH)
+    except FileNotFoundError:
+        pass
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -42,35 +113,71 @@ def pytest_configure(config: pytest.Config) -> None:
       by a process of its own while the workers collect, into numba's cache: otherwise each
       worker, on its first test of the estimator, compiles the same code at the same time.
       The process holds a lock until it ends; each worker waits for it before its first test
-      (``_estimator_compiled_once``)."""
-    if hasattr(config, "workerinput"):  # an xdist worker: the controller has done it
+      (``_estimator_compiled_once``);
+    - the other entry points of the sample step (:data:`LATER`), compiled by a second process
+      meanwhile, on the core the waiting workers leave, and after, group by group.
+
+    In a worker: its first compile of one of :data:`LATER` waits for that group."""
+    if hasattr(config, "workerinput"):  # an xdist worker: the controller has done the rest
+        later = os.environ.get(LATER_LOCKS)
+        if later:
+            _wait_for_later_compiles(dict(kv.split("=", 1) for kv in later.split(";")))
         return
     import thermoskin
 
     compileall.compile_dir(Path(thermoskin.__file__).parent, quiet=1)
     if not config.getoption("numprocesses", None):  # one process: it compiles as it goes
         return
-    lock = Path(tempfile.mkdtemp(prefix="thermoskin-tests-")) / "warm.lock"
-    fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o600)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)  # the child's from here: the same open file
-        proc = subprocess.Popen([sys.executable, "-c", _WARM], pass_fds=(fd,),
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    tmp = Path(tempfile.mkdtemp(prefix="thermoskin-tests-"))
+    procs = []
+    fd = _locked(tmp / "warm.lock")
+    try:  # the child's from here: the same open file
+        procs.append(subprocess.Popen([sys.executable, "-c", _WARM], pass_fds=(fd,),
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
     finally:
         os.close(fd)
-    os.environ[WARM_LOCK] = str(lock)  # the workers, started after this, inherit it
-    config.stash[_WARM_PROC] = proc
+    fds = {group: _locked(tmp / f"{group}.lock") for group in LATER}
+    try:
+        arg = ",".join(f"{g}={fd}" for g, fd in fds.items())
+        procs.append(subprocess.Popen([sys.executable, "-c", _LATER, arg], pass_fds=tuple(fds.values()),
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+    finally:
+        for fd in fds.values():
+            os.close(fd)
+    # the workers, started after this, inherit them
+    os.environ[WARM_LOCK] = str(tmp / "warm.lock")
+    os.environ[LATER_LOCKS] = ";".join(f"{g}={tmp / f'{g}.lock'}" for g in LATER)
+    config.stash[_WARM_PROCS] = procs
+
+
+def _wait_for_later_compiles(locks: dict[str, str]) -> None:
+    """Make this worker's first compile of each of :data:`LATER` wait until the controller's
+    second process has put it in numba's cache (or has ended): then it loads from there."""
+    from numba.core.dispatcher import Dispatcher
+
+    waits = {name: locks[group] for group, names in LATER.items() if group in locks for name in names}
+    compile_ = Dispatcher.compile
+
+    def compile(self, sig):  # type: ignore[no-untyped-def]
+        path = waits.pop(f"{self.py_func.__module__}.{self.py_func.__qualname__}", None)
+        if path is not None:
+            _wait(path)
+        return compile_(self, sig)
+
+    Dispatcher.compile = compile  # type: ignore[method-assign]
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
-    proc = config.stash.get(_WARM_PROC, None)
-    if proc is not None:
+    procs = config.stash.get(_WARM_PROCS, None)
+    if procs is None:
+        return
+    for proc in procs:
         if proc.poll() is None:
             proc.kill()
         proc.wait()
-        lock = Path(os.environ.pop(WARM_LOCK))
-        lock.unlink(missing_ok=True)
-        lock.parent.rmdir()
+    tmp = Path(os.environ.pop(WARM_LOCK)).parent
+    os.environ.pop(LATER_LOCKS, None)
+    shutil.rmtree(tmp, ignore_errors=True)
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -80,10 +187,26 @@ def _estimator_compiled_once() -> Iterator[None]:
     compile succeeded does not matter here: a test that needs the code compiles what is not
     there."""
     path = os.environ.get(WARM_LOCK)
-    if path and os.path.exists(path):
-        with open(path) as fh:
-            fcntl.flock(fh, fcntl.LOCK_SH)
+    if path:
+        _wait(path)
     yield
+
+
+@pytest.fixture(scope="session")
+def later_kernels() -> Callable[..., None]:
+    """``later_kernels(group, ...)``: wait until the controller's second process has compiled
+    those groups of :data:`LATER` (at once where it has, or under ``-n 0``): for a test that
+    starts `thermoskin` processes which run them (they would compile them again meanwhile)."""
+    locks = dict(kv.split("=", 1) for kv in os.environ.get(LATER_LOCKS, "").split(";") if kv)
+
+    def wait(*groups: str) -> None:
+        for group in groups:
+            if group not in LATER:
+                raise KeyError(group)
+            if group in locks:
+                _wait(locks[group])
+
+    return wait
 
 
 @pytest.fixture(scope="session")
