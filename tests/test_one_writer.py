@@ -76,10 +76,11 @@ def test_two_runs_on_one_log(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.csv", "x.png"]  # no lock file left
 
 
-def test_two_sweeps_on_one_output(tmp_path: Path) -> None:
+def test_two_sweeps_on_one_output(tmp_path: Path, later_kernels) -> None:  # type: ignore[no-untyped-def]
     """Two sweeps on one output: the second is refused (it crashed with a traceback from the
     parts store); the first's results are whole. The first is held (SIGSTOP) once it has its lock,
     while the second runs: a sweep this small is done in seconds."""
+    later_kernels("sweep")  # (compiled once for the suite, not again in each sweep's process)
     spec = tmp_path / "s.toml"
     spec.write_text('[sweep]\nsampler = "grid"\nchunk = 1\nseeds = [0, 1]\n[scenario]\nloop = "open"\n'
                     'duration = 30.0\nsettle = 2.0\ntouches = "one-finger"\n[keys]\n'
