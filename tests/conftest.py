@@ -10,6 +10,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -93,11 +94,20 @@ def _locked(path: Path) -> int:
     return fd
 
 
-def _wait(path: str) -> None:
-    """Until the lock at ``path`` is free (at once if there is none)."""
+def _wait(path: str, limit: float = 900.0) -> None:
+    """Until the lock at ``path`` is free (at once if there is none), at most ``limit`` seconds:
+    a compile that never ends must not hang the suite (the test then compiles for itself)."""
     try:
         with open(path) as fh:
-            fcntl.flock(fh, fcntl.LOCK_SH)
+            end = time.monotonic() + limit
+            while True:
+                try:
+                    fcntl.flock(fh, fcntl.LOCK_SH | fcntl.LOCK_NB)
+                    return
+                except BlockingIOError:
+                    if time.monotonic() > end:
+                        return
+                    time.sleep(0.05)
     except FileNotFoundError:
         pass
 
