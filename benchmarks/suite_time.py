@@ -59,7 +59,7 @@ def one_run(root: Path, load: int) -> dict[str, object]:
     load_avg = os.getloadavg()[0]
     t0 = time.perf_counter()
     with cpu_hogs(load):
-        r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"], cwd=root,
+        r = subprocess.run([sys.executable, "-m", "pytest"], cwd=root,
                            env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
