@@ -182,6 +182,19 @@ ROWS: tuple[Row, ...] = (
         ),
     ),
     Row(
+        "suite",
+        "the test suite from a clean state (the README's command; empty numba and pytest caches), "
+        "on two cores",
+        ("suite_time.py", "--runs", "2", "--json"),
+        lambda j: (
+            f"median {j['median_wall_s']:g} s ("
+            + ", ".join(f"{r['wall_s']:g} s" for r in j["runs"])
+            + f"), {j['runs'][-1]['passed']} passed" + ("" if j["all_passed"] else ", **a run failed**")
+        ),
+        target="≤ 300 s",
+        met=lambda j: j["all_passed"] and j["median_wall_s"] <= 300.0,
+    ),
+    Row(
         "sweep",
         "`thermoskin sweep examples/sweep.toml` (1000 designs of 60 s in closed loop)",
         ("sweep.py", "--runs", "3", "--json"),
