@@ -17,10 +17,14 @@ of the three persons, ``sim.conditions``) and ``--quiet-min`` minutes without to
 - the bar of issue 43: SNR >= 5: every touch, no false alarm, median latency <= 0.3 s (0.4 s
   with 10 Hz boards); SNR < 5: the line, and at most one false alarm an hour.
 
+``--config F``: the configuration given to the estimator is the default one with the TOML file
+``F`` over it (a lab's, or a change of a default tried on the grid before it is made).
+
 Seeds from ``--seed0`` (7000): never used in tuning (the tuning seeds were 100-111 for the lab's
 boards, 9000-9002 for the issue's cases, 0-5 in closed loop).
 
-    python benchmarks/mismatch.py [--seeds 3] [--duration 240] [--quiet-min 20] [--only a,b] [--json]
+    python benchmarks/mismatch.py [--seeds 3] [--duration 240] [--quiet-min 20] [--only a,b]
+                                  [--config F] [--json]
     python benchmarks/mismatch.py --markdown RESULT.json    # the table of docs/sensors.md
 """
 
@@ -128,10 +132,14 @@ def _boards(m: Mismatch, cfg: Config, seed: int) -> SensorParams:
     return dataclasses.replace(s, **m.boards)
 
 
+CONFIG: str | None = None
+"""``--config``: a TOML file over the default configuration (None: the default)."""
+
+
 def one_log(m: Mismatch, sc: Scenario, seed: int) -> dict[str, Any]:
     """One log of condition ``m``: simulated with the true boards and skin, estimated with the
     configuration; its events against the touches and what the estimator learnt."""
-    base = load_config()
+    base = load_config(CONFIG)
     cfg = base.replace(sensor=m.configured) if m.configured else base
     true = cfg.replace(skin=m.skin) if m.skin else cfg
     boards = _boards(m, cfg, seed)
@@ -206,6 +214,8 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=240.0, help="s per log with touches")
     ap.add_argument("--quiet-min", type=float, default=20.0, help="minutes of no touch per seed")
     ap.add_argument("--only", default=None, help="comma-separated substrings of condition names")
+    ap.add_argument("--config", default=None, metavar="F",
+                    help="a TOML file over the default configuration given to the estimator")
     ap.add_argument("--json", action="store_true", help="only the JSON line on stdout")
     ap.add_argument("--markdown", default=None, metavar="RESULT.json",
                     help="print the markdown table of a --json result and exit")
@@ -214,6 +224,13 @@ def main() -> None:
         with open(a.markdown) as f:
             print(markdown(json.loads(f.read().splitlines()[-1])))
         return
+    global CONFIG
+    CONFIG = a.config
+    if CONFIG is not None:
+        try:
+            load_config(CONFIG)
+        except (OSError, ValueError) as e:
+            raise SystemExit(f"mismatch.py: --config {CONFIG}: {e}") from None
     seeds = list(range(a.seed0, a.seed0 + a.seeds))
     grid = [m for m in GRID if a.only is None or any(s in m.name for s in a.only.split(","))]
     rows = []
@@ -228,7 +245,7 @@ def main() -> None:
                   f"offset err {r['offset_err_max_K'] * 1e3:.1f} mK "
                   f"lag {r['lag_learnt_median_s'] * 1e3:.0f} ms "
                   f"bar {'met' if r['bar_met'] else 'NOT met'}", file=sys.stderr, flush=True)
-    print(json.dumps({"seeds": seeds, "duration_s": a.duration, "quiet_min": a.quiet_min,
+    print(json.dumps({"seeds": seeds, "duration_s": a.duration, "quiet_min": a.quiet_min, "config": a.config,
                       "wall_s": time.perf_counter() - t0, "conditions": rows}))
 
 
