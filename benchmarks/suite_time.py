@@ -69,7 +69,8 @@ def one_run(root: Path, load: int) -> dict[str, object]:
             "user_s": round(after.ru_utime - before.ru_utime, 1),
             "sys_s": round(after.ru_stime - before.ru_stime, 1), "returncode": r.returncode,
             "passed": counts.get("passed", 0), "failed": counts.get("failed", 0) + counts.get("error", 0)
-            + counts.get("errors", 0), "load_avg_before": round(load_avg, 2), "result": last[-200:]}
+            + counts.get("errors", 0), "load_avg_before": round(load_avg, 2), "result": last[-200:],
+            "failures": [ln[:300] for ln in r.stdout.splitlines() if ln.startswith(("FAILED", "ERROR"))]}
 
 
 def main() -> None:
@@ -91,6 +92,8 @@ def main() -> None:
         print(f"suite_time: run {k + 1}/{len(order)}: {root}", file=sys.stderr, flush=True)
         runs.append(one_run(root, a.load))
         print(f"  {runs[-1]['wall_s']} s, {runs[-1]['result']}", file=sys.stderr, flush=True)
+        for line in runs[-1]["failures"]:  # type: ignore[attr-defined]
+            print(f"  {line}", file=sys.stderr, flush=True)
     out: dict[str, object] = {"runs": runs, "load": a.load, "cores": os.cpu_count()}
     mine = [r["wall_s"] for r in runs if r["checkout"] == str(ROOT)]
     out["median_wall_s"] = float(np.median(mine))
