@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _proc import cpu_hogs
+from _proc import check_package_dir, cpu_hogs
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -81,8 +81,8 @@ def main() -> None:
     ap.add_argument("--load", type=int, default=0, help="CPU-bound processes beside each run (default 0)")
     ap.add_argument("--json", action="store_true", help="(the output is always one JSON line)")
     a = ap.parse_args()
-    if a.peer is not None and not (a.peer / "src" / "thermoskin" / "__init__.py").is_file():
-        raise SystemExit(f"--peer {a.peer}: no src/thermoskin there (a checkout's root)")
+    if a.peer is not None:
+        check_package_dir("--peer", str(a.peer / "src"))
     order: list[Path] = []
     for i in range(a.runs):
         pair = [ROOT] if a.peer is None else ([ROOT, a.peer] if i % 2 == 0 else [a.peer, ROOT])

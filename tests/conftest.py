@@ -94,6 +94,25 @@ def _locked(path: Path) -> int:
     return fd
 
 
+def _compiling(code: str, locks: dict[str, Path]) -> subprocess.Popen:  # type: ignore[type-arg]
+    """A process running ``code`` (its argument: ``group=fd`` pairs joined by ``,``) that holds
+    each lock of ``locks`` from now on, until it closes that file or ends (the same open file:
+    the lock is the child's once the parent has closed its copy)."""
+    fds = {group: _locked(path) for group, path in locks.items()}
+    try:
+        arg = ",".join(f"{g}={fd}" for g, fd in fds.items())
+        return subprocess.Popen([sys.executable, "-c", code, arg], pass_fds=tuple(fds.values()),
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    finally:
+        for fd in fds.values():
+            os.close(fd)
+
+
+def _later_locks() -> dict[str, str]:
+    """:data:`LATER_LOCKS` as ``{group: path}`` (empty where it is not set)."""
+    return dict(kv.split("=", 1) for kv in os.environ.get(LATER_LOCKS, "").split(";") if kv)
+
+
 def _wait(path: str, limit: float = 900.0) -> None:
     """Until the lock at ``path`` is free (at once if there is none), at most ``limit`` seconds:
     a compile that never ends must not hang the suite (the test then compiles for itself)."""
@@ -129,9 +148,9 @@ def pytest_configure(config: pytest.Config) -> None:
 
     In a worker: its first compile of one of :data:`LATER` waits for that group."""
     if hasattr(config, "workerinput"):  # an xdist worker: the controller has done the rest
-        later = os.environ.get(LATER_LOCKS)
-        if later:
-            _wait_for_later_compiles(dict(kv.split("=", 1) for kv in later.split(";")))
+        locks = _later_locks()
+        if locks:
+            _wait_for_later_compiles(locks)
         return
     import thermoskin
 
@@ -139,24 +158,11 @@ def pytest_configure(config: pytest.Config) -> None:
     if not config.getoption("numprocesses", None):  # one process: it compiles as it goes
         return
     tmp = Path(tempfile.mkdtemp(prefix="thermoskin-tests-"))
-    procs = []
-    fd = _locked(tmp / "warm.lock")
-    try:  # the child's from here: the same open file
-        procs.append(subprocess.Popen([sys.executable, "-c", _WARM], pass_fds=(fd,),
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-    finally:
-        os.close(fd)
-    fds = {group: _locked(tmp / f"{group}.lock") for group in LATER}
-    try:
-        arg = ",".join(f"{g}={fd}" for g, fd in fds.items())
-        procs.append(subprocess.Popen([sys.executable, "-c", _LATER, arg], pass_fds=tuple(fds.values()),
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-    finally:
-        for fd in fds.values():
-            os.close(fd)
+    later = {group: tmp / f"{group}.lock" for group in LATER}
+    procs = [_compiling(_WARM, {"warm": tmp / "warm.lock"}), _compiling(_LATER, later)]
     # the workers, started after this, inherit them
     os.environ[WARM_LOCK] = str(tmp / "warm.lock")
-    os.environ[LATER_LOCKS] = ";".join(f"{g}={tmp / f'{g}.lock'}" for g in LATER)
+    os.environ[LATER_LOCKS] = ";".join(f"{g}={path}" for g, path in later.items())
     config.stash[_WARM_PROCS] = procs
 
 
@@ -207,7 +213,7 @@ def later_kernels() -> Callable[..., None]:
     """``later_kernels(group, ...)``: wait until the controller's second process has compiled
     those groups of :data:`LATER` (at once where it has, or under ``-n 0``): for a test that
     starts `thermoskin` processes which run them (they would compile them again meanwhile)."""
-    locks = dict(kv.split("=", 1) for kv in os.environ.get(LATER_LOCKS, "").split(";") if kv)
+    locks = _later_locks()
 
     def wait(*groups: str) -> None:
         for group in groups:
