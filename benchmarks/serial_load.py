@@ -10,8 +10,9 @@ the whole benchmark. Each run's events are scored against the emulator's truth f
 (``analysis.evaluation``: every touch that ended 1 s before the run's end, a hit when a
 contact is detected from its onset to 1 s after its release; every other contact a false
 alarm). Figures per run: exit code, touches, hits, misses, false alarms, latency median and
-max, the log's first ``t`` (0 for a fresh session), the loop's lateness p50/p99/max and
-overruns and frames late as the run reports them, and the emulator's own stop line.
+max and per touch (its onset, fingers, latency or ``None``), the log's first ``t`` (0 for a
+fresh session), the loop's lateness p50/p99/max and overruns and frames late as the run
+reports them, and the emulator's own stop line.
 
     python benchmarks/serial_load.py --json [--runs 2] [--seconds 75] [--load 2] [--firmware]
         [--delay 4] [--sessions 2] [--scenario fingers] [--ideal-sensors]
@@ -62,7 +63,10 @@ def score(truth: Path, events: Path, t_end: float) -> dict[str, Any]:
     return {"touches": len(touches) - m.not_scored, "hits": m.hits, "missed": m.misses,
             "false_alarms": m.false_alarms,
             "latency_median_s": round(float(np.median(lat)), 3) if lat else None,
-            "latency_max_s": round(float(np.max(lat)), 3) if lat else None}
+            "latency_max_s": round(float(np.max(lat)), 3) if lat else None,
+            "latency_by_touch": [{"t_on_s": round(tc.t_on, 3), "n_fingers": tc.n_fingers,
+                                  "latency_s": None if j is None else round(ev[j].detected_at - tc.t_on, 3)}
+                                 for tc, j in zip(touches, m.pairs, strict=True) if tc.t_on < t_end]}
 
 
 def one_session(folder: Path, link: Path, truth: Path, i: int, seconds: float, pre: list[str],
