@@ -375,10 +375,11 @@ def test_serial_run_on_a_loaded_host_detects_with_10hz_boards(tmp_path: Path) ->
     # issue 43's latency bar (median <= 0.4 s with 10 Hz boards) is for readings whose
     # one-finger SNR is at least 5; these boards' is about 3, and the run says so in its line.
     # The touches of two and three fingers (their own SNR twice and three times it) are
-    # detected within 0.5 s each: 0.3 s in 10 quiet runs of 10, but the first (5 s in, its
-    # evidence weighed by the dispersion's prior) crossed the threshold one or two 10 Hz
-    # readings later in 3 of 8 loaded runs (the host's timing moves the pump's switches, so
-    # the evidence before the touch): docs/sensors.md
+    # detected within 0.5 s each. The first (5 s in, its evidence weighed by the dispersion's
+    # prior) sits at the threshold on its third reading: 0.3 s in 31 sessions of 35, 0.4 s in
+    # 2 (one on a quiet host), 0.5 s in 2 (two sessions at once, as the suite's workers run
+    # them): the host's timing moves the pump's switches, so the evidence before the touch
+    # (docs/sensors.md)
     from thermoskin.analysis.evaluation import touches_from_truth
 
     pat = r"one-finger SNR of (\d+\.\d+) with these readings: below 5"
