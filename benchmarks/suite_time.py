@@ -10,7 +10,8 @@ put first on ``PYTHONPATH``.
 by run (this, peer, peer, this, ...), so that the host's speed, which moves from hour to hour
 by a quarter, falls on both alike; the median of the run-by-run ratios is printed.
 ``--load N``: N CPU-bound processes beside every run (the issue's "two CPU-bound processes").
-Prints one JSON line with every run and the medians.
+Prints one JSON line with every run (a failed one with pytest's FAILED lines and its "E" lines,
+the assertion and its values) and the medians.
 
     python benchmarks/suite_time.py [--runs 2] [--peer DIR] [--load 2] [--json]
 """
@@ -70,7 +71,9 @@ def one_run(root: Path, load: int) -> dict[str, object]:
             "sys_s": round(after.ru_stime - before.ru_stime, 1), "returncode": r.returncode,
             "passed": counts.get("passed", 0), "failed": counts.get("failed", 0) + counts.get("error", 0)
             + counts.get("errors", 0), "load_avg_before": round(load_avg, 2), "result": last[-200:],
-            "failures": [ln[:300] for ln in r.stdout.splitlines() if ln.startswith(("FAILED", "ERROR"))]}
+            "failures": [ln[:300] for ln in r.stdout.splitlines() if ln.startswith(("FAILED", "ERROR"))],
+            # what a failure said: pytest's "E" lines (its assertion and values), the first 60
+            "errors": [ln[:300] for ln in r.stdout.splitlines() if ln.startswith("E ")][:60]}
 
 
 def main() -> None:
@@ -92,7 +95,7 @@ def main() -> None:
         print(f"suite_time: run {k + 1}/{len(order)}: {root}", file=sys.stderr, flush=True)
         runs.append(one_run(root, a.load))
         print(f"  {runs[-1]['wall_s']} s, {runs[-1]['result']}", file=sys.stderr, flush=True)
-        for line in runs[-1]["failures"]:  # type: ignore[attr-defined]
+        for line in [*runs[-1]["failures"], *runs[-1]["errors"]]:  # type: ignore[misc]
             print(f"  {line}", file=sys.stderr, flush=True)
     out: dict[str, object] = {"runs": runs, "load": a.load, "cores": os.cpu_count()}
     mine = [r["wall_s"] for r in runs if r["checkout"] == str(ROOT)]
