@@ -32,13 +32,13 @@ from thermoskin.runtime.controller import SkinController
 from thermoskin.sim.scenarios import get_scenario
 
 
-def session(delay: int, duration: float, scenario: str, tp_every_sample: bool = False,
-            T_w_cmd: float = 24.0) -> dict[str, object]:
+def session(delay: int, duration: float, scenario: str, tp_every_sample: bool = False) -> dict[str, object]:
     """One session of ``duration`` s with every command ``delay`` (>= 1) samples late."""
     cfg = load_config()
     if tp_every_sample:
         cfg = cfg.replace(sensor={"period_T_w": 0.1, "period_T_p": 0.0, "period_T_a": 0.1})
-    core = DeviceCore(cfg, get_scenario(scenario), tc_period=None if tp_every_sample else 0.1)
+    sc = get_scenario(scenario)
+    core = DeviceCore(cfg, sc, tc_period=None if tp_every_sample else 0.1)
     core.on_message(proto.Hello(1, proto.PROTOCOL_VERSION, 1000))
     ctrl = SkinController(load_config())
     est = ctrl.estimator
@@ -51,9 +51,10 @@ def session(delay: int, duration: float, scenario: str, tp_every_sample: bool = 
         if cmd is not None:
             core.on_message(cmd)
         s = next(m for m in core.step() if isinstance(m, proto.SampleMsg))
-        ctrl.step(s.t_us * 1e-6, s.T_w, s.T_p, s.T_a, T_w_cmd, s.fresh, s.v, s.drive)
+        t = s.t_us * 1e-6  # the scenario's command, as `thermoskin run` takes it
+        ctrl.step(t, s.T_w, s.T_p, s.T_a, sc.T_w_cmd_at(t), s.fresh, s.v, s.drive)
         due[k + delay] = proto.Command(k + 2, ctrl.drive, ctrl.v)
-        t, contact, _, n_fingers, _ = core.truth
+        _, contact, _, n_fingers, _ = core.truth
         truth[k] = (t, contact, n_fingers)
     est.finish(truth[-1, 0])  # a contact still on ends with the session, as `run` ends it
     touches = touches_from_truth(truth[:, 0], truth[:, 1], truth[:, 2])

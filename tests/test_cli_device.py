@@ -229,7 +229,8 @@ def test_interrupted_recording_is_finished(tmp_path: Path) -> None:
 
 
 def _score(truth: Path, events_csv: Path, t_end: float) -> Any:
-    """The truth file's touches against a run's --events (those cut by ``t_end`` not scored)."""
+    """The truth file's touches against a run's --events (those cut by ``t_end`` not scored):
+    the match and the touches."""
     import csv
 
     from thermoskin.analysis.evaluation import match_events, touches_from_truth
@@ -241,7 +242,7 @@ def _score(truth: Path, events_csv: Path, t_end: float) -> Any:
         events = [ContactEvent(float(x["onset"]), float(x["detected"]), float(x["release"]),
                                float(x["duration"]), int(x["sign"]), float(x["peak_dq"]),
                                float(x["mean_dq"]), float(x["energy"])) for x in csv.DictReader(fh)]
-    return match_events(touches, events, t_end=t_end), tr
+    return match_events(touches, events, t_end=t_end), touches
 
 
 def _start(args: list[str], link: Path) -> subprocess.Popen[str]:
@@ -368,7 +369,7 @@ def test_serial_run_on_a_loaded_host_detects_with_10hz_boards(tmp_path: Path) ->
     assert r.returncode == 0, r.stderr
     assert "thermocouples every 100 ms" in emu_err  # the emulator's default boards
     assert (tmp_path / "run.png").exists()  # the plot beside the log
-    m, tr = _score(truth, tmp_path / "ev.csv", 20.0)
+    m, touches = _score(truth, tmp_path / "ev.csv", 20.0)
     seen = (m.latencies, m.missed, m.not_scored)
     assert len(m.latencies) + len(m.missed) == 3, seen  # two, three and one finger(s) at 5, 11, 17 s
     assert m.false_alarms == 0, m.spurious
@@ -381,11 +382,8 @@ def test_serial_run_on_a_loaded_host_detects_with_10hz_boards(tmp_path: Path) ->
     # 2 (one on a quiet host), 0.5 s in 2 (two sessions at once, as the suite's workers run
     # them): the host's timing moves the pump's switches, so the evidence before the touch
     # (docs/sensors.md)
-    from thermoskin.analysis.evaluation import touches_from_truth
-
     pat = r"one-finger SNR of (\d+\.\d+) with these readings: below 5"
     snr = float(re.findall(pat, r.stdout + r.stderr)[0])
-    touches = touches_from_truth(tr["t"], tr["contact_true"], tr["n_fingers"])
     strong = [lat for touch, lat in zip(touches, m.latencies, strict=True) if touch.n_fingers * snr >= 5]
     assert len(strong) == 2 and max(strong) <= 0.5, (snr, m.latencies)
     fell_behind = "fell behind" in r.stderr
