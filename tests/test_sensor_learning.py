@@ -163,6 +163,32 @@ def test_dispersion_widens_what_the_detector_needs() -> None:
     assert sum(e.detected_at >= 15.0 for e in off.events) >= 5
 
 
+def test_before_its_windows_the_dispersion_is_its_prior() -> None:
+    """Until the dispersion has windows of its own it is ``detector.rho_prior``, and the onset
+    CUSUMs weigh each reading's evidence by ``rho_deadband / rho_prior`` where that is below 1:
+    a CUSUM ``g <- max(0, g + w l)`` scales with ``w`` (so prior 3 gives exactly half of prior
+    1's, at every sample of 10 Hz readings before the first window), and a prior within the dead
+    band (1, 1.5) weighs nothing."""
+    cfg, log = _quiet(8.0, period_T_w=0.1, period_T_p=0.1, period_T_a=0.1)
+    cfg = cfg.replace(sensor={"period_T_w": 0.1, "period_T_p": 0.1, "period_T_a": 0.1})
+    cus = {}
+    for prior in (1.0, 1.5, 3.0):
+        est = TouchEstimator(cfg.replace(detector={"rho_prior": prior}))
+        rows = []
+        for k in range(len(log["t"])):
+            est.step(*(float(log[x][k]) for x in ("t", "T_w", "T_p", "v", "T_a", "T_w_cmd")),
+                     int(log["fresh"][k]))
+            if est.st[K.RHON] > 0:  # its first window: the prior's part ends
+                break
+            assert est.st[K.RHO] == prior and not est.contact
+            rows.append([est.st[K.CU + 4 * j] for j in range(K.NCU)])
+        cus[prior] = np.array(rows)
+    assert len(cus[1.0]) > 2000  # the detector armed (from 1 s) and idle for seconds before it
+    assert (cus[1.0] > 0.5).any()  # the CUSUMs moved (a no-touch log's noise)
+    np.testing.assert_array_equal(cus[1.5], cus[1.0])
+    np.testing.assert_allclose(cus[3.0], 0.5 * cus[1.0], rtol=1e-12, atol=1e-12)
+
+
 def test_one_finger_snr() -> None:
     """The SNR: a fingertip's heat over the sd of its estimate from 0.3 s of readings."""
     assert one_finger_snr(1000.0, 20.0) == pytest.approx(0.05 * 13.0 * math.sqrt(300.0))

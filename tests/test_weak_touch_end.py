@@ -36,6 +36,12 @@ def _events(log, **detector):  # type: ignore[no-untyped-def]
     return observe(log, load_config().replace(detector=detector)).events
 
 
+#: the dispersion's prior these tests were made with (a wary 2: the evidence weighed 0.75 until
+#: the dispersion has its windows, 30 s into this log); with the model's own 1 (the default) the
+#: touches' ends and releases below fall otherwise, and fewer are missed
+WARY = 2.0
+
+
 def test_no_contact_of_the_other_sign_after_the_touches_missed(session) -> None:  # type: ignore[no-untyped-def]
     log, touches = session
     events = _events(log)
@@ -44,14 +50,18 @@ def test_no_contact_of_the_other_sign_after_the_touches_missed(session) -> None:
     assert all(e.sign > 0 for e in events)
     assert len(touches) - m.misses >= 6  # every touch of two and three fingers, one of three fingertips
     assert all(t.n_fingers == 1 for t in m.missed)
-    assert np.median(m.latencies) <= 0.4
+    # the latency bar of 10 Hz boards (0.4 s) for the touches above the noise: two and three
+    # fingers (a fingertip's found late, 1.3-1.8 s, would move a median of all)
+    hit = [t for t, j in zip(touches, m.pairs, strict=True) if j is not None]
+    strong = [lat for t, lat in zip(hit, m.latencies, strict=True) if t.n_fingers >= 2]
+    assert len(strong) == 5 and np.median(strong) <= 0.4, m.latencies
 
 
 def test_without_the_pairing_the_ends_of_the_missed_touches_are_contacts(session) -> None:  # type: ignore[no-untyped-def]
     """The same log with ``t_pair = 0``: contacts of the negative sign, each within 5 s after the
     end of a one-finger touch (the ends the pairing takes), none of them a touch."""
     log, touches = session
-    neg = [e for e in _events(log, t_pair=0.0) if e.sign < 0]
+    neg = [e for e in _events(log, t_pair=0.0, rho_prior=WARY) if e.sign < 0]
     assert len(neg) >= 2
     ends = [t.t_off for t in touches if t.n_fingers == 1]
     for e in neg:
@@ -65,7 +75,7 @@ def test_one_reading_off_ends_no_touch(session) -> None:  # type: ignore[no-unty
     log, _ = session
 
     def in_touch(**kw):  # type: ignore[no-untyped-def]
-        return [e for e in _events(log, t_pair=0.0, **kw) if 39.0 <= e.detected_at <= 43.3]
+        return [e for e in _events(log, t_pair=0.0, rho_prior=WARY, **kw) if 39.0 <= e.detected_at <= 43.3]
 
     (whole,) = in_touch()
     assert whole.release == pytest.approx(42.8, abs=0.2)

@@ -226,6 +226,9 @@ class DetectorParams(_Validated):
                                "evidence (0: none)")
     rho_deadband: float = _p(1.5, "", 1.0, 100.0,
                              doc="a dispersion up to this is taken as none (its tracker's own scatter)")
+    rho_prior: float = _p(1.0, "", 0.001, 100.0,
+                          doc="the dispersion before it has three windows of its own (1: the model "
+                              "fits; above rho_deadband a touch then needs that much more evidence)")
     h_min: float = _p(11.9, "", 0.0, 1000.0,
                       doc="... and never below this: a CUSUM alarms on noise about once in e^h "
                           "readings (Lorden), so at a few readings a second each carries much "

@@ -139,7 +139,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_RHODB_] = 0.02
     pr[K.PR_RHODT] = 0.005
     pr[K.PR_RHOEARLY] = 10.0
-    pr[K.PR_RHO0] = 2.0
+    pr[K.PR_RHO0] = d.rho_prior
     pr[K.PR_RHOCAP] = 1e6
     pr[K.PR_SLOWCU] = 0.25
     # converter steps up to twice the pipe reading's configured sd are dithered by the noise

@@ -1227,7 +1227,7 @@ def _dispersion(st, pr, t, sge, sgg, on):
             n = int(st[RHON])
             st[RHON] = n + 1.0
             if n < NRB:  # the first NRB windows: their median (a few seconds, robust), from
-                # the third on (before: its prior, PR_RHO0, a little wary)
+                # the third on (before: its prior, PR_RHO0, detector.rho_prior)
                 st[RHOB + n] = a * a / (0.4549 * b)
                 for j in range(n + 1):
                     st[RHOB + NRB + j] = st[RHOB + j]
