@@ -152,6 +152,7 @@ def one_log(m: Mismatch, sc: Scenario, seed: int) -> dict[str, Any]:
     match = match_events(sc.touches, res.events)
     return {"touches": len(sc.touches), "hits": match.hits, "misses": match.misses,
             "false_alarms": match.false_alarms, "latencies": [float(x) for x in match.latencies],
+            "false_alarms_at_s": [round(float(e.detected_at), 2) for e in match.spurious],
             "hours": sc.duration / 3600.0, "snr": lt.snr,
             "offset_err": lt.offset_p - (boards.offset_T_p - boards.offset_T_w),
             "lag": lt.lag_w, "lag_err": lt.lag_w - boards.lag_T_w}
@@ -181,6 +182,8 @@ def condition(m: Mismatch, seeds: list[int], duration: float, quiet_min: float) 
     lag_err = np.array([r["lag_err"] for r in logs])
     return {"condition": m.name, "touches": touches, "detected": hits, "missed": touches - hits,
             "false_alarms": fa, "false_alarms_per_h": fa / hours, "hours": hours,
+            # when in its log each came (s; a log's start is where its estimator learns)
+            "false_alarms_at_s": sorted(x for r in logs for x in r["false_alarms_at_s"]),
             "latency_median_s": med, "latency_p90_s": float(np.percentile(lat, 90)) if lat else math.nan,
             "snr_one_finger": snr, "snr_line": bool(snr < SNR_MIN),
             "offset_err_median_K": float(np.median(np.abs(off))),
