@@ -359,7 +359,9 @@ def test_run_live_foxglove_client(tmp_path: Path) -> None:
     event at the printed detection time and within a second of it being printed."""
     port = free_port_pair()
     p, out, err = start_run(tmp_path, port)
-    client = FoxgloveClient(port)
+    # every channel before subscribing: the server may advertise them in several messages (on a
+    # loaded host the first held only /skin/sample, and the others went unsubscribed)
+    client = FoxgloveClient(port, expect=len(TOPIC_SCHEMAS))
     finish(p, out, err)
     client.closed.wait(5)
     client.close()
@@ -405,7 +407,8 @@ def replay_to_client(rec_path: Path, speed: float) -> tuple[FoxgloveClient, Line
                           "--live-wait", "60"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          text=True, env=ENV)
     out, err = Lines(p.stdout), Lines(p.stderr)
-    client = FoxgloveClient(port)
+    # every channel of the recording's topics before subscribing (as above)
+    client = FoxgloveClient(port, expect=sum(1 for msgs in read_mcap(rec_path).values() if msgs))
     finish(p, out, err, timeout=60)
     client.closed.wait(5)
     client.close()
