@@ -78,8 +78,8 @@ def session(delay: int, duration: float, scenario: str, tp_every_sample: bool = 
     m = match_events(touches, est.events, t_end=duration)
     lt = est.learnt()
     by_touch = [{"t_on_s": round(tc.t_on, 3), "n_fingers": tc.n_fingers,
-                 "latency_s": None if j is None else round(est.events[j].detected_at - tc.t_on, 3)}
-                for tc, j in zip(touches, m.pairs, strict=True) if tc.t_on < duration]
+                 "latency_s": None if x is None else round(x, 3)}
+                for tc, x in zip(touches, m.latency_by_touch(), strict=True) if tc.t_on < duration]
     return {"delay_samples": delay, "tp_every_sample": tp_every_sample, "shift_s": round(shift, 4),
             "lab_seed": lab_seed, "dispersion": round(float(lt.rho), 2),
             "snr_one_finger": round(float(lt.snr), 2), "hits": m.hits, "false_alarms": m.false_alarms,

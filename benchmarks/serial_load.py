@@ -65,8 +65,9 @@ def score(truth: Path, events: Path, t_end: float) -> dict[str, Any]:
             "latency_median_s": round(float(np.median(lat)), 3) if lat else None,
             "latency_max_s": round(float(np.max(lat)), 3) if lat else None,
             "latency_by_touch": [{"t_on_s": round(tc.t_on, 3), "n_fingers": tc.n_fingers,
-                                  "latency_s": None if j is None else round(ev[j].detected_at - tc.t_on, 3)}
-                                 for tc, j in zip(touches, m.pairs, strict=True) if tc.t_on < t_end]}
+                                  "latency_s": None if x is None else round(x, 3)}
+                                 for tc, x in zip(touches, m.latency_by_touch(), strict=True)
+                                 if tc.t_on < t_end]}
 
 
 def one_session(folder: Path, link: Path, truth: Path, i: int, seconds: float, pre: list[str],

@@ -269,6 +269,7 @@ def test_stopped_run_scores_only_what_it_could_see() -> None:
     whole = match_events(touches, ev)
     assert (whole.hits, whole.misses, whole.not_scored) == (2, 1, 0)
     assert whole.pairs == [0, 1, None]  # each touch's event
+    assert whole.latency_by_touch() == [pytest.approx(0.1), pytest.approx(0.1), None]  # detected_at - t_on
     assert (lambda m: (m.hits, m.misses, m.not_scored))(match_events(touches, ev, t_end=16.0)) == (2, 0, 1)
     m = match_events(touches, ev[:1], t_end=15.05)  # the second touch cut before its detection
     assert (m.hits, m.misses, m.not_scored, m.false_alarms) == (1, 0, 2, 0)

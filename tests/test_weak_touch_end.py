@@ -52,8 +52,8 @@ def test_no_contact_of_the_other_sign_after_the_touches_missed(session) -> None:
     assert all(t.n_fingers == 1 for t in m.missed)
     # the latency bar of 10 Hz boards (0.4 s) for the touches above the noise: two and three
     # fingers (a fingertip's found late, 1.3-1.8 s, would move a median of all)
-    hit = [t for t, j in zip(touches, m.pairs, strict=True) if j is not None]
-    strong = [lat for t, lat in zip(hit, m.latencies, strict=True) if t.n_fingers >= 2]
+    strong = [lat for t, lat in zip(touches, m.latency_by_touch(), strict=True)
+              if t.n_fingers >= 2 and lat is not None]
     assert len(strong) == 5 and np.median(strong) <= 0.4, m.latencies
 
 

@@ -29,6 +29,11 @@ class Match:
     pairs: list[int | None] = field(default_factory=list)
     """Per touch (in order), the index of its event in ``events``; None if it has none."""
 
+    def latency_by_touch(self) -> list[float | None]:
+        """Per touch (in order), its latency (s); None where it has no event."""
+        hits = iter(self.latencies.tolist())
+        return [None if j is None else next(hits) for j in self.pairs]
+
 
 def match_events(touches: Sequence[Touch], events: Sequence[ContactEvent],
                  late: float = 1.0, t_end: float = math.inf) -> Match:
