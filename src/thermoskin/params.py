@@ -159,10 +159,11 @@ class EstimatorParams(_Validated):
                          doc="more model error on the pipe node while the pump runs: water comes in "
                              "whose temperature the inlet's thermocouple, read only now and then, "
                              "has not seen (a skin sets it from its boards' period, docs/skin.md)")
-    switch_bins: int = _p(0, "samples", 0, 64,
+    switch_bins: int = _p(64, "samples", 0, 64,
                           doc="pump-cycle correction of T_w: the mean no-touch misfit per sample "
-                              "since the last pump switch, this many bins per direction (a pipe "
-                              "of many cells, docs/skin.md; 0: none)")
+                              "since the last pump switch, this many bins per direction (a skin "
+                              "unlike its configuration, docs/model.md; a pipe of many cells, "
+                              "docs/skin.md; learnt from 200 readings a second and more; 0: none)")
     switch_learn: float = _p(0.02, "", 1e-6, 1.0,
                              doc="its learning weight per no-touch reading")
     tank_gain: float | None = _p(None, "K/s", 0.0, 1e3, optional=True,

@@ -263,6 +263,11 @@ class TouchEstimator:
         return float(self.st[K.X + 1])
 
     @property
+    def switch_table(self) -> NDArray[np.float64]:
+        """The pump-cycle correction as it stands (``estimator.switch_bins``; a view), K."""
+        return self.st[K.TPL:K.TPL + 2 * K.NPH]
+
+    @property
     def b_p_hat(self) -> float:
         """The T_p readings' offset against the T_w readings (configured and learnt), K."""
         return float(self.st[K.BD]) + self._b_cfg

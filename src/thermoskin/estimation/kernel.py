@@ -224,6 +224,19 @@ NSTATE = IRN + 5
 #: the pump's ripple and the readings' noise do not break a hold (0.3 K off its command plus
 #: 0.05 K of noise and the ripple broke it now and then, forever: the detector never armed).
 ARM_TAU = 1.0
+#: Where the sensors are learnt, the pump-cycle correction leaks to nought at this share of
+#: its learning weight (a prior of no misfit): a level per direction of the switch is what a
+#: T_p offset and the touch heat's baseline explain too (an offset's apparent heat changes
+#: with the pump), and learnt by the table as well the three drifted together without bound
+#: (a no-touch log of ideal boards: the baseline 0.4 W, the offset 17 mK after 20 min). A
+#: pattern is learnt to 1/(1 + SWITCH_LEAK) of itself. (Learning the misfit less its level per
+#: direction instead left too much of a skin's misfit: 7 false alarms in 8 logs of 4 min.)
+SWITCH_LEAK = 0.1
+#: ... and learns nothing this long after a contact's release (s): what the contact left in the
+#: sheet (a cold object's, fading slower than the filter's estimate of it) is a misfit for
+#: some seconds, which learnt read as the other sign once it had faded, and a half-threshold
+#: positive CUSUM took the next cold touch for its end (the detection table's `cold`).
+SWITCH_SETTLE = 10.0
 #: The detector also arms once that mean has held within this fraction of ``arm_band`` of one
 #: value for ARM_HOLD x ``t_arm``: a skin settled away from its command (a T_w board's offset
 #: the controller did not see, or a command it cannot reach) is settled all the same.
@@ -1650,11 +1663,24 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             nph = int(pr[PR_NPH])
             if nph > 0:
                 # the pump-cycle correction: the reading less the mean misfit at this phase of
-                # the cycle, learned while no touch is detected
+                # the cycle, learned while no touch is detected; where the sensors are learnt,
+                # against the predicted reading (through the bead), only from fast boards
+                # and only once the slow states are learnt and where they may learn (they would
+                # otherwise compete for the same misfit: the lag's and an offset's are locked
+                # to the pump's cycle too), and held in a filter that holds what is learnt
                 ph = int(st[PHASE])
                 j = TPL + int(st[PHDIR]) * nph + (ph if ph < nph - 1 else nph - 1)
                 c = st[j]
-                if st[MODE] != INCONTACT:
+                if learning and (pr[PR_PB0] != 0.0 or pr[PR_PT0] != 0.0):
+                    # (held while an onset's evidence builds, as the slow states are, and in
+                    # the filter's first seconds, its own transient; leaking: SWITCH_LEAK)
+                    if (learn_slow and st[RATE] >= pr[PR_RFAST] and st[PBB] <= pr[PR_RHOPB]
+                            and st[PTT] <= pr[PR_RHOPT] and t - st[TINIT] >= pr[PR_RHOEARLY]
+                            and t - st[TREL] >= SWITCH_SETTLE):
+                        a = st[LAGA]
+                        w = pr[PR_APH]
+                        st[j] = c + w * (T_w - (1.0 - a) * st[X] - a * st[XM] - c) - w * SWITCH_LEAK * c
+                elif st[MODE] != INCONTACT and pr[PR_LEARN] != 0.0:  # (nothing learnt; held)
                     st[j] = c + pr[PR_APH] * (T_w - st[X] - c)
                 y = T_w - c
             p = _update(st, pr, 0, y, p, _eta_w(pr, t - st[TLW]) if learn else 0.0, learn_slow,

@@ -193,11 +193,12 @@ def build_tables(cfg: Config, t_s: float, v_values: tuple[float, ...] | list[flo
 def fixed_sensors(cfg: Config) -> Config:
     """``cfg`` with nothing learnt of the sensors: each channel's variance as configured
     (``estimator.tau_noise`` 0), the offsets and the pipe thermocouple's lag as configured
-    (``sensor.offset_sd``, ``sensor.lag_sd`` 0) and no dispersion (``detector.rho_window`` 0):
-    the filter as it was before it learnt them, linear in its readings (the tests of a
-    mechanism that learning would blur use it)."""
-    return cfg.replace(estimator={"tau_noise": 0.0}, sensor={"offset_sd": 0.0, "lag_sd": 0.0},
-                       detector={"rho_window": 0.0})
+    (``sensor.offset_sd``, ``sensor.lag_sd`` 0), no dispersion (``detector.rho_window`` 0) and
+    no pump-cycle correction (``estimator.switch_bins`` 0; a skin's patch fed from its tank
+    sets its own): the filter as it was before it learnt them, linear in its readings (the
+    tests of a mechanism that learning would blur use it)."""
+    return cfg.replace(estimator={"tau_noise": 0.0, "switch_bins": 0},
+                       sensor={"offset_sd": 0.0, "lag_sd": 0.0}, detector={"rho_window": 0.0})
 
 
 def sheet_equilibrium(cfg: Config, T_w: float, T_a: float) -> float:

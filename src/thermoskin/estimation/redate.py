@@ -58,10 +58,14 @@ Array = NDArray[np.float64]
 
 
 class TracedModel(Protocol):
-    """What the re-dating reads of the estimator: the kernel's parameters and tables."""
+    """What the re-dating reads of the estimator: the kernel's parameters and tables, and the
+    pump-cycle correction as it stands (``K.TPL``, ``2 K.NPH`` values)."""
 
     pr: Array
     tabs: tuple[Array, ...]
+
+    @property
+    def switch_table(self) -> Array: ...
 
 
 GRID_S = 0.01      #: candidate spacing, s
@@ -346,6 +350,7 @@ class _Model(NamedTuple):
 
     pr: Array
     tabs: tuple[Array, ...]
+    switch_table: Array
 
 
 _worker = threading.local()  # .on: this thread is a re-dating worker
@@ -515,7 +520,8 @@ class Redater:
         if self._pool is None or block is not None:
             return [self.redate(est, e, k, t_end, block, n0, learnt=learnt)]
         self._write()  # the rows up to k into the buffer, which alone the worker reads
-        model = _Model(est.pr, est.tabs)  # as they are now (a new pump velocity adds tables)
+        # as they are now (a new pump velocity adds tables; the live filter learns on)
+        model = _Model(est.pr, est.tabs, est.switch_table.copy())
         self._jobs.append(self._pool.submit(self.redate, model, e, k, t_end, learnt=learnt))
         return []
 
@@ -606,7 +612,10 @@ class Redater:
         pr[K.PR_OSJ] = 0.0  # no step signatures: nothing jumps
         held(pr, learnt)
         rec = np.zeros((len(tw), NREC))
-        trace(K.new_state(), pr, *est.tabs, tw, w[1], w[2], w[3], w[4], w[5].astype(np.int64),
+        st0 = K.new_state()
+        # the pump-cycle correction as the live filter has it (held: nothing is learnt here)
+        st0[K.TPL:K.TPL + 2 * K.NPH] = est.switch_table
+        trace(st0, pr, *est.tabs, tw, w[1], w[2], w[3], w[4], w[5].astype(np.int64),
               w[6], w[7].astype(np.int64), rec, np.zeros(K.NEV))
         j_first = j0 - k0
         if not rec[j_first:, RREADY].all():  # the filter restarted: no fit

@@ -83,6 +83,8 @@ RHO_FIRST = 16       # the dispersion is the median of the first windows' first 
 RHO_CAP = 1e6        # third: detector.rho_prior; at most RHO_CAP: a touch among them)
 RHO_PB = 0.03**2     # ... once the offset's variance is below this, K^2,
 RHO_PT = 0.01**2     # and the lag's below this, s^2
+SWITCH_LEAK = 0.1    # the pump-cycle correction leaks at this share of its weight (slow states)
+SWITCH_SETTLE = 10.0  # ... and learns nothing this long after a release, s
 RHO_MOVED = (0.02, 0.005)  # a window over which the offset (K) or the lag (s) moved this much,
 RHO_EARLY = 10.0             # in the filter's first seconds: not taken
 RHO_SETTLE = 0.5     # its windows begin this long after a release, s
@@ -452,8 +454,18 @@ class ReferenceEstimator:
                 if nph > 0:  # the pump-cycle correction (kernel: PR_NPH)
                     j = (self.ph_dir, min(self.phase, nph - 1))
                     corr = self.tpl[j]
-                    if self.mode != "contact":
-                        self.tpl[j] = corr + self.cfg.estimator.switch_learn * (T_w - self.x[I_TW] - corr)
+                    # (against the predicted reading, from fast boards, once the slow states
+                    # are learnt and while they learn: the kernel's rule)
+                    w = self.cfg.estimator.switch_learn
+                    if self.slow_prior.any():
+                        if (learn_slow and self.rate >= FAST_READINGS and self.P_B[0, 0] <= RHO_PB
+                                and self.P_B[1, 1] <= RHO_PT and t - self.t_init >= RHO_EARLY
+                                and t - self.t_rel >= SWITCH_SETTLE):
+                            a = self.a
+                            m = T_w - (1.0 - a) * self.x[I_TW] - a * self.x[I_M]
+                            self.tpl[j] = corr + w * (m - corr) - w * SWITCH_LEAK * corr  # (a prior)
+                    elif self.mode != "contact" and self.learn:  # nothing learnt of the sensors
+                        self.tpl[j] = corr + w * (T_w - self.x[I_TW] - corr)
                     y = T_w - corr
                 eta = min(ETA_MAX, (t - self.t_last_w) / self.cfg.estimator.tau_noise) if learn_r else 0.0
                 a, c = self._update(I_TW, y, learn_slow, eta)

@@ -173,12 +173,16 @@ def patch_config(skin: Skin, i: int, boards_period: float | None = None) -> Conf
         unseen = period >= 1.5 * cfg.sampling.t_s  # water comes in between two readings
         own = dict(SKIN_ESTIMATOR, S_w_flow=FLOW_NOISE * period ** 1.5 if unseen else 0.0)
     es = {k: max(v, getattr(cfg.estimator, k)) for k, v in own.items()}
+    # the pump-cycle correction: the patch's own (a piped patch none: docs/skin.md), not the
+    # one-patch estimator's default
+    es["switch_bins"] = own.get("switch_bins", 0)
     de = {k: max(v, getattr(cfg.detector, k)) for k, v in SKIN_DETECTOR.items()}
     de["onset_state_jump"] = SKIN_ONSET_STATE_JUMP
     # a patch keeps its sensors as configured (fixed_sensors): what the one-patch estimator
     # learns of its boards (offsets, lag, noise) is not learnt per patch of a skin
-    return fixed_sensors(dataclasses.replace(cfg, estimator=dataclasses.replace(cfg.estimator, **es),
-                                             detector=dataclasses.replace(cfg.detector, **de)))
+    fs = fixed_sensors(cfg)
+    return dataclasses.replace(fs, estimator=dataclasses.replace(fs.estimator, **es),
+                               detector=dataclasses.replace(fs.detector, **de))
 
 
 @dataclass(frozen=True)
