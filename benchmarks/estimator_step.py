@@ -6,7 +6,10 @@ the same kernel over the whole log (``TouchEstimator.run``, the loop inside comp
 for the ratio: the difference is the cost of calling into the kernel once a sample. Prints
 one JSON object as its last line: p50_us, p99_us, max_us per sample, and the array speed.
 
-    python benchmarks/estimator_step.py [--seconds 60] [--json]
+    python benchmarks/estimator_step.py [--seconds 60] [--config F] [--json]
+
+``--config F``: a TOML file over the default configuration (a change of a default measured
+against the default, e.g. ``[estimator] switch_bins = 0``).
 """
 
 from __future__ import annotations
@@ -27,9 +30,14 @@ from thermoskin.sim.scenarios import SCENARIOS
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds (1 kHz)")
+    ap.add_argument("--config", default=None, metavar="F",
+                    help="a TOML file over the default configuration")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     a = ap.parse_args()
-    cfg = load_config()
+    try:
+        cfg = load_config(a.config)
+    except (OSError, ValueError) as e:
+        raise SystemExit(f"estimator_step.py: --config {a.config}: {e}") from None
     log = simulate(SCENARIOS["fingers"].with_duration(a.seconds), cfg)
     t, T_w, T_p, v, T_a = (log[k].tolist() for k in ("t", "T_w", "T_p", "v", "T_a"))
     n = len(t)
