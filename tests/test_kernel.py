@@ -32,6 +32,11 @@ def _case(name: str):  # type: ignore[no-untyped-def]
     if name == "pump-cycle correction":  # 16 bins: the 50 ms phases clip at the last bin
         es = dataclasses.replace(cfg.estimator, switch_bins=16, switch_learn=0.05)
         return dataclasses.replace(cfg, estimator=es), _one()
+    if name == "pump-cycle correction learnt":  # the default's rule, on a skin 30 % lighter
+        sk = cfg.skin  # than configured (tests/test_switch_correction.py): no touch, 25 s
+        true = cfg.replace(skin={"C_w": 0.7 * sk.C_w, "C_g": 0.7 * sk.C_g, "R_g": 1.3 * sk.R_g,
+                                 "R_ag": 1.3 * sk.R_ag})
+        return cfg, simulate(SCENARIOS["none"].with_duration(25.0), true)
     if name == "q_i alone jumps at an onset":
         # a skin patch's onset: the kernel then keeps no step signatures; the reference still
         # carries them, unread
@@ -61,7 +66,8 @@ def _case(name: str):  # type: ignore[no-untyped-def]
     return c, slow
 
 
-CASES = ["1 kHz, a NaN burst", "pump-cycle correction", "q_i alone jumps at an onset", "boards-10hz",
+CASES = ["1 kHz, a NaN burst", "pump-cycle correction", "pump-cycle correction learnt",
+         "q_i alone jumps at an onset", "boards-10hz",
          "ambient-step", "cold", "setpoints", "log-100hz logged every 20 ms",
          "boards-10hz logged every 10 ms"]
 
@@ -86,6 +92,9 @@ def test_kernel_equals_reference(name: str) -> None:
             if not (a == b or (a != a and b != b)):
                 worst[k] = max(worst[k], abs(a - b))
     assert all(v <= 1e-9 for v in worst.values()), worst
+    nb = cfg.estimator.switch_bins  # the pump-cycle correction's table, as learnt
+    if nb:
+        np.testing.assert_allclose(est.switch_table[:2 * nb].reshape(2, nb), ref.tpl, rtol=0, atol=1e-12)
     assert [e.sign for e in est.events] == [e.sign for e in ref.events]
     for a, b in zip(est.events, ref.events, strict=True):
         assert a.onset == pytest.approx(b.onset, abs=1e-9) and a.release == pytest.approx(b.release, abs=1e-9)
