@@ -47,7 +47,7 @@ from thermoskin.estimation.freshness import infer_fresh
 from thermoskin.estimation.learnt import SNR_MIN, learnt
 from thermoskin.params import Config, SensorParams, load_config
 from thermoskin.sim.boards import lab_boards
-from thermoskin.sim.conditions import ambient_ramp, ambient_step, touch_train
+from thermoskin.sim.conditions import ambient_ramp, ambient_step, mis_sized_skin, touch_train
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import Scenario
 
@@ -72,10 +72,8 @@ class Mismatch:
 
 
 def _skin(f: float) -> dict[str, float]:
-    """Table I's network values scaled: ``C_w, C_g`` by ``1 + f``, ``R_g, R_ag`` by ``1 - f``."""
-    sk = load_config().skin
-    return {"C_w": sk.C_w * (1 + f), "C_g": sk.C_g * (1 + f), "R_g": sk.R_g * (1 - f),
-            "R_ag": sk.R_ag * (1 - f)}
+    """Table I's network values scaled (``sim.conditions.mis_sized_skin``)."""
+    return mis_sized_skin(load_config().skin, f)
 
 
 def _door(seed: int, duration: float) -> Scenario:

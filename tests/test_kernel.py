@@ -12,7 +12,7 @@ from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.estimation.freshness import infer_fresh
 from thermoskin.estimation.reference import ReferenceEstimator
 from thermoskin.params import load_config
-from thermoskin.sim.conditions import decimate, get_condition
+from thermoskin.sim.conditions import decimate, get_condition, mis_sized_skin
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS
 
@@ -33,9 +33,7 @@ def _case(name: str):  # type: ignore[no-untyped-def]
         es = dataclasses.replace(cfg.estimator, switch_bins=16, switch_learn=0.05)
         return dataclasses.replace(cfg, estimator=es), _one()
     if name == "pump-cycle correction learnt":  # the default's rule, on a skin 30 % lighter
-        sk = cfg.skin  # than configured (tests/test_switch_correction.py): no touch, 25 s
-        true = cfg.replace(skin={"C_w": 0.7 * sk.C_w, "C_g": 0.7 * sk.C_g, "R_g": 1.3 * sk.R_g,
-                                 "R_ag": 1.3 * sk.R_ag})
+        true = cfg.replace(skin=mis_sized_skin(cfg.skin, -0.3))  # than configured: no touch
         return cfg, simulate(SCENARIOS["none"].with_duration(25.0), true)
     if name == "q_i alone jumps at an onset":
         # a skin patch's onset: the kernel then keeps no step signatures; the reference still

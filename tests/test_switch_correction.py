@@ -16,7 +16,7 @@ from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.estimation.model import fixed_sensors
 from thermoskin.params import load_config
-from thermoskin.sim.conditions import touch_train
+from thermoskin.sim.conditions import mis_sized_skin, touch_train
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS, Scenario
 
@@ -66,9 +66,7 @@ def test_correction_learns_an_injected_switch_pattern() -> None:
 def _skin_30_percent_light(cfg):  # type: ignore[no-untyped-def]
     """Table I's sheet and pipe 30 % lighter and less conductive than configured: what a lab
     has before it calibrates (``C_w, C_g`` x 0.7, ``R_g, R_ag`` x 1.3)."""
-    sk = cfg.skin
-    return cfg.replace(skin={"C_w": 0.7 * sk.C_w, "C_g": 0.7 * sk.C_g, "R_g": 1.3 * sk.R_g,
-                             "R_ag": 1.3 * sk.R_ag})
+    return cfg.replace(skin=mis_sized_skin(cfg.skin, -0.3))
 
 
 def _mismatched_log(seed: int, duration: float, touches: bool):  # type: ignore[no-untyped-def]

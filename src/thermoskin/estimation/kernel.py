@@ -1522,6 +1522,13 @@ def _coarse(st, pr):
 
 
 @_inline
+def _slow_learnt(st, pr):
+    """Whether the slow states are learnt (their variances below ``PR_RHOPB``, ``PR_RHOPT``):
+    from then the dispersion's windows are taken and the pump-cycle correction learns."""
+    return st[PBB] <= pr[PR_RHOPB] and st[PTT] <= pr[PR_RHOPT]
+
+
+@_inline
 def _building(st, pr):
     """Whether the detector's evidence of an onset builds: idle, and an onset CUSUM above
     ``PR_SLOWCU`` of the onset threshold (as the last sample left them)."""
@@ -1674,9 +1681,8 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
                 if learning and (pr[PR_PB0] != 0.0 or pr[PR_PT0] != 0.0):
                     # (held while an onset's evidence builds, as the slow states are, and in
                     # the filter's first seconds, its own transient; leaking: SWITCH_LEAK)
-                    if (learn_slow and st[RATE] >= pr[PR_RFAST] and st[PBB] <= pr[PR_RHOPB]
-                            and st[PTT] <= pr[PR_RHOPT] and t - st[TINIT] >= pr[PR_RHOEARLY]
-                            and t - st[TREL] >= SWITCH_SETTLE):
+                    if (learn_slow and st[RATE] >= pr[PR_RFAST] and _slow_learnt(st, pr)
+                            and t - st[TINIT] >= pr[PR_RHOEARLY] and t - st[TREL] >= SWITCH_SETTLE):
                         a = st[LAGA]
                         w = pr[PR_APH]
                         st[j] = c + w * (T_w - (1.0 - a) * st[X] - a * st[XM] - c) - w * SWITCH_LEAK * c
@@ -1714,7 +1720,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         # its start; but with a coarse converter, which they never learn from, at once)
         _dispersion(st, pr, t, st[SGE], st[SGG], not gap and st[MODE] != INCONTACT
                     and t - st[TAMB] >= pr[PR_TAMBH] and t - st[TREL] >= pr[PR_RHOSET]
-                    and ((st[PBB] <= pr[PR_RHOPB] and st[PTT] <= pr[PR_RHOPT]) or coarse))
+                    and (_slow_learnt(st, pr) or coarse))
     st[Q] = st[X + 2]
     pq = st[P + 12]
     st[SQ] = math.sqrt(pq) if pq > 0.0 else 1e-12

@@ -219,6 +219,10 @@ class ReferenceEstimator:
         qw, qp = self.quantum["T_w"], self.quantum["T_p"]
         return qw < 1e299 and qp < 1e299 and (qw > self.q_fine or qp > self.q_fine)
 
+    def _slow_learnt(self) -> bool:
+        """The slow states' variances below RHO_PB and RHO_PT (kernel: ``_slow_learnt``)."""
+        return bool(self.P_B[0, 0] <= RHO_PB and self.P_B[1, 1] <= RHO_PT)
+
     def _r_step(self, ch: str, up: bool, eta: float) -> None:
         """A reading variance's median tracker (kernel: ``_r_step``)."""
         r = self.R[ch] * (1 + eta) if up else self.R[ch] / (1 + eta)
@@ -458,9 +462,8 @@ class ReferenceEstimator:
                     # are learnt and while they learn: the kernel's rule)
                     w = self.cfg.estimator.switch_learn
                     if self.slow_prior.any():
-                        if (learn_slow and self.rate >= FAST_READINGS and self.P_B[0, 0] <= RHO_PB
-                                and self.P_B[1, 1] <= RHO_PT and t - self.t_init >= RHO_EARLY
-                                and t - self.t_rel >= SWITCH_SETTLE):
+                        if (learn_slow and self.rate >= FAST_READINGS and self._slow_learnt()
+                                and t - self.t_init >= RHO_EARLY and t - self.t_rel >= SWITCH_SETTLE):
                             a = self.a
                             m = T_w - (1.0 - a) * self.x[I_TW] - a * self.x[I_M]
                             self.tpl[j] = corr + w * (m - corr) - w * SWITCH_LEAK * corr  # (a prior)
@@ -493,8 +496,7 @@ class ReferenceEstimator:
         if self.cfg.detector.rho_window > 0 and self.learn:
             self._dispersion(t, ge, gg, not self.gap and self.mode != "contact"
                              and t - self.t_air >= self.t_amb_hold and t - self.t_rel >= RHO_SETTLE
-                             and ((self.P_B[0, 0] <= RHO_PB and self.P_B[1, 1] <= RHO_PT)
-                                  or self._coarse()))
+                             and (self._slow_learnt() or self._coarse()))
         self.sd = math.sqrt(self.P[I_Q, I_Q]) if self.ready else math.nan
         if T_w_cmd == T_w_cmd:
             if self.cmd == self.cmd and abs(T_w_cmd - self.cmd) > 1e-9:

@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from thermoskin.params import Config, load_config
+from thermoskin.params import Config, SkinParams, load_config
 from thermoskin.physics.finger import PERSONS, Touch
 from thermoskin.sim.scenarios import Scenario
 
@@ -124,6 +124,14 @@ def touch_train(rng: np.random.Generator, t_end: float, *, t_first: float = 5.0,
         touches.append(make(rng, float(t), d))
         t += d + g
     return tuple(touches)
+
+
+def mis_sized_skin(skin: SkinParams, f: float) -> dict[str, float]:
+    """``skin``'s network as a lab's may truly be before it calibrates (``[skin]`` changes):
+    ``C_w, C_g`` by ``1 + f``, ``R_g, R_ag`` by ``1 - f`` (``f`` -0.3: 30 % lighter and less
+    conductive than configured)."""
+    return {"C_w": skin.C_w * (1 + f), "C_g": skin.C_g * (1 + f), "R_g": skin.R_g * (1 - f),
+            "R_ag": skin.R_ag * (1 - f)}
 
 
 def _drift(rng: np.random.Generator) -> dict[str, float]:
