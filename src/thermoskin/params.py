@@ -272,7 +272,12 @@ class DetectorParams(_Validated):
                                      "readings (a slow board's one reading off ends no touch)")
     t_air: float = _p(1.0, "s", 0.0, 600.0,
                       doc="after a sudden change of the air (a door), no onset for this long plus "
-                          "three times the air sensor's lag")
+                          "the air sensor's lag (its CUSUMs gather evidence, the baseline and "
+                          "what is learnt stay)")
+    air_rate: float = _p(0.1, "K/s", 0.0, 100.0,
+                         doc="... and while the air's reading moves faster than this (over 0.5 s): "
+                             "a sensor that lags more than configured reads a door as a ramp, "
+                             "while the sheet feels the air itself (0: never)")
     t_settle: float = _p(2.0, "s", 0.0, 600.0,
                          doc="after a release, time before the baseline learns again")
     tau_baseline: float = _p(20.0, "s", 0.1, 3600.0,

@@ -64,6 +64,8 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_AJUMP] = 1.0
     pr[K.PR_KAIR] = 1.0
     pr[K.PR_HAIR] = 8.0
+    pr[K.PR_ASLT] = K.ASL_TAU
+    pr[K.PR_ASLMAX] = d.air_rate
     pr[K.PR_TRETR] = 1.0
     pr[K.PR_TCONF] = d.t_confirm
     pr[K.PR_TPAIR] = d.t_pair
@@ -79,7 +81,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_ICW] = 1.0 / cfg.skin.C_w
     pr[K.PR_NPH] = cfg.estimator.switch_bins
     pr[K.PR_APH] = cfg.estimator.switch_learn
-    pr[K.PR_TAMBH] = d.t_air + 3.0 * cfg.sensor.lag_T_a
+    pr[K.PR_TAMBH] = d.t_air + cfg.sensor.lag_T_a
     F1, F2 = eq8.filters
     (pr[K.PR_F1B0], pr[K.PR_F1B1], pr[K.PR_F1B2]), (_, pr[K.PR_F1A1], pr[K.PR_F1A2]) = F1.b, F1.a
     pr[K.PR_F1DC] = F1.dc

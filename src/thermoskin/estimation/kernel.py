@@ -218,7 +218,11 @@ ARMREF = IRN + 2   # where it last settled, degC,
 NSTEADY = IRN + 3  # and the samples it has held within ARM_STEADY x arm_band of that since
 TXP = IRN + 4      # when a design onset CUSUM of the positive sign was last above PAIR_FLOOR of the
 #                    threshold with no contact since, s (_pair_seen)
-NSTATE = IRN + 5
+AHELD = IRN + 5    # 1 while the onsets are held after a sudden change of the air
+ASL = IRN + 6      # the air estimate's rate of change, K/s (its mean over about PR_ASLT s),
+AXL = IRN + 7      # the estimate at the last fresh air reading, degC,
+ATL = IRN + 8      # and that reading's time, s
+NSTATE = IRN + 9
 
 #: The arming's mean of the T_w readings: a first-order lag of this time constant (s), so that
 #: the pump's ripple and the readings' noise do not break a hold (0.3 K off its command plus
@@ -241,6 +245,8 @@ SWITCH_SETTLE = 10.0
 #: value for ARM_HOLD x ``t_arm``: a skin settled away from its command (a T_w board's offset
 #: the controller did not see, or a command it cannot reach) is settled all the same.
 ARM_STEADY = 0.2
+ASL_TAU = 0.5    # the air estimate's rate is its mean over about this long, s (at 1 kHz its
+#                  noise 0.01 K/s, with 10 Hz boards 0.02 K/s: lab boards, 5 min)
 ARM_HOLD = 3.0
 
 WARM, IDLE, INCONTACT = 0, 1, 2
@@ -345,7 +351,9 @@ PR_QFINE = 100   # the slow states learn only while the T_w and T_p readings' co
                  # sawtooth that follows the signal, was learnt as offsets swinging by 0.3 K)
 PR_TPAIR = 101   # a negative onset this soon after positive evidence (TXP) is that touch's end, s
 PR_RELN = 102    # a release needs its evidence over at least this many pipe readings
-NPARAM = 103
+PR_ASLT = 103    # the air estimate's rate is averaged over about this long, s
+PR_ASLMAX = 104  # the air moving faster than this, K/s, is a sudden change (0: never)
+NPARAM = 105
 
 #: An onset CUSUM's excursion that came to no contact pairs with an onset of the other sign
 #: once it rose above this fraction of the threshold (below it, noise's own excursions, about
@@ -403,6 +411,7 @@ def new_state() -> np.ndarray:
     st[TLW] = -1e300
     st[TFW] = -1e300
     st[TAMB] = -1e300
+    st[ATL] = -1e300
     st[CMD] = np.nan
     st[QIH] = np.nan
     st[ARMLP] = st[ARMREF] = np.nan
@@ -771,6 +780,17 @@ def _ambient(st, pr, t, y, fresh, idx, learning):
         st[PA + 1] -= k0 * r1
         st[PA + 2] -= k1 * r0
         st[PA + 3] -= k1 * r1
+        # the air's rate: a sensor lagging the air more than configured reads a door as a ramp
+        # the filter follows (no jump), while the sheet feels the air itself (G_a tau dT_as/dt
+        # of heat no model has): the air moving that fast is a sudden change too
+        dt = t - st[ATL]
+        if dt > 0.0 and st[ATL] > -1e300:
+            w = dt / pr[PR_ASLT] if dt < pr[PR_ASLT] else 1.0
+            st[ASL] += w * ((st[XA] - st[AXL]) / dt - st[ASL])
+            if pr[PR_ASLMAX] > 0.0 and abs(st[ASL]) > pr[PR_ASLMAX]:
+                st[TAMB] = t
+        st[AXL] = st[XA]
+        st[ATL] = t
 
 
 _TINY = float(np.finfo(np.float64).tiny)
@@ -857,6 +877,7 @@ def _init(st, pr, T_w, T_p, T_a):
     Ra = st[RA]
     st[XA] = T_a
     st[XA + 1] = T_a
+    st[ATL] = -1e300  # the air's rate from the next reading
     st[PA] = Ra
     st[PA + 1] = Ra
     st[PA + 2] = Ra
@@ -1288,6 +1309,10 @@ def _detect(st, pr, t, ev, learning):
             _glr_push(st, pr, t, sge, sgg)  # a pipe reading: kept for dating an onset
         hold_other = t - st[TREL] < pr[PR_TREF]  # no onset of the other sign after a release
         hold_all = t - st[TAMB] < pr[PR_TAMBH]  # the air changed: its sensor catches up first
+        if not hold_all and st[AHELD] != 0.0:
+            # the hold over: the CUSUMs start again, without the air's transient
+            st[AHELD] = 0.0
+            _cusums_reset(st, t)
         h = st[HTH]
         # the evidence's dispersion (:func:`_dispersion`): where the model does not fit the
         # readings the CUSUMs take the evidence as that much less (a quasi-likelihood), so that
@@ -1301,7 +1326,7 @@ def _detect(st, pr, t, ev, learning):
             D = pr[PR_D] if j < 2 else (pr[PR_DHI] if j < 4 else pr[PR_DLO])
             sgj = 1.0 if j % 2 == 0 else -1.0
             g = st[o] + (sgj * D * sge - 0.5 * D * D * sgg) * irho
-            if hold_all or (hold_other and sgj != st[LASTSIGN]):
+            if hold_other and sgj != st[LASTSIGN]:
                 g = 0.0
             if g <= 0.0:
                 # dated at a pipe reading (between readings nothing is learnt) or where the
@@ -1325,6 +1350,12 @@ def _detect(st, pr, t, ev, learning):
                 if g > h and g - h > best:
                     best = g - h
                     fire = j
+        if hold_all:
+            # while the air's sensor catches up the CUSUMs gather their evidence but do not
+            # fire (zeroed, they let a touch in the hold pass as no evidence, and the baseline
+            # and the slow states learnt it: a flood of false alarms when the hold ended)
+            fire = -1
+            st[AHELD] = 1.0
         if fire >= 0:
             # of the three CUSUMs of its sign (designs D, D_hi, D_lo), the one whose step (at
             # its last zero, of the size its evidence points to) explains the readings best,

@@ -100,6 +100,7 @@ ARM_TAU = 1.0        # the arming's mean of the T_w readings: a first-order lag 
 ARM_STEADY = 0.2     # armed also once that mean held within this share of arm_band of one value
 ARM_HOLD = 3.0       # ... for this many times t_arm
 PAIR_FLOOR = 0.5     # a warm touch's evidence above this share of h pairs with a negative onset
+ASL_TAU = 0.5        # the air estimate's rate is its mean over about this long, s
 
 
 def fgcd(g: float, d: float) -> float:
@@ -137,7 +138,7 @@ class ReferenceEstimator:
         self.up, self.down = math.exp(0.5 * eta), math.exp(-0.5 * eta)
         self.a_b = min(1.0, 1.25 * self.t_s / d.tau_baseline)
         self.a_lvl = min(1.0, self.t_s / d.tau_level)
-        self.t_amb_hold = d.t_air + 3.0 * sn.lag_T_a
+        self.t_amb_hold = d.t_air + sn.lag_T_a
         self.vsw = 0.29 if self.t_s > 1.5 * self.cfg.sampling.t_s else 0.0
         # what is learnt of the sensors: priors (the configuration)
         self.R0 = {ch: measurement_variance(self.cfg, ch) for ch in ("T_w", "T_p", "T_a")}
@@ -197,6 +198,8 @@ class ReferenceEstimator:
         self.t_rel, self.last_sign = -1e300, 0.0
         self.t_xp = -1e300  # when a positive design CUSUM was last above half the threshold
         self.t_air, self.air_up, self.air_down = -1e300, 0.0, 0.0
+        self.air_held = False
+        self.air_rate, self.xa_last, self.t_air_last = 0.0, 0.0, None
         self.contact = 0
         self.dq = 0.0
 
@@ -349,6 +352,14 @@ class ReferenceEstimator:
         K = self.Pa[:, idx] / S
         self.xa = self.xa + K * e
         self.Pa = self.Pa - np.outer(K, self.Pa[idx, :])
+        # the air's rate over about ASL_TAU s: moving faster than air_rate, a sudden change too
+        if self.t_air_last is not None and t > self.t_air_last:
+            dt = t - self.t_air_last
+            w = min(1.0, dt / ASL_TAU)
+            self.air_rate += w * ((self.xa[0] - self.xa_last) / dt - self.air_rate)
+            if self.cfg.detector.air_rate > 0 and abs(self.air_rate) > self.cfg.detector.air_rate:
+                self.t_air = t
+        self.xa_last, self.t_air_last = self.xa[0], t
 
     def _slow_window(self) -> None:
         """A window's evidence says a slow state is off by more than 3 sd: let its variance go
@@ -568,6 +579,7 @@ class ReferenceEstimator:
         self.w1 = self.w2 = 0.0
         self.xa = np.array([T_a, T_a])
         self.Pa = np.full((2, 2), self.R["T_a"])
+        self.t_air_last = None  # the air's rate from the next reading
         for c in self.cusums:
             c.mu = _unit_q()
         self.ready = True
@@ -628,11 +640,13 @@ class ReferenceEstimator:
                     self.glr.append([t, ge, gg])
                     self.glr_t0 = t
             fire, best, quiet = None, 0.0, True
+            if self.air_held and t - self.t_air >= self.t_amb_hold:
+                self.air_held = False  # the hold over: the CUSUMs start again
+                self._reset_cusums(t)
             irho = self._irho()
             for k, c in enumerate(self.cusums):
                 g = c.g + (c.design * ge - 0.5 * c.design**2 * gg) * irho  # the dispersion weighs it
-                if t - self.t_air < self.t_amb_hold or (
-                        t - self.t_rel < d.t_refractory and np.sign(c.design) != self.last_sign):
+                if t - self.t_rel < d.t_refractory and np.sign(c.design) != self.last_sign:
                     g = 0.0
                 if g <= 0:  # the zero is dated at a pipe reading or where the evidence fell
                     if c.g > 0 or self.t_last_w == t:
@@ -648,6 +662,9 @@ class ReferenceEstimator:
                     quiet = False
                     if g > h and g - h > best:
                         fire, best = c, g - h
+            if t - self.t_air < self.t_amb_hold:
+                fire = None  # the air's sensor catches up: the evidence gathers, no onset
+                self.air_held = True
             if fire is not None:
                 # of the CUSUMs of its sign, the step that explains the readings best
                 fit = fire.sum_ge**2 / fire.sum_gg if fire.sum_gg > 0 else 0.0
