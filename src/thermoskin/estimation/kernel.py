@@ -353,7 +353,8 @@ PR_TPAIR = 101   # a negative onset this soon after positive evidence (TXP) is t
 PR_RELN = 102    # a release needs its evidence over at least this many pipe readings
 PR_ASLT = 103    # the air estimate's rate is averaged over about this long, s
 PR_ASLMAX = 104  # the air moving faster than this, K/s, is a sudden change (0: never)
-NPARAM = 105
+PR_MEANMIN = 105  # a contact whose mean heat over it (its sign's way) is below this is withdrawn, W
+NPARAM = 106
 
 #: An onset CUSUM's excursion that came to no contact pairs with an onset of the other sign
 #: once it rose above this fraction of the threshold (below it, noise's own excursions, about
@@ -766,7 +767,10 @@ def _ambient(st, pr, t, y, fresh, idx, learning):
         am = st[AGM] - z - k
         st[AGP] = ap if ap > 0.0 else 0.0
         st[AGM] = am if am > 0.0 else 0.0
-        if st[AGP] > pr[PR_HAIR] or st[AGM] > pr[PR_HAIR]:
+        if (st[AGP] > pr[PR_HAIR] or st[AGM] > pr[PR_HAIR]) and not (
+                st[QA] < 1e299 and abs(e) < 2.0 * st[QA]):
+            # (not a coarse converter's one step, the filter slow to take it in: with 1/16 K
+            # boards such a "door" withdrew a touch just detected)
             st[PA] += pr[PR_AJUMP] * pr[PR_AJUMP]
             S = st[PA + 3 * idx] + R
             st[TAMB] = t
@@ -787,7 +791,10 @@ def _ambient(st, pr, t, y, fresh, idx, learning):
         if dt > 0.0 and st[ATL] > -1e300:
             w = dt / pr[PR_ASLT] if dt < pr[PR_ASLT] else 1.0
             st[ASL] += w * ((st[XA] - st[AXL]) / dt - st[ASL])
-            if pr[PR_ASLMAX] > 0.0 and abs(st[ASL]) > pr[PR_ASLMAX]:
+            # (and faster than two of its converter's steps in that time: a coarse converter's
+            # one step, the filter taking it in, read as the air moving)
+            lim = 2.0 * st[QA] / pr[PR_ASLT] if st[QA] < 1e299 else 0.0
+            if pr[PR_ASLMAX] > 0.0 and abs(st[ASL]) > max(pr[PR_ASLMAX], lim):
                 st[TAMB] = t
         st[AXL] = st[XA]
         st[ATL] = t
@@ -1307,7 +1314,8 @@ def _detect(st, pr, t, ev, learning):
         sge, sgg = st[SGE], st[SGG]
         if pr[PR_GLR] != 0.0 and (sgg > 0.0 or st[TLW] == t):
             _glr_push(st, pr, t, sge, sgg)  # a pipe reading: kept for dating an onset
-        hold_other = t - st[TREL] < pr[PR_TREF]  # no onset of the other sign after a release
+        # no onset of the other sign after a release (a withdrawn contact's sign is 0: none)
+        hold_other = t - st[TREL] < pr[PR_TREF] and st[LASTSIGN] != 0.0
         hold_all = t - st[TAMB] < pr[PR_TAMBH]  # the air changed: its sensor catches up first
         if not hold_all and st[AHELD] != 0.0:
             # the hold over: the CUSUMs start again, without the air's transient
@@ -1492,14 +1500,21 @@ def _detect(st, pr, t, ev, learning):
             # not over enough readings yet: a slow board's one reading off (its noise, a
             # reading dated at the wrong side of a pump switch) does not end a touch
             return C_CONTACT
-        if unconfirmed:
-            # and it ended at once: the onset was noise, not a touch; withdraw it (no event)
+        if unconfirmed or lm < pr[PR_MEANMIN]:
+            # and it ended at once: the onset was noise, not a touch; withdraw it (no event);
+            # so too a contact whose heat over it came to nothing (10 Hz boards: the filter's
+            # recovery from a touch taken for a new one, a tap of 0.01 W or of the other sign)
             st[MODE] = IDLE
             st[CONTACT] = 0.0
             _q_at(st, b)
             st[P + 12] += 0.25 * lvl * lvl
             st[RUN] = 0.0
             _cusums_reset(st, t)
+            if not unconfirmed:
+                # (what follows is as after a release: the filter settles from the onset's
+                # jump before the baseline and the dispersion learn; but no sign waits)
+                st[TREL] = t
+                st[LASTSIGN] = 0.0
             return 0
         t_rel = _between(st, st[TFBL], t) if st[DETECTED] <= st[TFBL] < st[TFB] else st[TFB]
         _end(st, t_rel, ev)

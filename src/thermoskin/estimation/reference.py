@@ -344,7 +344,8 @@ class ReferenceEstimator:
         z = e / math.sqrt(S)
         self.air_up = max(0.0, self.air_up + z - 1.0)
         self.air_down = max(0.0, self.air_down - z - 1.0)
-        if self.air_up > 8.0 or self.air_down > 8.0:
+        q = self.quantum["T_a"]
+        if (self.air_up > 8.0 or self.air_down > 8.0) and not (q < 1e299 and abs(e) < 2.0 * q):
             self.Pa[0, 0] += 1.0
             S = self.Pa[idx, idx] + self.R["T_a"]
             self.t_air = t
@@ -357,7 +358,9 @@ class ReferenceEstimator:
             dt = t - self.t_air_last
             w = min(1.0, dt / ASL_TAU)
             self.air_rate += w * ((self.xa[0] - self.xa_last) / dt - self.air_rate)
-            if self.cfg.detector.air_rate > 0 and abs(self.air_rate) > self.cfg.detector.air_rate:
+            q = self.quantum["T_a"]
+            lim = max(self.cfg.detector.air_rate, 2.0 * q / ASL_TAU if q < 1e299 else 0.0)
+            if self.cfg.detector.air_rate > 0 and abs(self.air_rate) > lim:
                 self.t_air = t
         self.xa_last, self.t_air_last = self.xa[0], t
 
@@ -646,7 +649,8 @@ class ReferenceEstimator:
             irho = self._irho()
             for k, c in enumerate(self.cusums):
                 g = c.g + (c.design * ge - 0.5 * c.design**2 * gg) * irho  # the dispersion weighs it
-                if t - self.t_rel < d.t_refractory and np.sign(c.design) != self.last_sign:
+                if (t - self.t_rel < d.t_refractory and self.last_sign != 0
+                        and np.sign(c.design) != self.last_sign):
                     g = 0.0
                 if g <= 0:  # the zero is dated at a pipe reading or where the evidence fell
                     if c.g > 0 or self.t_last_w == t:
@@ -746,14 +750,18 @@ class ReferenceEstimator:
             unconfirmed = self.t_lik == self.detected and t - self.detected < d.t_confirm
             if not unconfirmed and (t - self.t_below) * self.rate < d.release_readings:
                 return 1  # a release over this few readings: one reading off ends no touch
-            if unconfirmed:
-                # never confirmed by a reading since the detection, and over at once: noise
+            nothing = self.sum / self.count < d.confirm_mean * d.dq_design_lo
+            if unconfirmed or nothing:
+                # never confirmed by a reading since the detection, and over at once: noise;
+                # or its heat over it came to nothing
                 self.mode, self.contact = "idle", 0
                 self.x[I_Q] = b
                 self.V[I_Q] = 0.0
                 self.P[I_Q, I_Q] += 0.25 * self.level**2
                 self.dq = 0.0
                 self._reset_cusums(t)
+                if not unconfirmed:  # and then as after a release, but no sign waits
+                    self.t_rel, self.last_sign = t, 0.0
                 return 0
             if self.detected <= self.t_lik < self.t_below:
                 t_rel = self._between(self.t_lik, t)
