@@ -261,7 +261,7 @@ class DetectorParams(_Validated):
                           doc="a contact ended this soon after its detection, with no reading since "
                               "the detection favouring it over no touch, is withdrawn (noise; no "
                               "event); 0: never")
-    confirm_mean: float = _p(0.25, "", 0.0, 10.0,
+    confirm_mean: float = _p(0.5, "", 0.0, 10.0,
                              doc="... and so is a contact whose mean heat over it is below this "
                                  "share of dq_design_lo (its sign's way): it brought nothing")
     t_refractory: float = _p(3.0, "s", 0.0, 60.0,
