@@ -146,3 +146,23 @@ def test_cli_check_of_a_short_or_missing_log(tmp_path: Path):
     for path, match in ((short, "too short"), (tmp_path / "nope.csv", "nope.csv")):
         res = CliRunner().invoke(main, ["check", str(path)])
         assert res.exit_code == 2 and match in res.stderr and res.stderr.count("\n") == 1
+
+
+def test_a_log_with_touches_and_no_contact_column():
+    """A lab's log of touches and doors (the ``ambient-step`` condition, 120 s: a door at 33.4 s,
+    touches every 8-12 s) through an air sensor lagging 3 s, no contact column: checked as it is,
+    the touches read as the skin's misfit (the air's offset fitted beyond 1 K, the residual
+    several times the noise); without the contacts the estimator finds, the residual is the
+    noise's and the air's lag is found (within 10 %), the log's own air offset none."""
+    from thermoskin.sim.conditions import get_condition
+
+    sc = get_condition("ambient-step", 4242).scenario.with_duration(120.0)
+    log = simulate(sc, Config().replace(sensor={**BOARDS, "lag_T_a": 3.0, "seed": 5}))
+    log = {k: log[k] for k in COLS}
+    plain = chk._check(log, Config(), None, "")
+    assert abs(plain.found.get("offset_T_a", 0.0)) > 1.0 or plain.fits[-1].rms > 3 * 0.02
+    rep = chk.check(log, Config())
+    assert "estimator" in rep.contacts_from and 5.0 < rep.contact_s < 60.0
+    assert rep.fits[-1].rms < 1.5 * 0.02
+    assert rep.found["lag_T_a"] == pytest.approx(3.0, rel=0.1)
+    assert abs(rep.found.get("offset_T_a", 0.0)) < 0.05
