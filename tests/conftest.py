@@ -258,3 +258,20 @@ def peak_memory() -> Callable[[Callable[[], object]], int]:
             tracemalloc.stop()
 
     return peak
+
+
+@pytest.fixture(scope="session")
+def serial_session() -> Callable[[str], tuple[dict, list]]:
+    """``serial_session(name)``: a serial session recorded in ``tests/data/NAME.parquet`` (its
+    readings and commands, 75 s of scenario ``fingers``) and the eight touches of that scenario
+    that end in it."""
+    from thermoskin.logio import read_log
+    from thermoskin.sim.scenarios import SCENARIOS
+
+    def load(name: str) -> tuple[dict, list]:
+        log = read_log(Path(__file__).parent / "data" / f"{name}.parquet")
+        touches = [t for t in SCENARIOS["fingers"].touches if t.t_off < log["t"][-1]]
+        assert len(touches) == 8 and log["t"][-1] > 74.9
+        return log, touches
+
+    return load

@@ -14,7 +14,6 @@ its readings and commands only (`tests/data/emulator_10hz_lab_seed0_loaded.parqu
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,7 +22,6 @@ from thermoskin.analysis.evaluation import match_events
 from thermoskin.analysis.observe import observe
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.estimator import TouchEstimator
-from thermoskin.logio import read_log
 from thermoskin.params import load_config
 from thermoskin.sim.conditions import get_condition
 from thermoskin.sim.run import simulate
@@ -88,15 +86,9 @@ def test_a_coarse_air_converter_s_step_is_no_door() -> None:
     assert est.st[K.QA] == pytest.approx(1 / 16)
 
 
-LOG = Path(__file__).parent / "data" / "emulator_10hz_lab_seed0_loaded.parquet"
-
-
 @pytest.fixture(scope="module")
-def session():  # type: ignore[no-untyped-def]
-    log = read_log(LOG)
-    touches = [t for t in SCENARIOS["fingers"].touches if t.t_off < log["t"][-1]]
-    assert len(touches) == 8 and log["t"][-1] > 74.9
-    return log, touches
+def session(serial_session):  # type: ignore[no-untyped-def]
+    return serial_session("emulator_10hz_lab_seed0_loaded")
 
 
 def test_a_contact_that_brings_no_heat_is_withdrawn(session) -> None:  # type: ignore[no-untyped-def]

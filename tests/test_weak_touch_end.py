@@ -10,26 +10,17 @@ fingertip's SNR there is 1.7: the one-finger touches are below the noise.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from thermoskin.analysis.evaluation import match_events
 from thermoskin.analysis.observe import observe
-from thermoskin.logio import read_log
 from thermoskin.params import load_config
-from thermoskin.sim.scenarios import SCENARIOS
-
-LOG = Path(__file__).parent / "data" / "firmware_10hz_lab_seed0.parquet"
 
 
 @pytest.fixture(scope="module")
-def session():  # type: ignore[no-untyped-def]
-    log = read_log(LOG)
-    touches = [t for t in SCENARIOS["fingers"].touches if t.t_off < log["t"][-1]]
-    assert len(touches) == 8 and log["t"][-1] > 74.9
-    return log, touches
+def session(serial_session):  # type: ignore[no-untyped-def]
+    return serial_session("firmware_10hz_lab_seed0")
 
 
 def _events(log, **detector):  # type: ignore[no-untyped-def]

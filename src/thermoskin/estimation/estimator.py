@@ -64,7 +64,6 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_AJUMP] = 1.0
     pr[K.PR_KAIR] = 1.0
     pr[K.PR_HAIR] = 8.0
-    pr[K.PR_ASLT] = K.ASL_TAU
     pr[K.PR_ASLMAX] = d.air_rate
     pr[K.PR_MEANMIN] = d.confirm_mean * d.dq_design_lo
     pr[K.PR_TRETR] = 1.0

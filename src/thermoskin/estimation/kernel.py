@@ -219,7 +219,7 @@ NSTEADY = IRN + 3  # and the samples it has held within ARM_STEADY x arm_band of
 TXP = IRN + 4      # when a design onset CUSUM of the positive sign was last above PAIR_FLOOR of the
 #                    threshold with no contact since, s (_pair_seen)
 AHELD = IRN + 5    # 1 while the onsets are held after a sudden change of the air
-ASL = IRN + 6      # the air estimate's rate of change, K/s (its mean over about PR_ASLT s),
+ASL = IRN + 6      # the air estimate's rate of change, K/s (its mean over about ASL_TAU s),
 AXL = IRN + 7      # the estimate at the last fresh air reading, degC,
 ATL = IRN + 8      # and that reading's time, s
 NSTATE = IRN + 9
@@ -351,10 +351,9 @@ PR_QFINE = 100   # the slow states learn only while the T_w and T_p readings' co
                  # sawtooth that follows the signal, was learnt as offsets swinging by 0.3 K)
 PR_TPAIR = 101   # a negative onset this soon after positive evidence (TXP) is that touch's end, s
 PR_RELN = 102    # a release needs its evidence over at least this many pipe readings
-PR_ASLT = 103    # the air estimate's rate is averaged over about this long, s
-PR_ASLMAX = 104  # the air moving faster than this, K/s, is a sudden change (0: never)
-PR_MEANMIN = 105  # a contact whose mean heat over it (its sign's way) is below this is withdrawn, W
-NPARAM = 106
+PR_ASLMAX = 103  # the air moving faster than this, K/s, is a sudden change (0: never)
+PR_MEANMIN = 104  # a contact whose mean heat over it (its sign's way) is below this is withdrawn, W
+NPARAM = 105
 
 #: An onset CUSUM's excursion that came to no contact pairs with an onset of the other sign
 #: once it rose above this fraction of the threshold (below it, noise's own excursions, about
@@ -789,11 +788,11 @@ def _ambient(st, pr, t, y, fresh, idx, learning):
         # of heat no model has): the air moving that fast is a sudden change too
         dt = t - st[ATL]
         if dt > 0.0 and st[ATL] > -1e300:
-            w = dt / pr[PR_ASLT] if dt < pr[PR_ASLT] else 1.0
+            w = dt / ASL_TAU if dt < ASL_TAU else 1.0
             st[ASL] += w * ((st[XA] - st[AXL]) / dt - st[ASL])
             # (and faster than two of its converter's steps in that time: a coarse converter's
             # one step, the filter taking it in, read as the air moving)
-            lim = 2.0 * st[QA] / pr[PR_ASLT] if st[QA] < 1e299 else 0.0
+            lim = 2.0 * st[QA] / ASL_TAU if st[QA] < 1e299 else 0.0
             if pr[PR_ASLMAX] > 0.0 and abs(st[ASL]) > max(pr[PR_ASLMAX], lim):
                 st[TAMB] = t
         st[AXL] = st[XA]

@@ -189,10 +189,11 @@ def touch_step(cfg: Config, R_w: float, q: float) -> float:
     return float(steady_state(cfg.skin, R_w, np.array([0.0, 0.0, q, 0.0]))[0])
 
 
-def dq_noise(log: Mapping[str, Array], cfg: Config, quiet: NDArray[np.bool_]) -> float:
+def dq_noise(log: Mapping[str, Array], cfg: Config, quiet: NDArray[np.bool_],
+             dq: Array | None = None) -> float:
     """Standard deviation of the estimator's ``dq_i_hat`` on the log over the rows ``quiet``
-    (module doc), W; NaN where there are fewer than 100."""
-    dq = np.asarray(_run(log, cfg).columns["dq_i_hat"], dtype=float)
+    (module doc), W; NaN where there are fewer than 100. ``dq``: that estimate, if already run."""
+    dq = np.asarray(_run(log, cfg).columns["dq_i_hat"] if dq is None else dq, dtype=float)
     ok = quiet & np.isfinite(dq)
     return float(np.std(dq[ok])) if ok.sum() >= 100 else math.nan
 
@@ -209,17 +210,12 @@ def _run(log: Mapping[str, ArrayLike], cfg: Config):  # type: ignore[no-untyped-
                    None if cmd is None else np.asarray(cmd, dtype=float), log.get("fresh"))
 
 
-def contacts_of(log: Mapping[str, ArrayLike], cfg: Config) -> NDArray[np.bool_]:
-    """The rows the estimator (``cfg``) takes for contacts, as ``observe`` would (the fit pads
-    them itself: :data:`~thermoskin.fit.calibrate.PAD_BEFORE`, ``PAD_AFTER``)."""
-    return np.asarray(_run(log, cfg).columns["contact"], dtype=float) > 0.5
-
-
-def touch_snr(log: Mapping[str, Array], cfg: Config,
-              quiet: NDArray[np.bool_]) -> tuple[float, float, float]:
-    """``(snr, touch heat W, dq noise W)`` of a one-finger touch on this log with ``cfg``."""
+def touch_snr(log: Mapping[str, Array], cfg: Config, quiet: NDArray[np.bool_],
+              dq: Array | None = None) -> tuple[float, float, float]:
+    """``(snr, touch heat W, dq noise W)`` of a one-finger touch on this log with ``cfg``
+    (``dq``: the estimator's ``dq_i_hat`` on it, if already run)."""
     q = touch_heat(float(np.nanmedian(log["T_w"])), float(np.nanmedian(log["T_a"])), cfg)
-    sd = dq_noise(log, cfg, quiet)
+    sd = dq_noise(log, cfg, quiet, dq)
     return (abs(q) / sd if sd > 0 else math.nan), q, sd
 
 
@@ -247,10 +243,14 @@ def check(log: Mapping[str, ArrayLike], cfg: Config, *, contact: ArrayLike | Non
     set-point steps) took away what the fit needed."""
     t_start = time.perf_counter()
     if contact is None and "contact" not in log:
-        plain = _check(log, cfg, None, "none: the log has no contact column")
-        c = contacts_of(log, cfg)
+        # one run of the estimator as configured: its contacts (as `observe` would find them;
+        # the fit pads them itself), and its dq_i_hat for the SNR as configured, in both checks
+        obs = _run(log, cfg).columns
+        dq = np.asarray(obs["dq_i_hat"], dtype=float)
+        plain = _check(log, cfg, None, "none: the log has no contact column", dq)
+        c = np.asarray(obs["contact"], dtype=float) > 0.5
         if c.any():
-            masked = _check(log, cfg, c, "the estimator's, the log having no contact column")
+            masked = _check(log, cfg, c, "the estimator's, the log having no contact column", dq)
             if masked.fits[-1].rms < 0.8 * plain.fits[-1].rms:
                 plain = masked
         return dataclasses.replace(plain, wall_s=time.perf_counter() - t_start)
@@ -260,7 +260,7 @@ def check(log: Mapping[str, ArrayLike], cfg: Config, *, contact: ArrayLike | Non
 
 
 def _check(log: Mapping[str, ArrayLike], cfg: Config, contact: ArrayLike | None,
-           contacts_from: str) -> Report:
+           contacts_from: str, dq_now: Array | None = None) -> Report:
     try:
         cols, blocks = cal.prepare(log, contact=contact)
     except cal.CalibrationError as e:
@@ -371,14 +371,14 @@ def _check(log: Mapping[str, ArrayLike], cfg: Config, contact: ArrayLike | None,
     # the SNR of a one-finger touch, as configured and with the sensors found
     quiet = np.ones(n, dtype=bool)
     quiet[: min(n, round(T_SKIP / t_s))] = False
-    if contact is not None or "contact" in log:
-        c = np.nan_to_num(np.asarray(contact if contact is not None else log["contact"], dtype=float)) > 0.5
-        quiet &= ~c
+    touched = (np.zeros(n, dtype=bool) if contact is None
+               else np.nan_to_num(np.asarray(contact, dtype=float)) > 0.5)
+    quiet &= ~touched
     runlog = {k: np.asarray(log[k], dtype=float) for k in ("t", "T_w", "T_p", "v", "T_a") if k in log}
     for k in ("T_w_cmd", "fresh"):
         if k in log:
             runlog[k] = np.asarray(log[k])
-    snr_now, q1, sd_now = touch_snr(runlog, cfg, quiet)
+    snr_now, q1, sd_now = touch_snr(runlog, cfg, quiet, dq_now)
     # after the advice: the calibrated skin, the sensors found; the readings corrected by the
     # offsets found and the estimator told none (whether or not it reads them itself)
     after = full.config.replace(sensor={**found, **{k: 0.0 for k in cal.OFFSETS}})
@@ -393,9 +393,7 @@ def _check(log: Mapping[str, ArrayLike], cfg: Config, contact: ArrayLike | None,
                     air_range=air_range, channels=channels, fits=fits, sensors=sens, skin=full,
                     snr_now=snr_now, snr_found=snr_found, touch_W=q1, dq_sd_now=sd_now,
                     dq_sd_found=sd_found, touch_step=step, found=found, advice=[], wall_s=0.0,
-                    contacts_from=contacts_from,
-                    contact_s=float(np.count_nonzero(np.nan_to_num(np.asarray(contact, dtype=float)) > 0.5)
-                                    * t_s) if contact is not None else 0.0)
+                    contacts_from=contacts_from, contact_s=float(np.count_nonzero(touched)) * t_s)
     return dataclasses.replace(report, advice=advice(report, cfg))
 
 

@@ -172,9 +172,9 @@ def patch_config(skin: Skin, i: int, boards_period: float | None = None) -> Conf
             cfg.sensor.period_T_p if first else cfg.sensor.period_T_w)
         unseen = period >= 1.5 * cfg.sampling.t_s  # water comes in between two readings
         own = dict(SKIN_ESTIMATOR, S_w_flow=FLOW_NOISE * period ** 1.5 if unseen else 0.0)
-    es = {k: max(v, getattr(cfg.estimator, k)) for k, v in own.items()}
-    # the pump-cycle correction: the patch's own (a piped patch none: docs/skin.md), not the
-    # one-patch estimator's default
+    # (the pump-cycle correction: the patch's own, a piped patch none, docs/skin.md; not the
+    # one-patch estimator's default)
+    es = {k: max(v, getattr(cfg.estimator, k)) for k, v in own.items() if k != "switch_bins"}
     es["switch_bins"] = own.get("switch_bins", 0)
     de = {k: max(v, getattr(cfg.detector, k)) for k, v in SKIN_DETECTOR.items()}
     de["onset_state_jump"] = SKIN_ONSET_STATE_JUMP
