@@ -486,6 +486,14 @@ def _update(st, pr, i, y, p, eta, slow, learning, coarse):
     if i == 0:
         R = st[RW] if learning else pr[PR_RW0]
         if learning:
+            # at least its converter's step's, q²/12, learnt or not (a slow board's variance
+            # is not learnt: at its prior a 1/4 K step read as 10 sd, a -3 W contact of 50 ms);
+            # once the warm-up has seen the readings (the common divisor of their first changes
+            # is no step yet: 0.16 K for a 1/128 K converter, taken, put the strong touches of a
+            # 10 Hz session a second late)
+            qw = st[QW]
+            if qw < 1e299 and R < qw * qw / 12.0 and st[MODE] != WARM:
+                R = qw * qw / 12.0
             yhat = b1 * st[X] + a * st[XM]
             sb = -(b1 * st[VB] + a * st[VBM])
             stau = -st[WL2] - (b1 * st[VT] + a * st[VT + 5])
@@ -1561,9 +1569,11 @@ def _pair_seen(st, pr, t, h):
 @_inline
 def _coarse(st, pr):
     """Whether a converter step of the T_w or the T_p readings is known and coarser than
-    ``PR_QFINE`` (the slow states do not learn from such readings)."""
+    ``PR_QFINE`` (the slow states do not learn from such readings). Either alone: a tank held
+    still on one 1/4 K step has no step known, and with both asked for the coarse pipe's
+    dispersion never began (no information rate: no SNR line for such boards)."""
     qw, qp = st[QW], st[QP]
-    return qw < 1e299 and qp < 1e299 and (qw > pr[PR_QFINE] or qp > pr[PR_QFINE])
+    return (pr[PR_QFINE] < qw < 1e299) or (pr[PR_QFINE] < qp < 1e299)
 
 
 @_inline

@@ -220,7 +220,7 @@ class ReferenceEstimator:
     def _coarse(self) -> bool:
         """A converter step of T_w or T_p known and coarser than the slow states learn from."""
         qw, qp = self.quantum["T_w"], self.quantum["T_p"]
-        return qw < 1e299 and qp < 1e299 and (qw > self.q_fine or qp > self.q_fine)
+        return self.q_fine < qw < 1e299 or self.q_fine < qp < 1e299  # either alone
 
     def _slow_learnt(self) -> bool:
         """The slow states' variances below RHO_PB and RHO_PT (kernel: ``_slow_learnt``)."""
@@ -280,7 +280,9 @@ class ReferenceEstimator:
         if i == I_TW:
             h[I_TW], h[I_M] = 1.0 - a, a
             C[1] = -self.w2  # the lag's derivative: -s/(tau s + 1)^2 of the pipe's temperature
-            R = self.R["T_w"]
+            qw = self.quantum["T_w"]  # at least its converter step's q²/12, learnt or not,
+            # once the warm-up has seen the readings (kernel: _update)
+            R = max(self.R["T_w"], qw * qw / 12.0 if qw < 1e299 and self.mode != "warm" else 0.0)
         else:
             h[I_TP] = 1.0
             C[0] = 1.0  # the offset of the tank's readings
