@@ -492,8 +492,8 @@ def _update(st, pr, i, y, p, eta, slow, learning, coarse):
             # is no step yet: 0.16 K for a 1/128 K converter, taken, put the strong touches of a
             # 10 Hz session a second late)
             qw = st[QW]
-            if qw < 1e299 and R < qw * qw / 12.0 and st[MODE] != WARM:
-                R = qw * qw / 12.0
+            qq = qw * qw / 12.0 if qw < 1e299 and st[MODE] != WARM else 0.0
+            R = qq if qq > R else R
             yhat = b1 * st[X] + a * st[XM]
             sb = -(b1 * st[VB] + a * st[VBM])
             stau = -st[WL2] - (b1 * st[VT] + a * st[VT + 5])
