@@ -37,8 +37,9 @@ def test_withdrawn_contacts_are_the_unconfirmed_short_ones(noisy_detector) -> No
     # (nothing learnt of the sensors: learning goes on after a release, not after a withdrawal,
     # so that the runs would part after the first; the mechanism is what is tested here; nor
     # the pairing of a negative onset with the positive evidence before it, which at h = 5
-    # takes noise's negative contacts for the ends of warm ones)
-    cfg = fixed_sensors(cfg).replace(detector={"redate_readings": 0.0, "t_pair": 0.0})
+    # takes noise's negative contacts for the ends of warm ones; nor the other withdrawals,
+    # of contacts that brought less heat than a touch: test_energy_floor.py)
+    cfg = fixed_sensors(cfg).replace(detector={"redate_readings": 0.0, "t_pair": 0.0, "confirm_time": 0.0})
     off = observe(log, cfg.replace(detector={"t_confirm": 0.0}))  # never withdrawn
     on = observe(log, cfg.replace(detector={"t_confirm": 0.2}))
     rises = int((np.diff(on.columns["contact"].astype(int)) == 1).sum())

@@ -264,6 +264,10 @@ class DetectorParams(_Validated):
     confirm_mean: float = _p(0.5, "", 0.0, 10.0,
                              doc="... and so is a contact whose mean heat over it is below this "
                                  "share of dq_design_lo (its sign's way): it brought nothing")
+    confirm_time: float = _p(0.2, "s", 0.0, 60.0,
+                             doc="... or whose heat over it (its mean times its duration, J) is "
+                                 "below confirm_mean x dq_design_lo over this long: the shortest "
+                                 "touch the detector is made for (a tap); 0: never")
     t_refractory: float = _p(3.0, "s", 0.0, 60.0,
                              doc="after a release, no onset of the opposite sign for this long")
     t_pair: float = _p(5.0, "s", 0.0, 600.0,

@@ -66,6 +66,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_HAIR] = 8.0
     pr[K.PR_ASLMAX] = d.air_rate
     pr[K.PR_MEANMIN] = d.confirm_mean * d.dq_design_lo
+    pr[K.PR_EMIN] = d.confirm_mean * d.dq_design_lo * d.confirm_time
     pr[K.PR_TRETR] = 1.0
     pr[K.PR_TCONF] = d.t_confirm
     pr[K.PR_TPAIR] = d.t_pair

@@ -353,7 +353,8 @@ PR_TPAIR = 101   # a negative onset this soon after positive evidence (TXP) is t
 PR_RELN = 102    # a release needs its evidence over at least this many pipe readings
 PR_ASLMAX = 103  # the air moving faster than this, K/s, is a sudden change (0: never)
 PR_MEANMIN = 104  # a contact whose mean heat over it (its sign's way) is below this is withdrawn, W
-NPARAM = 105
+PR_EMIN = 105    # ... or whose heat over it (mean times duration, its sign's way) is below this, J
+NPARAM = 106
 
 #: An onset CUSUM's excursion that came to no contact pairs with an onset of the other sign
 #: once it rose above this fraction of the threshold (below it, noise's own excursions, about
@@ -1507,10 +1508,13 @@ def _detect(st, pr, t, ev, learning):
             # not over enough readings yet: a slow board's one reading off (its noise, a
             # reading dated at the wrong side of a pump switch) does not end a touch
             return C_CONTACT
-        if unconfirmed or lm < pr[PR_MEANMIN]:
+        t_rel = _between(st, st[TFBL], t) if st[DETECTED] <= st[TFBL] < st[TFB] else st[TFB]
+        if unconfirmed or lm < pr[PR_MEANMIN] or lm * (t_rel - st[ONSET]) < pr[PR_EMIN]:
             # and it ended at once: the onset was noise, not a touch; withdraw it (no event);
             # so too a contact whose heat over it came to nothing (10 Hz boards: the filter's
-            # recovery from a touch taken for a new one, a tap of 0.01 W or of the other sign)
+            # recovery from a touch taken for a new one, a tap of 0.01 W or of the other sign),
+            # or to less than the weakest design touch's over the shortest tap (a skin 30 %
+            # lighter than configured: contacts of 0.2 W over 16-120 ms, 3-26 mJ, at 1 kHz)
             st[MODE] = IDLE
             st[CONTACT] = 0.0
             _q_at(st, b)
@@ -1523,7 +1527,6 @@ def _detect(st, pr, t, ev, learning):
                 st[TREL] = t
                 st[LASTSIGN] = 0.0
             return 0
-        t_rel = _between(st, st[TFBL], t) if st[DETECTED] <= st[TFBL] < st[TFB] else st[TFB]
         _end(st, t_rel, ev)
         # the touch has gone: the estimate goes back to its baseline, free to correct itself
         _q_at(st, b)

@@ -752,7 +752,13 @@ class ReferenceEstimator:
             unconfirmed = self.t_lik == self.detected and t - self.detected < d.t_confirm
             if not unconfirmed and (t - self.t_below) * self.rate < d.release_readings:
                 return 1  # a release over this few readings: one reading off ends no touch
-            nothing = self.sum / self.count < d.confirm_mean * d.dq_design_lo
+            if self.detected <= self.t_lik < self.t_below:
+                t_rel = self._between(self.t_lik, t)
+            else:
+                t_rel = self.t_below
+            lm = self.sum / self.count
+            nothing = (lm < d.confirm_mean * d.dq_design_lo
+                       or lm * (t_rel - self.onset) < d.confirm_mean * d.dq_design_lo * d.confirm_time)
             if unconfirmed or nothing:
                 # never confirmed by a reading since the detection, and over at once: noise;
                 # or its heat over it came to nothing
@@ -765,10 +771,6 @@ class ReferenceEstimator:
                 if not unconfirmed:  # and then as after a release, but no sign waits
                     self.t_rel, self.last_sign = t, 0.0
                 return 0
-            if self.detected <= self.t_lik < self.t_below:
-                t_rel = self._between(self.t_lik, t)
-            else:
-                t_rel = self.t_below
             self._end(t_rel)
             self.x[I_Q] = b
             self.V[I_Q] = 0.0
