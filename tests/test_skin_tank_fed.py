@@ -3,6 +3,7 @@ chattering every 50 ms): the pump-cycle correction is what keeps it free of fals
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -54,8 +55,15 @@ def test_spatial_single_patch_every_touch_no_false_event(single, monkeypatch) ->
     assert len(found) == 3 and all(found)  # touches at 5, 14 and 22.5 s
     assert not false, [(e.event.onset, e.event.sign) for e in false]
     assert float(np.median(lat)) <= 0.3
-    # the same noise without the correction: the chatter's misfit makes events of its own
-    # (2 here; the skin's noise of a piped patch, 3e-3, has none but a median latency of 0.28 s)
+    # the correction alone (the contacts that bring less heat than a tap kept: withdrawn, they
+    # are most of what follows, detector.confirm_time), then without it: the chatter's misfit
+    # makes events of its own (2 here; the skin's noise of a piped patch, 3e-3, has none but a
+    # median latency of 0.28 s)
+    loops = tuple(dataclasses.replace(lp, cfg=lp.cfg.replace(detector={"confirm_time": 0.0}))
+                  for lp in skin.loops)
+    bare = dataclasses.replace(skin, loops=loops)
+    found_alone, false_alone, _ = _score(bare, log, contact)
+    assert all(found_alone) and not false_alone
     monkeypatch.setattr(so, "TANK_FED_ESTIMATOR", {**so.TANK_FED_ESTIMATOR, "switch_bins": 0})
-    _, false_off, _ = _score(skin, log, contact)
+    _, false_off, _ = _score(bare, log, contact)
     assert false_off
