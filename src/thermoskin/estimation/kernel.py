@@ -492,9 +492,7 @@ def _update(st, pr, i, y, p, eta, slow, learning, coarse):
             # once the warm-up has seen the readings (the common divisor of their first changes
             # is no step yet: 0.16 K for a 1/128 K converter, taken, put the strong touches of a
             # 10 Hz session a second late)
-            qw = st[QW]
-            qq = qw * qw / 12.0 if qw < 1e299 and st[MODE] != WARM else 0.0
-            R = qq if qq > R else R
+            R = _r_pipe(st)
             yhat = b1 * st[X] + a * st[XM]
             sb = -(b1 * st[VB] + a * st[VBM])
             stau = -st[WL2] - (b1 * st[VT] + a * st[VT + 5])
@@ -1096,6 +1094,16 @@ def _cusums_reset(st, t):
 
 
 @_inline
+def _r_pipe(st):
+    """The variance a pipe reading is taken with: the learnt one, at least its learnt converter
+    step's ``q²/12`` once the warm-up has seen the readings (:func:`_update`)."""
+    r = st[RW]
+    qw = st[QW]
+    qq = qw * qw / 12.0 if qw < 1e299 and st[MODE] != WARM else 0.0
+    return qq if qq > r else r
+
+
+@_inline
 def _end(st, t_release, ev):
     n = st[COUNT]
     sg = st[SIGN]
@@ -1109,7 +1117,7 @@ def _end(st, t_release, ev):
     ev[EV_PEAK] = sg * st[PEAK]
     ev[EV_MEAN] = sg * mean
     ev[EV_ENERGY] = sg * mean * dur
-    ev[EV_RW] = st[RW]
+    ev[EV_RW] = _r_pipe(st)  # (as the filter took it: the re-dating's filter holds it)
     ev[EV_RP] = st[RP]
     ev[EV_RA] = st[RA]
     ev[EV_BD] = st[BD]
