@@ -21,7 +21,7 @@ from thermoskin.analysis.evaluation import match_events
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.estimation.freshness import infer_fresh
-from thermoskin.estimation.learnt import SNR_MIN, learnt
+from thermoskin.estimation.learnt import SNR_MIN, learnt, notices
 from thermoskin.params import load_config
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import SCENARIOS, Scenario
@@ -68,4 +68,9 @@ def test_touches_below_such_a_board_say_so_and_invent_nothing() -> None:
     est, res = _estimate(log, cfg)
     m = match_events(sc.touches, res.events)
     assert m.false_alarms == 0, [(e.detected_at, e.sign) for e in m.spurious]
-    assert learnt(est.st, cfg).snr < SNR_MIN
+    lt = learnt(est.st, cfg)
+    assert lt.snr < SNR_MIN and "snr" in notices(lt, cfg)
+    # the tank's readings never changed (one step throughout): its noise is not known, and no
+    # note advises one (it read 1 mK, and the note said to set it)
+    assert np.unique(log["T_p"]).size == 1 and "T_p" in lt.still
+    assert "noise_T_p" not in notices(lt, cfg) and "T_p not known" in lt.lines()[0]

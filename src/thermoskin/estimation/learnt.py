@@ -46,7 +46,9 @@ class Learnt:
     W⁻²/s; ``snr``: the one-finger SNR, NaN before any information; ``T_g`` °C: the sheet;
     ``armed``: the detector armed; ``arm_off`` K: the T_w readings' mean less their command where
     the arming last looked, NaN without a command; ``slow_learnt``: the offset and the lag are
-    learnt, False where these readings cannot teach them: rows slower than 100 a second)."""
+    learnt, False where these readings cannot teach them: rows slower than 100 a second;
+    ``still``: the channels whose readings never changed, whose noise is not known: a tank held
+    on one step of a coarse converter reads a noise of nought)."""
 
     noise: dict[str, float]
     quantum: dict[str, float]
@@ -61,11 +63,13 @@ class Learnt:
     armed: bool = True
     arm_off: float = math.nan
     slow_learnt: bool = True
+    still: tuple[str, ...] = ()
 
     def lines(self) -> list[str]:
         """The figures, a line or two for a summary."""
-        q = ", ".join(f"{ch} {self.noise[ch]:.3f} K" + (f" (step {self.quantum[ch]:.4g} K)"
-                                                        if self.quantum[ch] > 0 else "")
+        q = ", ".join((f"{ch} not known (its readings never changed)" if ch in self.still else
+                       f"{ch} {self.noise[ch]:.3f} K" + (f" (step {self.quantum[ch]:.4g} K)"
+                                                         if self.quantum[ch] > 0 else ""))
                       for ch in CHANNELS)
         snr = f"{self.snr:.1f}" if math.isfinite(self.snr) else "not known yet"
         slow = (f"T_p offset against T_w {self.offset_p:+.3f} ± {self.offset_p_sd:.3f} K, "
@@ -106,7 +110,9 @@ def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
                   offset_p_sd=math.sqrt(max(pbb, 0.0)), lag_w=lag, lag_w_sd=math.sqrt(max(ptt, 0.0)),
                   rho=float(st[K.RHO]), info_rate=rate, snr=one_finger_snr(rate, T_g), T_g=T_g,
                   armed=bool(st[K.ARMED] != 0.0), arm_off=float(st[K.ARMLP] - st[K.CMD]),
-                  slow_learnt=not started or pbb > 0.0 or ptt > 0.0)
+                  slow_learnt=not started or pbb > 0.0 or ptt > 0.0,
+                  still=tuple(ch for ch, k in zip(CHANNELS, (K.QW, K.QP, K.QA), strict=True)
+                              if started and st[k] >= 1e299))
 
 
 def snr_line(snr: float, where: str = "these readings") -> str:
@@ -164,7 +170,9 @@ def notices(lt: Learnt, cfg: Config) -> dict[str, str]:
     if cfg.estimator.tau_noise > 0:
         for ch in CHANNELS:
             prior = math.sqrt(sn.noise(ch) ** 2 + sn.quantum_T**2 / 12.0)
-            if not 0.67 < lt.noise[ch] / prior < 1.5:
+            # (not of readings that never changed: a tank held on one 1/4 K step read as a
+            # noise of 1 mK, and the note advised setting it)
+            if ch not in lt.still and not 0.67 < lt.noise[ch] / prior < 1.5:
                 out[f"noise_{ch}"] = (f"the {ch} readings' noise is {lt.noise[ch]:.3f} K, not the "
                                       f"configured {prior:.3f} K (learnt): [sensor] noise_{ch} = "
                                       f"{lt.noise[ch]:.3f} starts from it")
