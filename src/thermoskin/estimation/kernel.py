@@ -487,12 +487,7 @@ def _update(st, pr, i, y, p, eta, slow, learning, coarse):
     if i == 0:
         R = st[RW] if learning else pr[PR_RW0]
         if learning:
-            # at least its converter's step's, q²/12, learnt or not (a slow board's variance
-            # is not learnt: at its prior a 1/4 K step read as 10 sd, a -3 W contact of 50 ms);
-            # once the warm-up has seen the readings (the common divisor of their first changes
-            # is no step yet: 0.16 K for a 1/128 K converter, taken, put the strong touches of a
-            # 10 Hz session a second late)
-            R = _r_pipe(st)
+            R = _r_pipe(st)  # (at least its converter step's)
             yhat = b1 * st[X] + a * st[XM]
             sb = -(b1 * st[VB] + a * st[VBM])
             stau = -st[WL2] - (b1 * st[VT] + a * st[VT + 5])
@@ -1095,8 +1090,11 @@ def _cusums_reset(st, t):
 
 @_inline
 def _r_pipe(st):
-    """The variance a pipe reading is taken with: the learnt one, at least its learnt converter
-    step's ``q²/12`` once the warm-up has seen the readings (:func:`_update`)."""
+    """The variance a pipe reading is taken with (:func:`_update`): the learnt one, at least its
+    learnt converter step's ``q²/12``, learnt or not (a slow board's variance is not learnt: at
+    its 0.02 K prior a 1/4 K step read as 10 sd, a contact of -3 W lasting 50 ms); once the
+    warm-up has seen the readings (the common divisor of the first changes is no step yet: 0.16 K
+    for a 1/128 K converter, taken, put the strong touches of a 10 Hz session a second late)."""
     r = st[RW]
     qw = st[QW]
     qq = qw * qw / 12.0 if qw < 1e299 and st[MODE] != WARM else 0.0
