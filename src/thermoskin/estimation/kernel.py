@@ -485,9 +485,8 @@ def _update(st, pr, i, y, p, eta, slow, learning, coarse):
     # (a patch that learns nothing keeps its variances at their priors: read from its
     # parameters, one cache line fewer of its state a sample)
     if i == 0:
-        R = st[RW] if learning else pr[PR_RW0]
+        R = _r_pipe(st) if learning else pr[PR_RW0]  # (learnt: at least its converter step's)
         if learning:
-            R = _r_pipe(st)  # (at least its converter step's)
             yhat = b1 * st[X] + a * st[XM]
             sb = -(b1 * st[VB] + a * st[VBM])
             stau = -st[WL2] - (b1 * st[VT] + a * st[VT + 5])

@@ -96,8 +96,8 @@ def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
     noise = {ch: (math.sqrt(R[i]) if R is not None else math.sqrt(sn.noise(ch) ** 2
                                                                    + sn.quantum_T**2 / 12.0))
              for i, ch in enumerate(CHANNELS)}
-    quantum = {ch: (float(st[k]) if st[k] < 1e299 and st[k] > 1e-6 else 0.0)
-               for ch, k in zip(CHANNELS, (K.QW, K.QP, K.QA), strict=True)}
+    steps = dict(zip(CHANNELS, (float(st[K.QW]), float(st[K.QP]), float(st[K.QA])), strict=True))
+    quantum = {ch: (q if 1e-6 < q < 1e299 else 0.0) for ch, q in steps.items()}
     bd = float(st[K.BD]) if started else 0.0
     pbb = float(st[K.PBB]) if started else sn.offset_sd**2
     lag = float(st[K.LAGT]) if started else sn.lag_T_w
@@ -111,8 +111,7 @@ def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
                   rho=float(st[K.RHO]), info_rate=rate, snr=one_finger_snr(rate, T_g), T_g=T_g,
                   armed=bool(st[K.ARMED] != 0.0), arm_off=float(st[K.ARMLP] - st[K.CMD]),
                   slow_learnt=not started or pbb > 0.0 or ptt > 0.0,
-                  still=tuple(ch for ch, k in zip(CHANNELS, (K.QW, K.QP, K.QA), strict=True)
-                              if started and st[k] >= 1e299))
+                  still=tuple(ch for ch, q in steps.items() if started and q >= 1e299))
 
 
 def snr_line(snr: float, where: str = "these readings") -> str:
