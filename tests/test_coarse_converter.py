@@ -74,3 +74,31 @@ def test_touches_below_such_a_board_say_so_and_invent_nothing() -> None:
     # note advises one (it read 1 mK, and the note said to set it)
     assert np.unique(log["T_p"]).size == 1 and "T_p" in lt.still
     assert "noise_T_p" not in notices(lt, cfg) and "T_p not known" in lt.lines()[0]
+
+
+def _one_khz_quarter_kelvin(seed: int, duration: float):  # type: ignore[no-untyped-def]
+    """A no-touch log of 1 kHz boards with a 1/4 K step (the default configuration: 1/128 K), the
+    tank drifting by 30 mK over 50 s within one step of its readings."""
+    cfg = load_config()
+    sc = Scenario(name="quiet", description="", duration=duration, T_a=20.0, touches=(),
+                  pump="logic", T_p_drift=0.03, T_p_period=50.0)
+    return cfg, simulate(sc, cfg, boards=dataclasses.replace(cfg.sensor, quantum_T=QUANTUM, seed=seed))
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_a_tank_drifting_within_one_step_widens_the_detector(seed: int) -> None:
+    """At 1 kHz a 1/4 K step is not dithered by 0.02 K of noise: the tank reads one step while
+    it drifts within it, and the drift reads as a touch heat of +-0.3 W coming and going with
+    the pump over tens of seconds (the mismatch grid's 1/4 K row: 57 false alarms in 1.2 h).
+    Over the short windows (0.4 s) the evidence looks nearly white; over the long ones (8 s)
+    it is spread far beyond chi2(1), and the detector is widened by it. Without the long
+    windows the same log gives false contacts."""
+    cfg, log = _one_khz_quarter_kelvin(seed, 240.0)
+    assert np.unique(log["T_p"]).size <= 2  # the tank on one step (or two) throughout
+    est, res = _estimate(log, cfg)
+    assert res.events == [], [(e.detected_at, e.sign, e.peak_dq) for e in res.events]
+    lt = learnt(est.st, cfg)
+    assert est.st[K.RHOL] > 3.0 * est.st[K.RHOS] and est.st[K.RHO] == est.st[K.RHOL]
+    assert lt.snr < SNR_MIN and "snr" in notices(lt, cfg)
+    _, res0 = _estimate(log, cfg.replace(detector={"rho_window_long": 0.0}))
+    assert len(res0.events) >= 2

@@ -222,8 +222,21 @@ AHELD = IRN + 5    # 1 while the onsets are held after a sudden change of the ai
 ASL = IRN + 6      # the air estimate's rate of change, K/s (its mean over about ASL_TAU s),
 AXL = IRN + 7      # the estimate at the last fresh air reading, degC,
 ATL = IRN + 8      # and that reading's time, s
-NSTATE = IRN + 9
+RHOS = IRN + 9     # the dispersion of the short windows (PR_RHOW) and of the long ones
+RHOL = IRN + 10    # (PR_RHOWL): RHO is the larger
+RHOLN = IRN + 11   # the long windows seen
+WLGE = IRN + 12    # the long window's sums of g e/S and g^2/S, and the time they gathered, s
+WLGG = IRN + 13
+WLT0 = IRN + 14
+WLBD = IRN + 15    # the learnt offset and lag where the long window began
+WLLT = IRN + 16
+NSTATE = IRN + 17
 
+#: The long windows' tracker's least step in its logarithm, a window (the short one's is 0.03
+#: a window of 0.4 s): a long window's 8 s are 20 short ones, and at 0.03 a dispersion the
+#: first windows put high (a noise five times the configured one, not yet learnt) took 5 min
+#: to come back
+RHOL_ETA = 0.1
 #: The arming's mean of the T_w readings: a first-order lag of this time constant (s), so that
 #: the pump's ripple and the readings' noise do not break a hold (0.3 K off its command plus
 #: 0.05 K of noise and the ripple broke it now and then, forever: the detector never armed).
@@ -354,7 +367,8 @@ PR_RELN = 102    # a release needs its evidence over at least this many pipe rea
 PR_ASLMAX = 103  # the air moving faster than this, K/s, is a sudden change (0: never)
 PR_MEANMIN = 104  # a contact whose mean heat over it (its sign's way) is below this is withdrawn, W
 PR_EMIN = 105    # ... or whose heat over it (mean times duration, its sign's way) is below this, J
-NPARAM = 106
+PR_RHOWL = 106   # the dispersion's long window, s (0: none)
+NPARAM = 107
 
 #: An onset CUSUM's excursion that came to no contact pairs with an onset of the other sign
 #: once it rose above this fraction of the threshold (below it, noise's own excursions, about
@@ -420,7 +434,7 @@ def new_state() -> np.ndarray:
     st[LYW] = st[LYP] = st[LYA] = np.nan
     st[LY2P] = st[LY2A] = np.nan
     st[TLP] = st[TLA] = -1e300
-    st[RHO] = 1.0
+    st[RHO] = st[RHOS] = st[RHOL] = 1.0
     return st
 
 
@@ -840,6 +854,8 @@ def _learnt_init(st, pr):
     st[BD] = pr[PR_BD0]
     st[PBB] = pr[PR_PB0]
     st[RHO] = pr[PR_RHO0] if pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0 else 1.0
+    st[RHOS] = st[RHO]
+    st[RHOL] = 1.0
     st[PBT] = 0.0
     st[PTT] = pr[PR_PT0]
     tau = pr[PR_LAG0]
@@ -1251,7 +1267,7 @@ def _irho(st, pr, learning=True):
 
 
 @_inline
-def _dispersion(st, pr, t, sge, sgg, on):
+def _dispersion(st, pr, t, sge, sgg, on, coarse):
     """The onset evidence's dispersion ``rho`` and the information rate, while no contact is
     seen (``on``). Where the model fits the readings (the innovations white, their variances
     right) the evidence a window of ``PR_RHOW`` s gathers, ``z² = (sum g e/S)² / sum g²/S``, is
@@ -1271,6 +1287,35 @@ def _dispersion(st, pr, t, sge, sgg, on):
     st[IRN] += pr[PR_AIR] * (1.0 - st[IRN])
     st[WGE] += sge
     st[WGG] += sgg
+    st[WLGE] += sge
+    st[WLGG] += sgg
+    st[WLT0] += pr[PR_TS]
+    if pr[PR_RHOWL] > 0.0 and st[WLT0] >= pr[PR_RHOWL]:
+        # the long window: a misfit slower than the short windows (a tank held on one coarse
+        # step while it drifts within it) gathers in the CUSUMs over seconds. It gathers while
+        # no contact is seen and goes on over a contact (touches every few seconds left few
+        # stretches of 8 s without one: its tracker hardly moved). Its own tracker, from 1
+        # (the model's), steps max(RHOL_ETA, 1/(n + 1)) in its logarithm; a window over which
+        # the slow states moved in the filter's first seconds is not taken (as the short ones).
+        # Only where a converter's step is coarse (:func:`_coarse`): taken with every board,
+        # the touches the detector missed filled the long windows, and the tracker rose with
+        # them (a noise five times the configured one: 71 of 76 touches found, then 55); and
+        # only from fast boards (PR_RFAST readings a second: a 10 Hz board's few readings a
+        # window widened the detector where the short windows did not, a lab's strong touches
+        # found 0.3 s later)
+        a, b = st[WLGE], st[WLGG]
+        moved = t - st[TINIT] < pr[PR_RHOEARLY] and (abs(st[BD] - st[WLBD]) > pr[PR_RHODB_]
+                                                    or abs(st[LAGT] - st[WLLT]) > pr[PR_RHODT])
+        if b > 0.0 and not moved and st[RATE] >= pr[PR_RFAST] and coarse:
+            n = st[RHOLN]
+            st[RHOLN] = n + 1.0
+            eta = 1.0 / (n + 1.0) if 1.0 / (n + 1.0) > RHOL_ETA else RHOL_ETA
+            r = st[RHOL] * math.exp(eta if a * a > 0.4549 * st[RHOL] * b else -eta)
+            st[RHOL] = r if r > 1e-3 else 1e-3
+            st[RHO] = st[RHOS] if st[RHOS] > st[RHOL] else st[RHOL]
+        st[WLGE] = st[WLGG] = st[WLT0] = 0.0
+        st[WLBD] = st[BD]
+        st[WLLT] = st[LAGT]
     if t - st[WT0] >= pr[PR_RHOW]:
         a, b = st[WGE], st[WGG]
         # a window over which the slow states moved in the filter's first seconds (learning
@@ -1285,12 +1330,14 @@ def _dispersion(st, pr, t, sge, sgg, on):
                 st[RHOB + n] = a * a / (0.4549 * b)
                 for j in range(n + 1):
                     st[RHOB + NRB + j] = st[RHOB + j]
-                r = _median_in_place(st, RHOB + NRB, n + 1) if n >= 2 else st[RHO]
+                r = _median_in_place(st, RHOB + NRB, n + 1) if n >= 2 else st[RHOS]
                 r = r if r < pr[PR_RHOCAP] else pr[PR_RHOCAP]  # (a touch in the first windows)
             else:  # then a tracker of it
                 eta = 1.0 / (n + 1.0) if 1.0 / (n + 1.0) > pr[PR_RHOETA] else pr[PR_RHOETA]
-                r = st[RHO] * math.exp(eta if a * a > 0.4549 * st[RHO] * b else -eta)
-            st[RHO] = r if r > 1e-3 else 1e-3
+                r = st[RHOS] * math.exp(eta if a * a > 0.4549 * st[RHOS] * b else -eta)
+            r = r if r > 1e-3 else 1e-3
+            st[RHOS] = r
+            st[RHO] = r if r > st[RHOL] else st[RHOL]
         st[WGE] = st[WGG] = 0.0
         st[WT0] = t
         st[WBD] = st[BD]
@@ -1783,7 +1830,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         # its start; but with a coarse converter, which they never learn from, at once)
         _dispersion(st, pr, t, st[SGE], st[SGG], not gap and st[MODE] != INCONTACT
                     and t - st[TAMB] >= pr[PR_TAMBH] and t - st[TREL] >= pr[PR_RHOSET]
-                    and (_slow_learnt(st, pr) or coarse))
+                    and (_slow_learnt(st, pr) or coarse), coarse)
     st[Q] = st[X + 2]
     pq = st[P + 12]
     st[SQ] = math.sqrt(pq) if pq > 0.0 else 1e-12

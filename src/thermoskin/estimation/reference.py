@@ -79,6 +79,7 @@ DB_MAX = 1e-3        # the most a reading moves the learnt offset, K
 DT_MAX = 5e-4        # ... and the lag, s
 LEARN_DELAY = 0.5    # the slow states learn from this long after the filter's start, s
 RHO_ETA = 0.03       # the dispersion tracker's least step
+RHOL_ETA = 0.1      # the long windows' tracker's least step
 RHO_FIRST = 16       # the dispersion is the median of the first windows' first (before the
 RHO_CAP = 1e6        # third: detector.rho_prior; at most RHO_CAP: a touch among them)
 RHO_PB = 0.03**2     # ... once the offset's variance is below this, K^2,
@@ -160,7 +161,10 @@ class ReferenceEstimator:
         self.t_window = 0.0
         self.t_init = -1e300
         self.rho = self.cfg.detector.rho_prior if self.cfg.detector.rho_window > 0 else 1.0
+        self.rho_s, self.rho_l = self.rho, 1.0  # the short and the long windows' (rho the larger)
         self.rho_n, self.rho_first = 0, []
+        self.rho_ln, self.rho_lwin = 0, np.zeros(3)  # the long window: sums of g e/S, g^2/S, time
+        self.rho_lfrom = (0.0, 0.0)
         self.rho_from = (0.0, 0.0)  # the slow states where the window began
         self.rho_win, self.t_rho = np.zeros(2), 0.0
         self.info_rate = 0.0
@@ -211,7 +215,7 @@ class ReferenceEstimator:
     def hold(self, R: dict[str, float], b_hat: float, tau: float) -> None:
         """Hold what is learnt of the sensors at these values (the re-dating's filter)."""
         self.learn = False
-        self.rho = 1.0
+        self.rho = self.rho_s = self.rho_l = 1.0
         self.R0 = dict(R)
         self.b_hat, self.tau = b_hat, tau
         self.P_B = np.zeros((2, 2))
@@ -388,6 +392,20 @@ class ReferenceEstimator:
             return
         self.info_rate += min(1.0, self.t_s / IRATE_TAU) * (gg * self._irho() / self.t_s - self.info_rate)
         self.rho_win += (ge, gg)
+        self.rho_lwin += (ge, gg, self.t_s)  # (over contacts: while none is seen)
+        rl = self.cfg.detector.rho_window_long
+        if rl > 0 and self.rho_lwin[2] >= rl:  # the long window: its own tracker, from 1
+            A, Bw, _ = self.rho_lwin
+            moved = t - self.t_init < RHO_EARLY and (abs(self.b_hat - self.rho_lfrom[0]) > RHO_MOVED[0]
+                                                     or abs(self.tau - self.rho_lfrom[1]) > RHO_MOVED[1])
+            if Bw > 0 and not moved and self.rate >= FAST_READINGS and self._coarse():
+                eta = max(RHOL_ETA, 1.0 / (self.rho_ln + 1))
+                self.rho_ln += 1
+                up = 0.4549 * self.rho_l * Bw < A * A
+                self.rho_l = max(1e-3, self.rho_l * math.exp(eta if up else -eta))
+                self.rho = max(self.rho_s, self.rho_l)
+            self.rho_lwin[:] = 0.0
+            self.rho_lfrom = (self.b_hat, self.tau)
         if t - self.t_rho >= rw:
             A, Bw = self.rho_win
             moved = t - self.t_init < RHO_EARLY and (abs(self.b_hat - self.rho_from[0]) > RHO_MOVED[0]
@@ -397,10 +415,12 @@ class ReferenceEstimator:
                 if self.rho_n <= RHO_FIRST:  # the first windows: their median (from the third)
                     self.rho_first.append(A * A / (0.4549 * Bw))
                     if self.rho_n >= 3:
-                        self.rho = min(max(1e-3, float(np.median(self.rho_first))), RHO_CAP)
+                        self.rho_s = min(max(1e-3, float(np.median(self.rho_first))), RHO_CAP)
                 else:  # then a tracker of it
                     eta = max(RHO_ETA, 1.0 / self.rho_n)
-                    self.rho = max(1e-3, self.rho * math.exp(eta if 0.4549 * self.rho * Bw < A * A else -eta))
+                    up = 0.4549 * self.rho_s * Bw < A * A
+                    self.rho_s = max(1e-3, self.rho_s * math.exp(eta if up else -eta))
+                self.rho = max(self.rho_s, self.rho_l)
             self.rho_win[:] = 0.0
             self.t_rho = t
             self.rho_from = (self.b_hat, self.tau)
