@@ -215,36 +215,6 @@ def test_fit_against_the_reference_filter_and_svd_projection() -> None:
     assert moved >= len(raw) // 2  # the fit did date them again
 
 
-def test_a_contact_dated_again_below_the_heat_floor_is_withdrawn() -> None:
-    """The detector withdraws a contact that brought less heat than its floor
-    (``confirm_mean x dq_design_lo x confirm_time``), judged on its own dates; the re-dating
-    judges the dates it gives by the same floor. Each contact of a 100 Hz log dated again with
-    the floor just above the heat its new dates give: not written (None); just below: written,
-    as without the floor (the same dates)."""
-    cfg, log, _ = _log("log-100hz", 101)
-    est = TouchEstimator(cfg, t_s=loop_t_s(sample_interval(log["t"]), cfg))
-    raw = observe(log, cfg.replace(detector={"redate_readings": 0.0})).events
-    block = _block(log, est)
-    floor = est.pr[K.PR_EMIN]
-    assert floor > 0.0
-    judged = 0
-    for e in raw:
-        t_end = e.release + cfg.detector.redate_tail
-        k = int(np.searchsorted(log["t"], t_end))
-        got = RD.Redater(cfg, est.t_s).redate(est, e, k, t_end, block, 0)
-        assert got is not None and abs(got.energy) >= floor  # the default floor keeps a touch
-        if got is e:
-            continue  # (not dated again: the detector's own judgement stands)
-        judged += 1
-        est.pr[K.PR_EMIN] = 1.01 * abs(got.energy)
-        assert RD.Redater(cfg, est.t_s).redate(est, e, k, t_end, block, 0) is None
-        est.pr[K.PR_EMIN] = 0.99 * abs(got.energy)
-        kept = RD.Redater(cfg, est.t_s).redate(est, e, k, t_end, block, 0)
-        assert kept is not None and (kept.onset, kept.release) == (got.onset, got.release)
-        est.pr[K.PR_EMIN] = floor
-    assert judged >= len(raw) // 2
-
-
 def test_step_and_chunks_write_the_same_events() -> None:
     """Live (a sample at a time) and offline (chunks of any size) re-date at the same rows."""
     cfg, log, _ = _log("boards-10hz", 102, duration=80.0)

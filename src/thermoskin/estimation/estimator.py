@@ -331,9 +331,8 @@ class TouchEstimator:
             self.events.extend(rd.flush(self))
         if K.finish(self.st, t, self._ev):
             e = ContactEvent.from_kernel(self._ev)
-            ev = None if rd is None else rd.redate(self, e, rd.n - 1, math.inf, open_end=True,
-                                                   learnt=self._ev)
-            self.events.append(e if ev is None else ev)  # (an open contact is never withdrawn)
+            self.events.append(e if rd is None else rd.redate(self, e, rd.n - 1, math.inf,
+                                                              open_end=True, learnt=self._ev))
             self.contact = 0
 
     # -- arrays -----------------------------------------------------------------------------

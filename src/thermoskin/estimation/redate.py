@@ -518,8 +518,7 @@ class Redater:
         """``e`` dated again now; or, in the background (a live row), handed to the worker:
         nothing now, the event from :meth:`ready`."""
         if self._pool is None or block is not None:
-            ev = self.redate(est, e, k, t_end, block, n0, learnt=learnt)
-            return [] if ev is None else [ev]
+            return [self.redate(est, e, k, t_end, block, n0, learnt=learnt)]
         self._write()  # the rows up to k into the buffer, which alone the worker reads
         # as they are now (a new pump velocity adds tables; the live filter learns on)
         model = _Model(est.pr, est.tabs, est.switch_table.copy())
@@ -559,8 +558,7 @@ class Redater:
         if self.pending is None:
             return out
         e, self.pending, self.due = self.pending, None, math.inf
-        ev = self.redate(est, e, self.n - 1, math.inf, learnt=self.learnt)
-        return out if ev is None else [*out, ev]
+        return [*out, self.redate(est, e, self.n - 1, math.inf, learnt=self.learnt)]
 
     def close(self) -> None:
         """Stop the worker (after the fits handed over)."""
@@ -570,23 +568,15 @@ class Redater:
 
     def redate(self, est: TracedModel, e: ContactEvent, k_now: int, t_end: float,
                block: tuple[Array, ...] | None = None, n0: int = 0, open_end: bool = False,
-               learnt: Array | None = None) -> ContactEvent | None:
+               learnt: Array | None = None) -> ContactEvent:
         """``e`` dated again from the rows before ``t_end`` that the buffer holds at row
         ``k_now`` (its last ``nr``); ``e`` itself where the readings came fast, or no pulse
         of its sign fits. ``open_end``: the contact had not ended (the log or the run did):
         its onset alone is dated again. Nothing is dated into the contact written before.
         ``learnt``: the contact's kernel record; the filter run again holds what the live one
-        had learnt of the sensors when the contact ended (their variances, the offset).
-
-        None where the contact, dated again, brought less heat than the detector's floor
-        (``detector.confirm_time``, ``PR_EMIN``): the detector judges a contact by its own
-        dates, and short contacts it kept above the floor (a door's end through a lagging air
-        sensor, a skin's misfit at a pump switch) came to 5-9 mJ dated again: withdrawn as the
-        detector withdraws its own."""
+        had learnt of the sensors when the contact ended (their variances, the offset)."""
         out = self._redate(est, e, k_now, t_end, block, n0, open_end, learnt)
         self.last_release = out.release
-        if out is not e and not open_end and abs(out.energy) < est.pr[K.PR_EMIN]:
-            return None
         return out
 
     def _redate(self, est: TracedModel, e: ContactEvent, k_now: int, t_end: float,
