@@ -17,7 +17,7 @@ from thermoskin.logio import read_log
 from thermoskin.params import load_config
 from thermoskin.sim.conditions import decimate, get_condition, mis_sized_skin
 from thermoskin.sim.run import simulate
-from thermoskin.sim.scenarios import SCENARIOS
+from thermoskin.sim.scenarios import SCENARIOS, Scenario
 
 
 @functools.cache
@@ -51,6 +51,10 @@ def _case(name: str):  # type: ignore[no-untyped-def]
     if name == "1/16 K boards":  # the air's one-step CUSUM passes its threshold: no door
         return cfg, simulate(SCENARIOS["fingers"].with_duration(30.0), cfg,
                              boards=dataclasses.replace(cfg.sensor, quantum_T=1 / 16))
+    if name == "1/4 K boards at 1 kHz, the tank drifting within a step":  # the long windows
+        sc = Scenario(name="quiet", description="", duration=40.0, T_a=20.0, touches=(),
+                      pump="logic", T_p_drift=0.03, T_p_period=50.0)
+        return cfg, simulate(sc, cfg, boards=dataclasses.replace(cfg.sensor, quantum_T=0.25, seed=3))
     if name.startswith("a door"):  # the air sensor lags 3 s: the onsets held while it catches
         # up (a touch 5.5 s after the door), found by its CUSUM where the lag is configured and
         # by the reading's rate where it is not
@@ -86,6 +90,7 @@ CASES = ["1 kHz, a NaN burst", "pump-cycle correction", "pump-cycle correction l
          "ambient-step", "a door, the air sensor's 3 s lag configured",
          "a door, the air sensor 3 s slower than configured",
          "the emulator's 10 Hz session, two contacts withdrawn", "1/16 K boards",
+         "1/4 K boards at 1 kHz, the tank drifting within a step",
          "cold", "setpoints", "log-100hz logged every 20 ms",
          "boards-10hz logged every 10 ms"]
 
@@ -113,6 +118,11 @@ def test_kernel_equals_reference(name: str) -> None:
             if not (a == b or (a != a and b != b)):
                 worst[k] = max(worst[k], abs(a - b))
     assert all(v <= 1e-9 for v in worst.values()), worst
+    # the dispersion of the short windows and of the long ones
+    assert est.st[K.RHOS] == pytest.approx(ref.rho_s, rel=1e-9)
+    assert est.st[K.RHOL] == pytest.approx(ref.rho_l, rel=1e-9)
+    if "within a step" in name:
+        assert ref.rho_ln >= 3 and ref.rho_l > 2.0  # (the long windows taken, and up from 1)
     nb = cfg.estimator.switch_bins  # the pump-cycle correction's table, as learnt
     if nb:
         np.testing.assert_allclose(est.switch_table[:2 * nb].reshape(2, nb), ref.tpl, rtol=0, atol=1e-12)

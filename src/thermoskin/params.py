@@ -226,9 +226,9 @@ class DetectorParams(_Validated):
                                "the model does not fit the readings the detector needs that much more "
                                "evidence (0: none)")
     rho_window_long: float = _p(8.0, "s", 0.0, 600.0,
-                                doc="the dispersion's long window: a misfit slower than rho_window "
-                                    "(a tank drifting within one coarse converter step) widens the "
-                                    "detector too (0: none)")
+                                doc="the dispersion's long window, where a converter's step is coarse "
+                                    "and the boards fast: a misfit slower than rho_window (a tank "
+                                    "drifting within one step) widens the detector too (0: none)")
     rho_deadband: float = _p(1.5, "", 1.0, 100.0,
                              doc="a dispersion up to this is taken as none (its tracker's own scatter)")
     rho_prior: float = _p(1.0, "", 0.001, 100.0,

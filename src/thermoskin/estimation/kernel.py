@@ -233,9 +233,9 @@ WLLT = IRN + 16
 NSTATE = IRN + 17
 
 #: The long windows' tracker's least step in its logarithm, a window (the short one's is 0.03
-#: a window of 0.4 s): a long window's 8 s are 20 short ones, and at 0.03 a dispersion the
-#: first windows put high (a noise five times the configured one, not yet learnt) took 5 min
-#: to come back
+#: a window of 0.4 s): a long window's 8 s are 20 short ones, and at 0.03 a dispersion its
+#: first windows put high took minutes to come back (traced with a noise five times the
+#: configured one, when the long windows were tried with every board)
 RHOL_ETA = 0.1
 #: The arming's mean of the T_w readings: a first-order lag of this time constant (s), so that
 #: the pump's ripple and the readings' noise do not break a hold (0.3 K off its command plus
