@@ -227,7 +227,7 @@ RHOL = IRN + 10    # (PR_RHOWL): RHO is the larger
 RHOLN = IRN + 11   # the long windows seen
 WLGE = IRN + 12    # the long window's sums of g e/S and g^2/S, and the time they gathered, s
 WLGG = IRN + 13
-WLT0 = IRN + 14
+WLDT = IRN + 14
 WLBD = IRN + 15    # the learnt offset and lag where the long window began
 WLLT = IRN + 16
 NSTATE = IRN + 17
@@ -1267,6 +1267,24 @@ def _irho(st, pr, learning=True):
 
 
 @_inline
+def _track(r, a, b, eta):
+    """A dispersion tracker's step at a window's end (``a = sum g e/S``, ``b = sum g²/S``): up by
+    ``eta`` in its logarithm where the window's ``z² = a²/b`` is above ``r`` times chi2(1)'s
+    median, else down; at least 1e-3."""
+    r = r * math.exp(eta if a * a > 0.4549 * r * b else -eta)
+    return r if r > 1e-3 else 1e-3
+
+
+@_inline
+def _moved(st, pr, t, bd0, lt0):
+    """Whether the slow states moved over a dispersion window (from ``bd0``, ``lt0``) in the
+    filter's first ``PR_RHOEARLY`` s: learning them, its own transient, not the model's misfit
+    (such a window is not taken)."""
+    return t - st[TINIT] < pr[PR_RHOEARLY] and (abs(st[BD] - bd0) > pr[PR_RHODB_]
+                                                or abs(st[LAGT] - lt0) > pr[PR_RHODT])
+
+
+@_inline
 def _dispersion(st, pr, t, sge, sgg, on, coarse):
     """The onset evidence's dispersion ``rho`` and the information rate, while no contact is
     seen (``on``). Where the model fits the readings (the innovations white, their variances
@@ -1289,8 +1307,8 @@ def _dispersion(st, pr, t, sge, sgg, on, coarse):
     st[WGG] += sgg
     st[WLGE] += sge
     st[WLGG] += sgg
-    st[WLT0] += pr[PR_TS]
-    if pr[PR_RHOWL] > 0.0 and st[WLT0] >= pr[PR_RHOWL]:
+    st[WLDT] += pr[PR_TS]
+    if pr[PR_RHOWL] > 0.0 and st[WLDT] >= pr[PR_RHOWL]:
         # the long window: a misfit slower than the short windows (a tank held on one coarse
         # step while it drifts within it) gathers in the CUSUMs over seconds. It gathers while
         # no contact is seen and goes on over a contact (touches every few seconds left few
@@ -1303,26 +1321,22 @@ def _dispersion(st, pr, t, sge, sgg, on, coarse):
         # only from fast boards (PR_RFAST readings a second: a 10 Hz board's few readings a
         # window widened the detector where the short windows did not, a lab's strong touches
         # found 0.3 s later)
-        a, b = st[WLGE], st[WLGG]
-        moved = t - st[TINIT] < pr[PR_RHOEARLY] and (abs(st[BD] - st[WLBD]) > pr[PR_RHODB_]
-                                                    or abs(st[LAGT] - st[WLLT]) > pr[PR_RHODT])
-        if b > 0.0 and not moved and st[RATE] >= pr[PR_RFAST] and coarse:
+        b = st[WLGG]
+        if (b > 0.0 and not _moved(st, pr, t, st[WLBD], st[WLLT]) and st[RATE] >= pr[PR_RFAST]
+                and coarse):
             n = st[RHOLN]
             st[RHOLN] = n + 1.0
             eta = 1.0 / (n + 1.0) if 1.0 / (n + 1.0) > RHOL_ETA else RHOL_ETA
-            r = st[RHOL] * math.exp(eta if a * a > 0.4549 * st[RHOL] * b else -eta)
-            st[RHOL] = r if r > 1e-3 else 1e-3
+            st[RHOL] = _track(st[RHOL], st[WLGE], b, eta)
             st[RHO] = st[RHOS] if st[RHOS] > st[RHOL] else st[RHOL]
-        st[WLGE] = st[WLGG] = st[WLT0] = 0.0
+        st[WLGE] = st[WLGG] = st[WLDT] = 0.0
         st[WLBD] = st[BD]
         st[WLLT] = st[LAGT]
     if t - st[WT0] >= pr[PR_RHOW]:
         a, b = st[WGE], st[WGG]
         # a window over which the slow states moved in the filter's first seconds (learning
         # them: its own transient, not the model's misfit) is not taken
-        moved = t - st[TINIT] < pr[PR_RHOEARLY] and (abs(st[BD] - st[WBD]) > pr[PR_RHODB_]
-                                                    or abs(st[LAGT] - st[WLT]) > pr[PR_RHODT])
-        if b > 0.0 and not moved:
+        if b > 0.0 and not _moved(st, pr, t, st[WBD], st[WLT]):
             n = int(st[RHON])
             st[RHON] = n + 1.0
             if n < NRB:  # the first NRB windows: their median (a few seconds, robust), from
@@ -1334,7 +1348,7 @@ def _dispersion(st, pr, t, sge, sgg, on, coarse):
                 r = r if r < pr[PR_RHOCAP] else pr[PR_RHOCAP]  # (a touch in the first windows)
             else:  # then a tracker of it
                 eta = 1.0 / (n + 1.0) if 1.0 / (n + 1.0) > pr[PR_RHOETA] else pr[PR_RHOETA]
-                r = st[RHOS] * math.exp(eta if a * a > 0.4549 * st[RHOS] * b else -eta)
+                r = _track(st[RHOS], a, b, eta)
             r = r if r > 1e-3 else 1e-3
             st[RHOS] = r
             st[RHO] = r if r > st[RHOL] else st[RHOL]

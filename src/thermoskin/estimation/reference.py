@@ -114,6 +114,12 @@ def fgcd(g: float, d: float) -> float:
     return a
 
 
+def _track(r: float, a: float, b: float, eta: float) -> float:
+    """A dispersion tracker's step: up by ``eta`` in its logarithm where the window's ``a²/b``
+    is above ``r`` times chi2(1)'s median, else down; at least 1e-3 (kernel: ``_track``)."""
+    return max(1e-3, r * math.exp(eta if 0.4549 * r * b < a * a else -eta))
+
+
 @dataclass
 class ReferenceEstimator:
     """One patch: eq. 8, the Kalman filter on the network, the detector (plain Python)."""
@@ -396,34 +402,33 @@ class ReferenceEstimator:
         rl = self.cfg.detector.rho_window_long
         if rl > 0 and self.rho_lwin[2] >= rl:  # the long window: its own tracker, from 1
             A, Bw, _ = self.rho_lwin
-            moved = t - self.t_init < RHO_EARLY and (abs(self.b_hat - self.rho_lfrom[0]) > RHO_MOVED[0]
-                                                     or abs(self.tau - self.rho_lfrom[1]) > RHO_MOVED[1])
-            if Bw > 0 and not moved and self.rate >= FAST_READINGS and self._coarse():
+            if (Bw > 0 and not self._moved(t, self.rho_lfrom) and self.rate >= FAST_READINGS
+                    and self._coarse()):
                 eta = max(RHOL_ETA, 1.0 / (self.rho_ln + 1))
                 self.rho_ln += 1
-                up = 0.4549 * self.rho_l * Bw < A * A
-                self.rho_l = max(1e-3, self.rho_l * math.exp(eta if up else -eta))
+                self.rho_l = _track(self.rho_l, A, Bw, eta)
                 self.rho = max(self.rho_s, self.rho_l)
             self.rho_lwin[:] = 0.0
             self.rho_lfrom = (self.b_hat, self.tau)
         if t - self.t_rho >= rw:
             A, Bw = self.rho_win
-            moved = t - self.t_init < RHO_EARLY and (abs(self.b_hat - self.rho_from[0]) > RHO_MOVED[0]
-                                                     or abs(self.tau - self.rho_from[1]) > RHO_MOVED[1])
-            if Bw > 0 and not moved:  # (a window over which the slow states moved: not taken)
+            if Bw > 0 and not self._moved(t, self.rho_from):  # (slow states moved: not taken)
                 self.rho_n += 1
                 if self.rho_n <= RHO_FIRST:  # the first windows: their median (from the third)
                     self.rho_first.append(A * A / (0.4549 * Bw))
                     if self.rho_n >= 3:
                         self.rho_s = min(max(1e-3, float(np.median(self.rho_first))), RHO_CAP)
                 else:  # then a tracker of it
-                    eta = max(RHO_ETA, 1.0 / self.rho_n)
-                    up = 0.4549 * self.rho_s * Bw < A * A
-                    self.rho_s = max(1e-3, self.rho_s * math.exp(eta if up else -eta))
+                    self.rho_s = _track(self.rho_s, A, Bw, max(RHO_ETA, 1.0 / self.rho_n))
                 self.rho = max(self.rho_s, self.rho_l)
             self.rho_win[:] = 0.0
             self.t_rho = t
             self.rho_from = (self.b_hat, self.tau)
+
+    def _moved(self, t: float, start: tuple[float, float]) -> bool:
+        """The slow states moved over a window (from ``start``) in the filter's first seconds."""
+        return t - self.t_init < RHO_EARLY and (abs(self.b_hat - start[0]) > RHO_MOVED[0]
+                                                or abs(self.tau - start[1]) > RHO_MOVED[1])
 
     def _irho(self) -> float:
         return 1.0 / max(1.0, self.rho / self.cfg.detector.rho_deadband)
