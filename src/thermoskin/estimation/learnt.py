@@ -48,7 +48,8 @@ class Learnt:
     the arming last looked, NaN without a command; ``slow_learnt``: the offset and the lag are
     learnt, False where these readings cannot teach them: rows slower than 100 a second;
     ``still``: the channels whose readings never changed, whose noise is not known: a tank held
-    on one step of a coarse converter reads a noise of nought)."""
+    on one step of a coarse converter reads a noise of nought; ``rho_window`` s: the windows
+    ``rho`` is over, the short or the long ones, whichever is the larger)."""
 
     noise: dict[str, float]
     quantum: dict[str, float]
@@ -64,6 +65,7 @@ class Learnt:
     arm_off: float = math.nan
     slow_learnt: bool = True
     still: tuple[str, ...] = ()
+    rho_window: float = 0.4
 
     def lines(self) -> list[str]:
         """The figures, a line or two for a summary."""
@@ -108,7 +110,9 @@ def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
     T_g = float(st[K.X + 1]) if started else math.nan
     return Learnt(noise=noise, quantum=quantum, offset_p=sn.offset_T_p - sn.offset_T_w + bd,
                   offset_p_sd=math.sqrt(max(pbb, 0.0)), lag_w=lag, lag_w_sd=math.sqrt(max(ptt, 0.0)),
-                  rho=float(st[K.RHO]), info_rate=rate, snr=one_finger_snr(rate, T_g), T_g=T_g,
+                  rho=float(st[K.RHO]), info_rate=rate,
+                  rho_window=(cfg.detector.rho_window_long if st[K.RHOL] > st[K.RHOS]
+                              else cfg.detector.rho_window), snr=one_finger_snr(rate, T_g), T_g=T_g,
                   armed=bool(st[K.ARMED] != 0.0), arm_off=float(st[K.ARMLP] - st[K.CMD]),
                   slow_learnt=not started or pbb > 0.0 or ptt > 0.0,
                   still=tuple(ch for ch, q in steps.items() if started and q >= 1e299))
@@ -146,10 +150,10 @@ def notices(lt: Learnt, cfg: Config) -> dict[str, str]:
     rho = lt.rho / cfg.detector.rho_deadband
     if rho > RHO_MISFIT:
         out["misfit"] = (f"the readings do not fit the model: their evidence is {lt.rho:.1f} times as "
-                         "spread as white noise's over 0.4 s (an unmodelled lag, a skin unlike its "
-                         "configuration, coarse converters), so the detector asks that much more of a "
-                         "touch; `thermoskin calibrate NO_TOUCH_LOG --config F.toml -o FITTED.toml` "
-                         "fits the skin")
+                         f"spread as white noise's over {lt.rho_window:g} s (an unmodelled lag, a "
+                         "skin unlike its configuration, coarse converters), so the detector asks "
+                         "that much more of a touch; `thermoskin calibrate NO_TOUCH_LOG --config "
+                         "F.toml -o FITTED.toml` fits the skin")
     cfg_off = sn.offset_T_p - sn.offset_T_w
     if not lt.slow_learnt and (sn.offset_sd > 0 or sn.lag_sd > 0):
         out["not_learnt"] = ("the T_p offset and the T_w lag are not learnt from these readings "
