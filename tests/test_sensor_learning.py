@@ -16,7 +16,7 @@ import pytest
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.estimation.learnt import learnt, notices, one_finger_snr
-from thermoskin.estimation.model import I_Q, I_TP, I_TW, fixed_sensors
+from thermoskin.estimation.model import I_Q, I_TP, I_TW, fixed_sensors, measurement_variance
 from thermoskin.params import load_config
 from thermoskin.sim.boards import LAB, lab_boards
 from thermoskin.sim.run import simulate
@@ -130,6 +130,29 @@ def test_noise_and_step_learnt_from_the_readings() -> None:
     cfg, log = _quiet(5.0, quantum_T=0.0)
     est, _ = _run(cfg, log)
     assert all(q == 0.0 for q in est.learnt().quantum.values())
+
+
+SLOW = {"period_T_w": 0.1, "period_T_p": 0.1, "period_T_a": 0.1}
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.003])
+def test_a_slow_boards_pipe_noise_learnt_at_the_same_point_of_the_pump_cycle(jitter: float) -> None:
+    """10 Hz boards, the pipe's 0.049 K (the emulator's default boards'), configured as 0.02 K: its
+    noise learnt within 20 % of the board's from the changes between readings at the same point
+    of the pump's cycle (its second differences hold the pump's kinks, its innovations the
+    model's prediction), in 2 min of no touch with no false contact and the evidence's dispersion
+    that of white noise. Where the pump never switches, no two readings share a point of its
+    cycle, and the variance is its prior."""
+    cfg, log = _quiet(120.0, noise_T_w=0.049, jitter=jitter, **SLOW)
+    cfg = cfg.replace(sensor=SLOW)
+    est, res = _run(cfg, log)
+    true = math.sqrt(0.049**2 + (1 / 128) ** 2 / 12)
+    assert est.learnt().noise["T_w"] == pytest.approx(true, rel=0.2)
+    assert not res.events
+    assert est.learnt().rho < 1.5  # (held at its prior: 3.7, and contacts, on the emulator's)
+    still = {k: np.full_like(v, 0.0) if k == "v" else v for k, v in log.items()}
+    est, _ = _run(cfg, still)
+    assert est.learnt().noise["T_w"] == pytest.approx(math.sqrt(measurement_variance(cfg, "T_w")))
 
 
 def test_lag_learnt_is_the_beads() -> None:

@@ -23,8 +23,14 @@ def session(serial_session):  # type: ignore[no-untyped-def]
     return serial_session("firmware_10hz_lab_seed0")
 
 
-def _events(log, **detector):  # type: ignore[no-untyped-def]
-    return observe(log, load_config().replace(detector=detector)).events
+# these tests were made, and the pairing and the release over readings found, while a slow
+# board's pipe noise was held at its prior (0.02 K; the board's is 0.049 K): the evidence taken
+# as surer than it is, the touches' ends and the one reading off showed as contacts. With the
+# noise learnt (``estimator.phase_tol``, the default) they do not show in this log at all: the
+# log's touches below two fingers' are below its noise; the mechanisms are tested as they were
+def _events(log, held: bool = True, **detector):  # type: ignore[no-untyped-def]
+    cfg = load_config().replace(detector=detector)
+    return observe(log, cfg.replace(estimator={"phase_tol": 0.0}) if held else cfg).events
 
 
 #: the dispersion's prior these tests were made with (a wary 2: the evidence weighed 0.75 until
@@ -34,6 +40,8 @@ WARY = 2.0
 
 
 def test_no_contact_of_the_other_sign_after_the_touches_missed(session) -> None:  # type: ignore[no-untyped-def]
+    """With the pipe's noise held at its prior (as made): every touch of two and three fingers and
+    one of three fingertips, no false alarm, no contact of the negative sign."""
     log, touches = session
     events = _events(log)
     m = match_events(touches, events)
@@ -46,6 +54,20 @@ def test_no_contact_of_the_other_sign_after_the_touches_missed(session) -> None:
     strong = [lat for t, lat in zip(touches, m.latency_by_touch(), strict=True)
               if t.n_fingers >= 2 and lat is not None]
     assert len(strong) == 5 and np.median(strong) <= 0.4, m.latencies
+
+
+def test_with_the_pipe_noise_learnt_no_false_alarm_and_the_strong_touches(session) -> None:  # type: ignore[no-untyped-def]
+    """The default (the pipe's noise learnt, 0.05-0.07 K here): no false alarm and no negative
+    contact; the three-finger touches found and at least one of two fingers; what is missed is
+    of one or two fingers (a fingertip's SNR here 1.2-1.7, two fingers' about twice that: below
+    the line of 5, where the bar asks only the false-alarm rate)."""
+    log, touches = session
+    events = _events(log, held=False)
+    m = match_events(touches, events)
+    assert m.false_alarms == 0 and all(e.sign > 0 for e in events)
+    found = [t.n_fingers for t, p in zip(touches, m.pairs, strict=True) if p is not None]
+    assert found.count(3) == 2 and found.count(2) >= 1
+    assert all(t.n_fingers <= 2 for t in m.missed)
 
 
 def test_without_the_pairing_the_ends_of_the_missed_touches_are_contacts(session) -> None:  # type: ignore[no-untyped-def]

@@ -176,6 +176,10 @@ class EstimatorParams(_Validated):
                           doc="each channel's reading variance is learnt from its innovations over "
                               "about this long (0: the configured noise_T and quantum_T are taken as "
                               "they are)")
+    phase_tol: float = _p(0.004, "s", 0.0, 0.1,
+                          doc="a slow board's pipe reading (below 200 a second) is paired with the "
+                              "last one at the same point of the pump's cycle to within this, its "
+                              "noise learnt from their difference (0: held at its configured value)")
     lag_drift: float = _p(1e-6, "s^2/s", 0.0, 1.0,
                           doc="the learnt lag's random walk")
     lag_max: float = _p(1.0, "s", 0.0, 60.0, doc="the longest pipe-thermocouple lag learnt")

@@ -230,13 +230,25 @@ WLGG = IRN + 13
 WLDT = IRN + 14
 WLBD = IRN + 15    # the learnt offset and lag where the long window began
 WLLT = IRN + 16
-NSTATE = IRN + 17
+PHPREV = IRN + 17  # the pump's phase before the present one, samples
+PBH = IRN + 18     # a slow board's last NPB fresh T_w readings (_noise_phase): the next slot,
+PBN = IRN + 19     # how many there are,
+PBQ = IRN + 20     # and NPB entries of (time s, reading degC, PHDIR, PHASE s, PHPREV s)
+NPB = 32
+NSTATE = PBQ + 5 * NPB
 
 #: The long windows' tracker's least step in its logarithm, a window (the short one's is 0.03
 #: a window of 0.4 s): a long window's 8 s are 20 short ones, and at 0.03 a dispersion its
 #: first windows put high took minutes to come back (traced with a noise five times the
 #: configured one, when the long windows were tried with every board)
 RHOL_ETA = 0.1
+#: A slow board's T_w reading is paired with the last one at the same point of the pump's
+#: cycle (:func:`_noise_phase`, to within ``PR_PBTOL``) no further back than this, s
+PB_REACH = 1.0
+#: ... and from this long after the filter's start, s: the boards' rate known (from its first
+#: readings a 1 kHz board's rose through slow ones', and the variance they moved flooded a
+#: sheet 30 % lighter than configured with false alarms)
+PB_START = 1.0
 #: The arming's mean of the T_w readings: a first-order lag of this time constant (s), so that
 #: the pump's ripple and the readings' noise do not break a hold (0.3 K off its command plus
 #: 0.05 K of noise and the ripple broke it now and then, forever: the detector never armed).
@@ -368,7 +380,9 @@ PR_ASLMAX = 103  # the air moving faster than this, K/s, is a sudden change (0: 
 PR_MEANMIN = 104  # a contact whose mean heat over it (its sign's way) is below this is withdrawn, W
 PR_EMIN = 105    # ... or whose heat over it (mean times duration, its sign's way) is below this, J
 PR_RHOWL = 106   # the dispersion's long window, s (0: none)
-NPARAM = 107
+PR_PBTOL = 107   # a slow board's pipe reading paired at the same point of the pump's cycle to
+#                  within this, s (0: its variance held at its prior; _noise_phase)
+NPARAM = 108
 
 #: An onset CUSUM's excursion that came to no contact pairs with an onset of the other sign
 #: once it rose above this fraction of the threshold (below it, noise's own excursions, about
@@ -1700,7 +1714,8 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         st[UREC] = st[UREC + NUR] = st[SWB] = st[SWA] = 0.0
     _eq8(st, pr, Rw, T_w, T_p, T_a, iv)
     iv_old = -1  # the pump's row before a switch whose correction waits for this row's reading
-    if iv >= 0:
+    v_known = iv >= 0
+    if v_known:
         if iv != int(st[IVP]) and pr[PR_VSW] > 0.0 and st[READY] != 0.0:
             if (fresh & 1) != 0 and math.isfinite(T_w) and 1.5 * pr[PR_TS] < t - st[TFW] < 1e299:
                 # a slow board's reading (the last, NaN or not, came rows ago), new in the same
@@ -1710,6 +1725,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
             else:
                 _switch_correction(st, pr, Rw, int(st[IVP]), iv, SWB)
         if iv != int(st[IVP]):
+            st[PHPREV] = st[PHASE]
             st[PHASE] = 0.0
             st[PHDIR] = 0.0 if Rw[iv] < Rw[int(st[IVP])] else 1.0
         else:
@@ -1725,12 +1741,22 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     st[SGE] = st[SGG] = 0.0
     st[QPRI] = st[X + 2]
     # the readings' converter steps (each channel's smallest change between fresh readings)
-    if learning and (fresh & 1) != 0:
-        _quantum(st, QW, LYW, T_w)
     # the tank's and the air's reading variances from their own second differences (both
     # change smoothly: what a second difference holds is the noise, 6 R); the pipe's, which
-    # the pump kinks at every switch, from its innovations (_update)
+    # the pump kinks at every switch, from its innovations (_update) where its board is fast,
+    # and where it is slow from the change since its reading at the same point of the pump's
+    # cycle (_noise_phase), as from its innovations while no contact is seen and none has just
+    # ended (a touch's change over a cycle is no noise); not from a log coarser than the loop
+    # (PR_VSW: its pump switched somewhere in a row's interval, and the point of the cycle is
+    # known only to a row: a 100 Hz log's noise came out high, its touches found later)
     learn_r = learning and pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0
+    if learning and (fresh & 1) != 0:
+        if (learn_r and pr[PR_PBTOL] > 0.0 and pr[PR_VSW] == 0.0 and st[RATE] < pr[PR_RFAST]
+                and st[READY] != 0.0
+                and t - st[TINIT] >= PB_START
+                and v_known and st[MODE] != INCONTACT and t - st[TREL] >= pr[PR_TSETTLE]):
+            _noise_phase(st, pr, t, T_w)
+        _quantum(st, QW, LYW, T_w)
     if learning and (fresh & 2) != 0:
         if learn_r:
             _noise2(st, pr, RP, PR_RP0, QP, LYP, LY2P, T_p, t - st[TLP])
@@ -1748,10 +1774,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     # the pipe reading's variance from its innovations, while no contact is seen and none has
     # just ended, taken NRS slots late (_r_slots): the innovations of a touch not yet detected
     # (with slow boards, a second or so) are dropped at its detection, not taken for noise
-    # and only from fast readings (PR_RFAST a second and more): a slow board's innovations
-    # hold the model's prediction over the interval as well, and come out 10-40 % below the
-    # noise learnt so with 10 Hz boards; its variance stays at its prior, the innovations'
-    # scale (KAPPA) carrying the rest into the detector
+    # and only from fast readings (PR_RFAST a second and more; a slow board's: _noise_phase)
     learn = (learning and pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0 and st[MODE] != INCONTACT
              and t - st[TREL] >= pr[PR_TSETTLE] and st[RATE] >= pr[PR_RFAST])
     if learning and pr[PR_LEARN] != 0.0 and t - st[RST0] >= pr[PR_RSLOT]:
@@ -1990,6 +2013,47 @@ def _noise2(st, pr, ir, ipr0, iq, iy1, iy2, y, dt):
         d = y - 2.0 * y1 + y2
         st[ir] = _r_step(st, pr, st[ir], d * d > 6.0 * 0.4549 * st[ir], _eta(st, pr, ir - RW + NRW, dt),
                          ipr0, iq)
+
+
+@_inline
+def _noise_phase(st, pr, t, y):
+    """A slow board's pipe reading variance (fewer than ``PR_RFAST`` readings a second): the
+    change ``y - y_j`` since the last reading ``y_j`` (within :data:`PB_REACH`) taken at the same
+    point of the pump's cycle (the same direction of its last switch, the same time since it and
+    the same length of the phase before, each to within ``PR_PBTOL``) is ``2 R`` in variance:
+    the pipe's response to the pump, the same both times, cancels. Its median tracker (chi2(1)'s
+    median 0.4549), each reading weighed by :func:`_eta`. A slow board's innovations hold the
+    model's prediction over the interval as well (they gave 10-40 % below the noise), its
+    second differences the pump's kinks (with 10 Hz boards the pump switches every 0.1-0.2 s:
+    0.25 K for 0.05 K), and held at its prior (0.02 K) the variance of a board of 0.049 K left
+    the filter's gain too high: the evidence 3.7 times as spread as white noise's and false
+    alarms in minutes of no touch (the emulator's default boards)."""
+    if not math.isfinite(y):
+        return
+    ts = pr[PR_TS]
+    tol = pr[PR_PBTOL]
+    dr = st[PHDIR]
+    ph = st[PHASE] * ts
+    pv = st[PHPREV] * ts
+    n = int(st[PBN])
+    h = int(st[PBH])
+    for j in range(n):
+        o = PBQ + 5 * ((h - 1 - j) % NPB)
+        if t - st[o] > PB_REACH:
+            break
+        if st[o + 2] == dr and abs(st[o + 3] - ph) <= tol and abs(st[o + 4] - pv) <= tol:
+            d = y - st[o + 1]
+            st[RW] = _r_step(st, pr, st[RW], d * d > 2.0 * 0.4549 * st[RW], _eta(st, pr, NRW, t - st[TLW]),
+                             PR_RW0, QW)
+            break
+    o = PBQ + 5 * h
+    st[o] = t
+    st[o + 1] = y
+    st[o + 2] = dr
+    st[o + 3] = ph
+    st[o + 4] = pv
+    st[PBH] = (h + 1) % NPB
+    st[PBN] = n + 1 if n < NPB else NPB
 
 
 @_inline

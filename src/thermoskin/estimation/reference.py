@@ -80,6 +80,10 @@ DT_MAX = 5e-4        # ... and the lag, s
 LEARN_DELAY = 0.5    # the slow states learn from this long after the filter's start, s
 RHO_ETA = 0.03       # the dispersion tracker's least step
 RHOL_ETA = 0.1      # the long windows' tracker's least step
+PB_N = 32            # a slow board's pipe readings kept to pair each with one at the same
+#                      point of the pump's cycle (to within estimator.phase_tol)
+PB_REACH = 1.0       # ... no further back than this, s
+PB_START = 1.0       # ... from this long after the filter's start (the boards' rate known), s
 RHO_FIRST = 16       # the dispersion is the median of the first windows' first (before the
 RHO_CAP = 1e6        # third: detector.rho_prior; at most RHO_CAP: a touch among them)
 RHO_PB = 0.03**2     # ... once the offset's variance is below this, K^2,
@@ -188,7 +192,9 @@ class ReferenceEstimator:
         self.t_fresh_w = -1e300  # the last pipe reading flagged fresh, NaN or not
         self.gap_run = 0
         self.iv_prev = 0
-        self.phase, self.ph_dir = 0, 0
+        self.phase, self.ph_dir, self.ph_prev = 0, 0, 0
+        #: a slow board's last fresh T_w readings: (time, reading, ph_dir, phase s, ph_prev s)
+        self.phase_readings: deque[tuple[float, float, int, float, float]] = deque(maxlen=PB_N)
         self.tpl = np.zeros((2, max(1, self.cfg.estimator.switch_bins)))
         self.cmd = math.nan
         self.armed, self.n_in = False, 0
@@ -277,6 +283,25 @@ class ReferenceEstimator:
             g = self.quantum[ch]
             self.quantum[ch] = d if g >= 1e299 else fgcd(g, d)
         self.last_y[ch] = y
+
+    def _noise_phase(self, t: float, y: float) -> None:
+        """A slow board's pipe reading variance: the change since the last reading (within
+        ``PB_REACH``) at the same point of the pump's cycle (its last switch's direction, the time
+        since it, the phase before it, to within ``estimator.phase_tol``) is ``2 R`` in variance; its median
+        tracker (kernel: ``_noise_phase``)."""
+        if not math.isfinite(y):
+            return
+        sig = (self.ph_dir, self.phase * self.t_s, self.ph_prev * self.t_s)
+        tol = self.cfg.estimator.phase_tol
+        for tj, yj, dj, pj, vj in reversed(self.phase_readings):
+            if t - tj > PB_REACH:
+                break
+            if dj == sig[0] and abs(pj - sig[1]) <= tol and abs(vj - sig[2]) <= tol:
+                d = y - yj
+                self._r_step("T_w", d * d > 2 * 0.4549 * self.R["T_w"],
+                             self._eta("T_w", t - self.t_last_w))
+                break
+        self.phase_readings.append((t, y, *sig))
 
     # ---------------------------------------------------------------- the filter
     def _update(self, i: int, y: float, slow: bool, eta: float) -> tuple[float, float]:
@@ -447,7 +472,7 @@ class ReferenceEstimator:
                 else:
                     self._switch_correction(self.iv_prev, iv)
             if iv != self.iv_prev:
-                self.phase = 0
+                self.ph_prev, self.phase = self.phase, 0
                 self.ph_dir = 0 if (self.R_w(tb.v_values[iv]) < self.R_w(tb.v_values[self.iv_prev])) else 1
             else:
                 self.phase += 1
@@ -462,6 +487,11 @@ class ReferenceEstimator:
         self.q_prior = self.x[I_Q]
         # the sensors' own figures (raw readings), then the configured offsets off the readings
         if fresh & 1:
+            if (self.learn and self.cfg.estimator.tau_noise > 0 and self.cfg.estimator.phase_tol > 0
+                    and self.vsw == 0 and self.rate < FAST_READINGS
+                    and self.ready and t - self.t_init >= PB_START and v == v
+                    and self.mode != "contact" and t - self.t_rel >= self.cfg.detector.t_settle):
+                self._noise_phase(t, T_w)
             self._sensor("T_w", T_w, 0.0)
         if fresh & 2:
             self._sensor("T_p", T_p, t - self.t_last_p)
