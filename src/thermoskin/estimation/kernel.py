@@ -1740,7 +1740,7 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     st[GAP] = 1.0 if gap else 0.0
     st[SGE] = st[SGG] = 0.0
     st[QPRI] = st[X + 2]
-    # the readings' converter steps (each channel's smallest change between fresh readings)
+    # the readings' converter steps (each channel's smallest change between fresh readings);
     # the tank's and the air's reading variances from their own second differences (both
     # change smoothly: what a second difference holds is the noise, 6 R); the pipe's, which
     # the pump kinks at every switch, from its innovations (_update) where its board is fast,
@@ -1752,9 +1752,8 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
     learn_r = learning and pr[PR_LEARN] != 0.0 and pr[PR_TAUR] > 0.0
     if learning and (fresh & 1) != 0:
         if (learn_r and pr[PR_PBTOL] > 0.0 and pr[PR_VSW] == 0.0 and st[RATE] < pr[PR_RFAST]
-                and st[READY] != 0.0
-                and t - st[TINIT] >= PB_START
-                and v_known and st[MODE] != INCONTACT and t - st[TREL] >= pr[PR_TSETTLE]):
+                and st[READY] != 0.0 and t - st[TINIT] >= PB_START and v_known
+                and st[MODE] != INCONTACT and t - st[TREL] >= pr[PR_TSETTLE]):
             _noise_phase(st, pr, t, T_w)
         _quantum(st, QW, LYW, T_w)
     if learning and (fresh & 2) != 0:
