@@ -93,6 +93,11 @@ def test_check_finds_the_boards_and_says_what_to_set(slow, tmp_path: Path):
     assert cfg.sensor.offset_T_p == pytest.approx(rep.found["offset_T_p"])
     assert cfg.sensor.period_T_a == pytest.approx(rep.found["period_T_a"])
     assert cfg.sensor.lag_T_w == pytest.approx(rep.found["lag_T_w"])
+    # each board's noise its own, over a configured per-channel one (which noise_T alone left)
+    cfg = load_config(chk.save(rep, Config().replace(sensor={"noise_T_w": 0.3}), tmp_path / "f2.toml",
+                               source="slow"))
+    for ch, c in rep.channels.items():
+        assert cfg.sensor.noise(ch) == pytest.approx(c.noise), ch
 
 
 def test_nothing_to_do_when_the_configuration_is_the_truth():

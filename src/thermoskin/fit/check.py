@@ -34,7 +34,8 @@ pipe and the air at the log's median readings::
 over the standard deviation of the estimator's ``dq_i_hat`` (what the detector watches) run
 on the log, no contact flagged, after :data:`T_SKIP` s: as the sweep's ``snr_one_finger``.
 Twice: with the configuration as it is, and with the sensor section found (the readings
-corrected by the offsets found, ``noise_T`` and ``quantum_T`` as measured). Below
+corrected by the offsets found, each channel's noise, ``noise_T_w`` ..., and ``quantum_T`` as
+measured). Below
 :data:`SNR_MIN` a touch is not reliably told from noise.
 """
 
@@ -66,7 +67,7 @@ T_SKIP = 5.0
 """Seconds of the estimator's start left out of its noise."""
 BITS = {"T_w": 1, "T_p": 2, "T_a": 4}
 NOISE_RTOL = 0.25
-"""A measured noise off the configured ``noise_T`` by more than this fraction is worth setting."""
+"""A channel's measured noise off its configured one by more than this fraction is worth setting."""
 MISFIT = 1.05
 """The configured skin's residual above this times the calibrated one: calibrate. (Not a
 parameter's change alone: on a chattering log the fit moves weakly seen parameters by small
@@ -359,6 +360,8 @@ def _check(log: Mapping[str, ArrayLike], cfg: Config, contact: ArrayLike | None,
             found[f"period_{ch}"] = period
     c_w = channels["T_w"]
     found["noise_T"] = c_w.noise
+    for ch, c in channels.items():  # each board's own (a configured noise_T_w, say, would
+        found[f"noise_{ch}"] = c.noise  # otherwise outlive the noise_T found)
     found["quantum_T"] = c_w.quantum
     jit = max((c.jitter for c in channels.values() if c.period > 0 and math.isfinite(c.jitter)), default=0.0)
     periods = [c.period for c in channels.values() if c.period > 0 and math.isfinite(c.period)]
@@ -455,9 +458,11 @@ def advice(r: Report, cfg: Config) -> list[str]:
         out.append(f"{', '.join(unwritten)}: this log tells them only given the skin's losses (the pump "
                    "never stops for long): record one with the commands stepping (the calibration "
                    "scenario: stops of seconds) and calibrate it")
-    nT, qT = r.found.get("noise_T", math.nan), r.found.get("quantum_T", math.nan)
-    if abs(nT - sens.noise_T) > NOISE_RTOL * max(sens.noise_T, 1e-9):
-        setv.append(f"noise_T = {nT:.3g}")
+    for ch in ("T_w", "T_p", "T_a"):
+        nc = r.found.get(f"noise_{ch}", math.nan)
+        if abs(nc - sens.noise(ch)) > NOISE_RTOL * max(sens.noise(ch), 1e-9):
+            setv.append(f"noise_{ch} = {nc:.3g}")
+    qT = r.found.get("quantum_T", math.nan)
     if abs(qT - sens.quantum_T) > 0.05 * max(sens.quantum_T, qT):
         setv.append(f"quantum_T = {qT:.4g}")
     if setv:
