@@ -150,9 +150,12 @@ def test_a_slow_boards_pipe_noise_learnt_at_the_same_point_of_the_pump_cycle(jit
     assert est.learnt().noise["T_w"] == pytest.approx(true, rel=0.2)
     assert not res.events
     assert est.learnt().rho < 1.5  # (held at its prior: 3.7, and contacts, on the emulator's)
+    assert not est.learnt().held
     still = {k: np.full_like(v, 0.0) if k == "v" else v for k, v in log.items()}
     est, _ = _run(cfg, still)
-    assert est.learnt().noise["T_w"] == pytest.approx(math.sqrt(measurement_variance(cfg, "T_w")))
+    lt = est.learnt()
+    assert lt.noise["T_w"] == pytest.approx(math.sqrt(measurement_variance(cfg, "T_w")))
+    assert lt.held == ("T_w",) and "as configured (not learnt" in lt.lines()[0]
 
 
 def test_lag_learnt_is_the_beads() -> None:

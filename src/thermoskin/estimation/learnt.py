@@ -31,6 +31,9 @@ FINGER_G = 0.05
 FINGER_T = 33.0
 #: Seconds of readings the one-finger SNR is figured over (the latency the detector aims at).
 SNR_WINDOW = 0.3
+#: Pipe readings fewer than this a second are a slow board's (the estimator's ``PR_RFAST``): its
+#: noise learnt from readings at the same point of the pump's cycle, or not at all
+SLOW_RATE = 200.0
 #: Below this SNR a fingertip's touch is said to be below the noise.
 SNR_MIN = 5.0
 #: Above this dispersion (over the detector's dead band) the readings are said not to fit.
@@ -49,7 +52,9 @@ class Learnt:
     learnt, False where these readings cannot teach them: rows slower than 100 a second;
     ``still``: the channels whose readings never changed, whose noise is not known: a tank held
     on one step of a coarse converter reads a noise of nought; ``rho_window`` s: the windows
-    ``rho`` is over, the short or the long ones, whichever is the larger)."""
+    ``rho`` is over, the short or the long ones, whichever is the larger); ``held``: the channels
+    whose noise nothing could be learnt from and is as configured: a slow board's pipe readings
+    where the pump never switched, or `estimator.phase_tol` 0)."""
 
     noise: dict[str, float]
     quantum: dict[str, float]
@@ -66,12 +71,15 @@ class Learnt:
     slow_learnt: bool = True
     still: tuple[str, ...] = ()
     rho_window: float = 0.4
+    held: tuple[str, ...] = ()
 
     def lines(self) -> list[str]:
         """The figures, a line or two for a summary."""
         q = ", ".join((f"{ch} not known (its readings never changed)" if ch in self.still else
                        f"{ch} {self.noise[ch]:.3f} K" + (f" (step {self.quantum[ch]:.4g} K)"
-                                                         if self.quantum[ch] > 0 else ""))
+                                                         if self.quantum[ch] > 0 else "")
+                       + (" as configured (not learnt: a slow board, the pump never switched)"
+                          if ch in self.held else ""))
                       for ch in CHANNELS)
         snr = f"{self.snr:.1f}" if math.isfinite(self.snr) else "not known yet"
         slow = (f"T_p offset against T_w {self.offset_p:+.3f} ± {self.offset_p_sd:.3f} K, "
@@ -115,7 +123,10 @@ def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
                               else cfg.detector.rho_window), snr=one_finger_snr(rate, T_g), T_g=T_g,
                   armed=bool(st[K.ARMED] != 0.0), arm_off=float(st[K.ARMLP] - st[K.CMD]),
                   slow_learnt=not started or pbb > 0.0 or ptt > 0.0,
-                  still=tuple(ch for ch, q in steps.items() if started and q >= 1e299))
+                  still=tuple(ch for ch, q in steps.items() if started and q >= 1e299),
+                  # a slow board's pipe noise is learnt from pairs at the same point of the
+                  # pump's cycle (kernel._noise_phase, counted in NRW): none, it is the prior
+                  held=("T_w",) if started and 0.0 < st[K.RATE] < SLOW_RATE and st[K.NRW] == 0 else ())
 
 
 def snr_line(snr: float, where: str = "these readings") -> str:
