@@ -54,7 +54,7 @@ class Learnt:
     on one step of a coarse converter reads a noise of nought; ``rho_window`` s: the windows
     ``rho`` is over, the short or the long ones, whichever is the larger); ``held``: the channels
     whose noise nothing could be learnt from and is as configured: a slow board's pipe readings
-    where the pump never switched, or `estimator.phase_tol` 0)."""
+    where the pump never switched, a log coarser than the loop, or ``estimator.phase_tol`` 0)."""
 
     noise: dict[str, float]
     quantum: dict[str, float]
@@ -78,7 +78,7 @@ class Learnt:
         q = ", ".join((f"{ch} not known (its readings never changed)" if ch in self.still else
                        f"{ch} {self.noise[ch]:.3f} K" + (f" (step {self.quantum[ch]:.4g} K)"
                                                          if self.quantum[ch] > 0 else "")
-                       + (" as configured (not learnt: a slow board, the pump never switched)"
+                       + (" as configured (not learnt from these readings)"
                           if ch in self.held else ""))
                       for ch in CHANNELS)
         snr = f"{self.snr:.1f}" if math.isfinite(self.snr) else "not known yet"
