@@ -19,12 +19,14 @@ of the three persons, ``sim.conditions``) and ``--quiet-min`` minutes without to
 
 ``--config F``: the configuration given to the estimator is the default one with the TOML file
 ``F`` over it (a lab's, or a change of a default tried on the grid before it is made).
+``--told-noise``: each log's configuration also says its boards' true noise per channel (what
+learning the noise should come to; ``docs/sensors.md``, a slow board's pipe noise).
 
 Seeds from ``--seed0`` (7000): never used in tuning (the tuning seeds were 100-111 for the lab's
 boards, 9000-9002 for the issue's cases, 0-5 in closed loop).
 
     python benchmarks/mismatch.py [--seeds 3] [--duration 240] [--quiet-min 20] [--only a,b]
-                                  [--config F] [--json]
+                                  [--config F] [--told-noise] [--json]
     python benchmarks/mismatch.py --markdown RESULT.json    # the table of docs/sensors.md
 """
 
@@ -132,6 +134,8 @@ def _boards(m: Mismatch, cfg: Config, seed: int) -> SensorParams:
 
 CONFIG: str | None = None
 """``--config``: a TOML file over the default configuration (None: the default)."""
+TOLD_NOISE = False
+"""``--told-noise``: the estimator is told each log's boards' noise."""
 
 
 def one_log(m: Mismatch, sc: Scenario, seed: int) -> dict[str, Any]:
@@ -142,6 +146,8 @@ def one_log(m: Mismatch, sc: Scenario, seed: int) -> dict[str, Any]:
     true = cfg.replace(skin=m.skin) if m.skin else cfg
     boards = _boards(m, cfg, seed)
     log = simulate(sc, true, boards=boards)
+    if TOLD_NOISE:
+        cfg = cfg.replace(sensor={f"noise_{ch}": boards.noise(ch) for ch in ("T_w", "T_p", "T_a")})
     fresh, _ = infer_fresh(log)
     est = TouchEstimator(cfg)
     res = est.run(log["t"], log["T_w"], log["T_p"], log["v"], log["T_a"], T_w_cmd=log["T_w_cmd"],
@@ -217,6 +223,8 @@ def main() -> None:
     ap.add_argument("--only", default=None, help="comma-separated substrings of condition names")
     ap.add_argument("--config", default=None, metavar="F",
                     help="a TOML file over the default configuration given to the estimator")
+    ap.add_argument("--told-noise", action="store_true",
+                    help="tell the estimator each log's boards' true noise per channel")
     ap.add_argument("--json", action="store_true", help="only the JSON line on stdout")
     ap.add_argument("--markdown", default=None, metavar="RESULT.json",
                     help="print the markdown table of a --json result and exit")
@@ -225,8 +233,9 @@ def main() -> None:
         with open(a.markdown) as f:
             print(markdown(json.loads(f.read().splitlines()[-1])))
         return
-    global CONFIG
+    global CONFIG, TOLD_NOISE
     CONFIG = a.config
+    TOLD_NOISE = a.told_noise
     if CONFIG is not None:
         try:
             load_config(CONFIG)

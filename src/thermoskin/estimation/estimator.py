@@ -138,7 +138,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_LDELAY] = 0.5
     pr[K.PR_SWIN] = 0.4
     pr[K.PR_RSLOT] = 0.5
-    pr[K.PR_RFAST] = 200.0
+    pr[K.PR_RFAST] = K.FAST_READINGS
     pr[K.PR_RHOPB] = 0.03**2
     pr[K.PR_RHOPT] = 0.01**2
     pr[K.PR_RHODB_] = 0.02

@@ -242,6 +242,9 @@ NSTATE = PBQ + 5 * NPB
 #: first windows put high took minutes to come back (traced with a noise five times the
 #: configured one, when the long windows were tried with every board)
 RHOL_ETA = 0.1
+#: Pipe readings a second from which a board is fast (``PR_RFAST``, the estimator's): its pipe
+#: noise learnt from its innovations, the slow states' windows let go; below, a slow board's
+FAST_READINGS = 200.0
 #: A slow board's T_w reading is paired with the last one at the same point of the pump's
 #: cycle (:func:`_noise_phase`, to within ``PR_PBTOL``) no further back than this, s
 PB_REACH = 1.0
@@ -2024,7 +2027,7 @@ def _noise_phase(st, pr, t, y):
     median 0.4549), each reading weighed by :func:`_eta`. A slow board's innovations hold the
     model's prediction over the interval as well (they gave 10-40 % below the noise), its
     second differences the pump's kinks (with 10 Hz boards the pump switches every 0.1-0.2 s:
-    0.25 K for 0.05 K), and held at its prior (0.02 K) the variance of a board of 0.049 K left
+    0.30 K for 0.049 K), and held at its prior (0.02 K) the variance of a board of 0.049 K left
     the filter's gain too high: the evidence 3.7 times as spread as white noise's and false
     alarms in minutes of no touch (the emulator's default boards)."""
     if not math.isfinite(y):

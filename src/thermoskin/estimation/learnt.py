@@ -31,9 +31,6 @@ FINGER_G = 0.05
 FINGER_T = 33.0
 #: Seconds of readings the one-finger SNR is figured over (the latency the detector aims at).
 SNR_WINDOW = 0.3
-#: Pipe readings fewer than this a second are a slow board's (the estimator's ``PR_RFAST``): its
-#: noise learnt from readings at the same point of the pump's cycle, or not at all
-SLOW_RATE = 200.0
 #: Below this SNR a fingertip's touch is said to be below the noise.
 SNR_MIN = 5.0
 #: Above this dispersion (over the detector's dead band) the readings are said not to fit.
@@ -126,7 +123,7 @@ def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
                   still=tuple(ch for ch, q in steps.items() if started and q >= 1e299),
                   # a slow board's pipe noise is learnt from pairs at the same point of the
                   # pump's cycle (kernel._noise_phase, counted in NRW): none, it is the prior
-                  held=("T_w",) if started and 0.0 < st[K.RATE] < SLOW_RATE and st[K.NRW] == 0 else ())
+                  held=("T_w",) if started and 0.0 < st[K.RATE] < K.FAST_READINGS and st[K.NRW] == 0 else ())
 
 
 def snr_line(snr: float, where: str = "these readings") -> str:
