@@ -156,6 +156,9 @@ def test_a_slow_boards_pipe_noise_learnt_at_the_same_point_of_the_pump_cycle(jit
     lt = est.learnt()
     assert lt.noise["T_w"] == pytest.approx(math.sqrt(measurement_variance(cfg, "T_w")))
     assert lt.held == ("T_w",) and "as configured (not learnt" in lt.lines()[0]
+    # where the evidence does not fit, the held noise is named with it, with what measures it
+    assert "check" in notices(dataclasses.replace(lt, rho=10.0), cfg)["noise_T_w"]
+    assert "noise_T_w" not in notices(dataclasses.replace(lt, rho=1.0), cfg)
 
 
 def test_lag_learnt_is_the_beads() -> None:

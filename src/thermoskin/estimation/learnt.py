@@ -187,6 +187,13 @@ def notices(lt: Learnt, cfg: Config) -> dict[str, str]:
                 out[f"noise_{ch}"] = (f"the {ch} readings' noise is {lt.noise[ch]:.3f} K, not the "
                                       f"configured {prior:.3f} K (learnt): [sensor] noise_{ch} = "
                                       f"{lt.noise[ch]:.3f} starts from it")
+    if "T_w" in lt.held and "misfit" in out:
+        # (a held pipe noise unlike the board's is one such misfit, and these readings cannot say)
+        out["noise_T_w"] = (f"the T_w readings' noise is not learnt from these readings (a board "
+                            "slower than 200 readings a second whose pump cycle they do not place: "
+                            f"a log coarser than the loop, or a pump that never switched); the "
+                            f"configured {lt.noise['T_w']:.3f} K is used: `thermoskin check LOG` "
+                            "measures it")
     return out
 
 
