@@ -46,6 +46,9 @@ def test_a_lighter_skin_s_short_contacts_are_withdrawn() -> None:
     sc, log = _lighter_skin_log(8102, 20.0)
     m = match_events(sc.touches, _events(log))
     assert m.false_alarms == 0 and m.misses == 0, [(e.detected_at, e.energy) for e in m.spurious]
-    m0 = match_events(sc.touches, _events(log, confirm_time=0.0))
+    # (the mechanism on its own: the dispersion over the pump's phases, which widens the
+    # detector against this misfit, keeps these excursions under the threshold here too)
+    assert match_events(sc.touches, _events(log, confirm_time=0.0)).false_alarms == 0
+    m0 = match_events(sc.touches, _events(log, confirm_time=0.0, rho_phases=0))
     assert m0.misses == 0 and m0.false_alarms >= 1
     assert all(abs(e.energy) < 0.03 and e.duration < 0.2 for e in m0.spurious), m0.spurious

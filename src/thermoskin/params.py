@@ -233,6 +233,11 @@ class DetectorParams(_Validated):
                                 doc="the dispersion's long window, where a converter's step is coarse "
                                     "and the boards fast: a misfit slower than rho_window (a tank "
                                     "drifting within one step) widens the detector too (0: none)")
+    rho_phases: int = _p(1, "", 0, 1,
+                         doc="the dispersion also over each phase of the pump's cycle, boards of 200 "
+                             "readings a second and more: a misfit locked to the cycle (a skin "
+                             "unlike its configuration), which cancels within rho_window, widens "
+                             "the detector too (0: not)")
     rho_deadband: float = _p(1.5, "", 1.0, 100.0,
                              doc="a dispersion up to this is taken as none (its tracker's own scatter)")
     rho_prior: float = _p(1.0, "", 0.001, 100.0,

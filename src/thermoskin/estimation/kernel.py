@@ -235,13 +235,21 @@ PBH = IRN + 18     # a slow board's last NPB fresh T_w readings (_noise_phase): 
 PBN = IRN + 19     # how many there are,
 PBQ = IRN + 20     # and NPB entries of (time s, reading degC, PHDIR, PHASE s, PHPREV s)
 NPB = 32
-NSTATE = PBQ + 5 * NPB
+RHOP = PBQ + 5 * NPB  # the dispersion of the pump's phases (_dispersion), the phase windows seen,
+RHOPN = RHOP + 1
+WPGE = RHOP + 2       # the present phase's sums of g e/S and g^2/S,
+WPGG = RHOP + 3
+WPOK = RHOP + 4       # and 1 while no contact has been seen in it
+NSTATE = RHOP + 5
 
 #: The long windows' tracker's least step in its logarithm, a window (the short one's is 0.03
 #: a window of 0.4 s): a long window's 8 s are 20 short ones, and at 0.03 a dispersion its
 #: first windows put high took minutes to come back (traced with a noise five times the
 #: configured one, when the long windows were tried with every board)
 RHOL_ETA = 0.1
+#: The phase windows' tracker's least step in its logarithm, a window (about eight a second)
+RHOP_ETA = 0.02
+
 #: Pipe readings a second from which a board is fast (``PR_RFAST``, the estimator's): its pipe
 #: noise learnt from its innovations, the slow states' windows let go; below, a slow board's
 FAST_READINGS = 200.0
@@ -385,7 +393,8 @@ PR_EMIN = 105    # ... or whose heat over it (mean times duration, its sign's wa
 PR_RHOWL = 106   # the dispersion's long window, s (0: none)
 PR_PBTOL = 107   # a slow board's pipe reading paired at the same point of the pump's cycle to
 #                  within this, s (0: its variance held at its prior; _noise_phase)
-NPARAM = 108
+PR_RHOPH = 108   # 1: the dispersion also over the pump's phases (_dispersion), 0: not
+NPARAM = 109
 
 #: An onset CUSUM's excursion that came to no contact pairs with an onset of the other sign
 #: once it rose above this fraction of the threshold (below it, noise's own excursions, about
@@ -451,7 +460,7 @@ def new_state() -> np.ndarray:
     st[LYW] = st[LYP] = st[LYA] = np.nan
     st[LY2P] = st[LY2A] = np.nan
     st[TLP] = st[TLA] = -1e300
-    st[RHO] = st[RHOS] = st[RHOL] = 1.0
+    st[RHO] = st[RHOS] = st[RHOL] = st[RHOP] = 1.0
     return st
 
 
@@ -873,6 +882,7 @@ def _learnt_init(st, pr):
     st[RHO] = pr[PR_RHO0] if pr[PR_RHOW] > 0.0 and pr[PR_LEARN] != 0.0 else 1.0
     st[RHOS] = st[RHO]
     st[RHOL] = 1.0
+    st[RHOP] = 1.0
     st[PBT] = 0.0
     st[PTT] = pr[PR_PT0]
     tau = pr[PR_LAG0]
@@ -1293,6 +1303,14 @@ def _track(r, a, b, eta):
 
 
 @_inline
+def _rho_of(st):
+    """The dispersion the detector takes: the largest of the short windows', the long ones' and
+    the pump's phases'."""
+    r = st[RHOS] if st[RHOS] > st[RHOL] else st[RHOL]
+    return r if r > st[RHOP] else st[RHOP]
+
+
+@_inline
 def _moved(st, pr, t, bd0, lt0):
     """Whether the slow states moved over a dispersion window (from ``bd0``, ``lt0``) in the
     filter's first ``PR_RHOEARLY`` s: learning them, its own transient, not the model's misfit
@@ -1312,12 +1330,29 @@ def _dispersion(st, pr, t, sge, sgg, on, coarse):
     tracks it in steps of ``max(PR_RHOETA, 1/(n+1))`` in its logarithm at the ``n``-th window.
     The information rate, ``sum g²/S`` a second over ``rho``, is what the one-finger SNR is
     figured from."""
+    if st[PHASE] == 0.0:
+        # the pump switched: the phase window that ended, where no contact was seen in it and
+        # the board is fast (a misfit locked to the pump's cycle, positive in one phase and
+        # negative in the next, cancels within the short windows; the CUSUMs gather it a phase
+        # at a time)
+        b = st[WPGG]
+        if st[WPOK] != 0.0 and b > 0.0 and st[RATE] >= pr[PR_RFAST] and pr[PR_RHOPH] != 0.0:
+            n = st[RHOPN]
+            st[RHOPN] = n + 1.0
+            eta = 1.0 / (n + 1.0) if 1.0 / (n + 1.0) > RHOP_ETA else RHOP_ETA
+            st[RHOP] = _track(st[RHOP], st[WPGE], b, eta)
+            st[RHO] = _rho_of(st)
+        st[WPGE] = st[WPGG] = 0.0
+        st[WPOK] = 1.0
     if not on:
         st[WGE] = st[WGG] = 0.0
         st[WT0] = t
         st[WBD] = st[BD]
         st[WLT] = st[LAGT]
+        st[WPOK] = 0.0
         return
+    st[WPGE] += sge
+    st[WPGG] += sgg
     st[IRATE] += pr[PR_AIR] * (sgg * _irho(st, pr) / pr[PR_TS] - st[IRATE])
     st[IRN] += pr[PR_AIR] * (1.0 - st[IRN])
     st[WGE] += sge
@@ -1345,7 +1380,7 @@ def _dispersion(st, pr, t, sge, sgg, on, coarse):
             st[RHOLN] = n + 1.0
             eta = 1.0 / (n + 1.0) if 1.0 / (n + 1.0) > RHOL_ETA else RHOL_ETA
             st[RHOL] = _track(st[RHOL], st[WLGE], b, eta)
-            st[RHO] = st[RHOS] if st[RHOS] > st[RHOL] else st[RHOL]
+            st[RHO] = _rho_of(st)
         st[WLGE] = st[WLGG] = st[WLDT] = 0.0
         st[WLBD] = st[BD]
         st[WLLT] = st[LAGT]
@@ -1368,7 +1403,7 @@ def _dispersion(st, pr, t, sge, sgg, on, coarse):
                 r = _track(st[RHOS], a, b, eta)
             r = r if r > 1e-3 else 1e-3
             st[RHOS] = r
-            st[RHO] = r if r > st[RHOL] else st[RHOL]
+            st[RHO] = _rho_of(st)
         st[WGE] = st[WGG] = 0.0
         st[WT0] = t
         st[WBD] = st[BD]

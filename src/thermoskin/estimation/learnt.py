@@ -49,7 +49,8 @@ class Learnt:
     learnt, False where these readings cannot teach them: rows slower than 100 a second;
     ``still``: the channels whose readings never changed, whose noise is not known: a tank held
     on one step of a coarse converter reads a noise of nought; ``rho_window`` s: the windows
-    ``rho`` is over, the short or the long ones, whichever is the larger); ``held``: the channels
+    ``rho`` is over, the short or the long ones, whichever is the larger, 0 where the pump's
+    phases give the largest); ``held``: the channels
     whose noise nothing could be learnt from and is as configured: a slow board's pipe readings
     where the pump never switched, a log coarser than the loop, or ``estimator.phase_tol`` 0)."""
 
@@ -116,7 +117,8 @@ def learnt(st: NDArray[np.float64], cfg: Config) -> Learnt:
     return Learnt(noise=noise, quantum=quantum, offset_p=sn.offset_T_p - sn.offset_T_w + bd,
                   offset_p_sd=math.sqrt(max(pbb, 0.0)), lag_w=lag, lag_w_sd=math.sqrt(max(ptt, 0.0)),
                   rho=float(st[K.RHO]), info_rate=rate,
-                  rho_window=(cfg.detector.rho_window_long if st[K.RHOL] > st[K.RHOS]
+                  rho_window=(0.0 if st[K.RHOP] > max(st[K.RHOL], st[K.RHOS]) else
+                              cfg.detector.rho_window_long if st[K.RHOL] > st[K.RHOS]
                               else cfg.detector.rho_window), snr=one_finger_snr(rate, T_g), T_g=T_g,
                   armed=bool(st[K.ARMED] != 0.0), arm_off=float(st[K.ARMLP] - st[K.CMD]),
                   slow_learnt=not started or pbb > 0.0 or ptt > 0.0,
@@ -156,9 +158,10 @@ def notices(lt: Learnt, cfg: Config) -> dict[str, str]:
     if math.isfinite(lt.snr) and lt.snr < SNR_MIN:
         out["snr"] = snr_line(lt.snr)
     rho = lt.rho / cfg.detector.rho_deadband
+    over = f"{lt.rho_window:g} s" if lt.rho_window > 0 else "each phase of the pump's cycle"
     if rho > RHO_MISFIT:
         out["misfit"] = (f"the readings do not fit the model: their evidence is {lt.rho:.1f} times as "
-                         f"spread as white noise's over {lt.rho_window:g} s (an unmodelled lag, a "
+                         f"spread as white noise's over {over} (an unmodelled lag, a "
                          "skin unlike its configuration, coarse converters), so the detector asks "
                          "that much more of a touch; `thermoskin calibrate NO_TOUCH_LOG --config "
                          "F.toml -o FITTED.toml` fits the skin")

@@ -80,6 +80,7 @@ DT_MAX = 5e-4        # ... and the lag, s
 LEARN_DELAY = 0.5    # the slow states learn from this long after the filter's start, s
 RHO_ETA = 0.03       # the dispersion tracker's least step
 RHOL_ETA = 0.1      # the long windows' tracker's least step
+RHOP_ETA = 0.02     # the phase windows' tracker's least step
 PB_N = 32            # a slow board's pipe readings kept to pair each with one at the same
 #                      point of the pump's cycle (to within estimator.phase_tol)
 PB_REACH = 1.0       # ... no further back than this, s
@@ -177,6 +178,9 @@ class ReferenceEstimator:
         self.rho_lfrom = (0.0, 0.0)
         self.rho_from = (0.0, 0.0)  # the slow states where the window began
         self.rho_win, self.t_rho = np.zeros(2), 0.0
+        # the pump's phases: their tracker, the windows seen, the present one's sums, and
+        # whether no contact has been seen in it
+        self.rho_p, self.rho_pn, self.rho_pwin, self.rho_pok = 1.0, 0, np.zeros(2), False
         self.info_rate = 0.0
         self.w1 = self.w2 = 0.0  # the model's pipe rate through the lag once and twice
         self.events: list[ContactEvent] = []
@@ -227,7 +231,7 @@ class ReferenceEstimator:
     def hold(self, R: dict[str, float], b_hat: float, tau: float) -> None:
         """Hold what is learnt of the sensors at these values (the re-dating's filter)."""
         self.learn = False
-        self.rho = self.rho_s = self.rho_l = 1.0
+        self.rho = self.rho_s = self.rho_l = self.rho_p = 1.0
         self.R0 = dict(R)
         self.b_hat, self.tau = b_hat, tau
         self.P_B = np.zeros((2, 2))
@@ -416,11 +420,22 @@ class ReferenceEstimator:
     def _dispersion(self, t: float, ge: float, gg: float, on: bool) -> None:
         """The onset evidence's dispersion and the information rate (kernel: ``_dispersion``)."""
         rw = self.cfg.detector.rho_window
+        if self.phase == 0:  # the pump switched: the phase window that ended (a fast board's)
+            A, Bw = self.rho_pwin
+            if (self.rho_pok and Bw > 0 and self.rate >= FAST_READINGS
+                    and self.cfg.detector.rho_phases):
+                self.rho_pn += 1
+                self.rho_p = _track(self.rho_p, A, Bw, max(RHOP_ETA, 1.0 / self.rho_pn))
+                self.rho = max(self.rho_s, self.rho_l, self.rho_p)
+            self.rho_pwin[:] = 0.0
+            self.rho_pok = True
         if not on:
             self.rho_win[:] = 0.0
             self.t_rho = t
             self.rho_from = (self.b_hat, self.tau)
+            self.rho_pok = False
             return
+        self.rho_pwin += (ge, gg)
         self.info_rate += min(1.0, self.t_s / IRATE_TAU) * (gg * self._irho() / self.t_s - self.info_rate)
         self.rho_win += (ge, gg)
         self.rho_lwin += (ge, gg, self.t_s)  # (over contacts: while none is seen)
@@ -432,7 +447,7 @@ class ReferenceEstimator:
                 eta = max(RHOL_ETA, 1.0 / (self.rho_ln + 1))
                 self.rho_ln += 1
                 self.rho_l = _track(self.rho_l, A, Bw, eta)
-                self.rho = max(self.rho_s, self.rho_l)
+                self.rho = max(self.rho_s, self.rho_l, self.rho_p)
             self.rho_lwin[:] = 0.0
             self.rho_lfrom = (self.b_hat, self.tau)
         if t - self.t_rho >= rw:
@@ -445,7 +460,7 @@ class ReferenceEstimator:
                         self.rho_s = min(max(1e-3, float(np.median(self.rho_first))), RHO_CAP)
                 else:  # then a tracker of it
                     self.rho_s = _track(self.rho_s, A, Bw, max(RHO_ETA, 1.0 / self.rho_n))
-                self.rho = max(self.rho_s, self.rho_l)
+                self.rho = max(self.rho_s, self.rho_l, self.rho_p)
             self.rho_win[:] = 0.0
             self.t_rho = t
             self.rho_from = (self.b_hat, self.tau)
