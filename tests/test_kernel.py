@@ -118,11 +118,14 @@ def test_kernel_equals_reference(name: str) -> None:
             if not (a == b or (a != a and b != b)):
                 worst[k] = max(worst[k], abs(a - b))
     assert all(v <= 1e-9 for v in worst.values()), worst
-    # the dispersion of the short windows and of the long ones
+    # the dispersion of the short windows, of the long ones
     assert est.st[K.RHOS] == pytest.approx(ref.rho_s, rel=1e-9)
     assert est.st[K.RHOL] == pytest.approx(ref.rho_l, rel=1e-9)
+    assert est.st[K.RHOP] == pytest.approx(ref.rho_p, rel=1e-9)  # and of the pump's phases
     if "within a step" in name:
         assert ref.rho_ln >= 3 and ref.rho_l > 2.0  # (the long windows taken, and up from 1)
+    if name == "pump-cycle correction learnt":  # (the phases taken: the tracker went its way
+        assert ref.rho_pn >= 100 and ref.rho_p != 1.0  # as the correction learnt the misfit)
     nb = cfg.estimator.switch_bins  # the pump-cycle correction's table, as learnt
     if nb:
         np.testing.assert_allclose(est.switch_table[:2 * nb].reshape(2, nb), ref.tpl, rtol=0, atol=1e-12)
