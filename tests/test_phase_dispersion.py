@@ -106,3 +106,17 @@ def test_a_lighter_skin_s_touches_with_no_false_alarm() -> None:
     assert float(np.median(m.latencies)) <= 0.3
     m0 = match_events(sc.touches, _events(log, rho_phases=0))
     assert m0.false_alarms >= 1, m0
+
+
+def test_the_misfit_notice_names_the_phases() -> None:
+    """Where the phases' dispersion is the one that widens the detector, the notice says it is
+    over the pump's phases, not over the 0.4 s windows (where the evidence looks white)."""
+    from thermoskin.estimation.learnt import learnt, notices
+
+    log = _quiet(4301, 60.0, -0.3)
+    cfg = load_config().replace(estimator={"switch_bins": 0})
+    est = TouchEstimator(cfg)
+    est.run(log["t"], log["T_w"], log["T_p"], log["v"], log["T_a"], log["T_w_cmd"], infer_fresh(log)[0])
+    lt = learnt(est.st, cfg)
+    assert lt.rho == est.st[K.RHOP] > 3.0 and lt.rho_window == 0.0
+    assert "over each phase of the pump's cycle" in notices(lt, cfg)["misfit"]
