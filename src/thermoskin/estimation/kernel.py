@@ -1328,8 +1328,10 @@ def _dispersion(st, pr, t, sge, sgg, on, coarse):
     converters) the innovations are coloured and ``z²`` is ``rho`` chi2(1). ``rho`` is the
     median of ``z²`` over chi2(1)'s (0.4549) over the first :data:`NRB` windows (6 s), then
     tracks it in steps of ``max(PR_RHOETA, 1/(n+1))`` in its logarithm at the ``n``-th window.
-    The information rate, ``sum g²/S`` a second over ``rho``, is what the one-finger SNR is
-    figured from."""
+    The same ``z²`` is tracked over windows of ``PR_RHOWL`` s (coarse converters) and over each
+    phase of the pump's cycle (``PR_RHOPH``, fast boards: steps ``max(RHOP_ETA, 1/(n+1))``);
+    ``rho`` is the largest of the three (:func:`_rho_of`). The information rate, ``sum g²/S`` a
+    second over ``rho``, is what the one-finger SNR is figured from."""
     if st[PHASE] == 0.0:
         # the pump switched: the phase window that ended, where no contact was seen in it and
         # the board is fast (a misfit locked to the pump's cycle, positive in one phase and
