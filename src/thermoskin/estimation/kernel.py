@@ -249,6 +249,9 @@ NSTATE = RHOP + 5
 RHOL_ETA = 0.1
 #: The phase windows' tracker's least step in its logarithm, a window (about eight a second)
 RHOP_ETA = 0.02
+#: chi2(1)'s median: the trackers of a variance or a dispersion step up where a squared
+#: standardised value is above it, down where below
+CHI2_MEDIAN = 0.4549
 
 #: Pipe readings a second from which a board is fast (``PR_RFAST``, the estimator's): its pipe
 #: noise learnt from its innovations, the slow states' windows let go; below, a slow board's
@@ -593,7 +596,7 @@ def _update(st, pr, i, y, p, eta, slow, learning, coarse):
             # the pipe reading's variance: its median tracker, e²/S at chi2(1)'s median 0.4549
             # (robust to the few large innovations of a pump switch), its steps into this slot
             l1 = math.log(1.0 + eta)
-            st[RSL + int(st[RSI])] += l1 if e * e > 0.4549 * Sf else -l1
+            st[RSL + int(st[RSI])] += l1 if e * e > CHI2_MEDIAN * Sf else -l1
     inv = 1.0 / S
     k0 = r0 * inv
     k1 = r1 * inv
@@ -1298,7 +1301,7 @@ def _track(r, a, b, eta):
     """A dispersion tracker's step at a window's end (``a = sum g e/S``, ``b = sum g²/S``): up by
     ``eta`` in its logarithm where the window's ``z² = a²/b`` is above ``r`` times chi2(1)'s
     median, else down; at least 1e-3."""
-    r = r * math.exp(eta if a * a > 0.4549 * r * b else -eta)
+    r = r * math.exp(eta if a * a > CHI2_MEDIAN * r * b else -eta)
     return r if r > 1e-3 else 1e-3
 
 
@@ -1395,7 +1398,7 @@ def _dispersion(st, pr, t, sge, sgg, on, coarse):
             st[RHON] = n + 1.0
             if n < NRB:  # the first NRB windows: their median (a few seconds, robust), from
                 # the third on (before: its prior, PR_RHO0, detector.rho_prior)
-                st[RHOB + n] = a * a / (0.4549 * b)
+                st[RHOB + n] = a * a / (CHI2_MEDIAN * b)
                 for j in range(n + 1):
                     st[RHOB + NRB + j] = st[RHOB + j]
                 r = _median_in_place(st, RHOB + NRB, n + 1) if n >= 2 else st[RHOS]
@@ -2050,7 +2053,7 @@ def _noise2(st, pr, ir, ipr0, iq, iy1, iy2, y, dt):
     st[iy2] = y1
     if y1 == y1 and y2 == y2:
         d = y - 2.0 * y1 + y2
-        st[ir] = _r_step(st, pr, st[ir], d * d > 6.0 * 0.4549 * st[ir], _eta(st, pr, ir - RW + NRW, dt),
+        st[ir] = _r_step(st, pr, st[ir], d * d > 6.0 * CHI2_MEDIAN * st[ir], _eta(st, pr, ir - RW + NRW, dt),
                          ipr0, iq)
 
 
@@ -2082,8 +2085,8 @@ def _noise_phase(st, pr, t, y):
             break
         if st[o + 2] == dr and abs(st[o + 3] - ph) <= tol and abs(st[o + 4] - pv) <= tol:
             d = y - st[o + 1]
-            st[RW] = _r_step(st, pr, st[RW], d * d > 2.0 * 0.4549 * st[RW], _eta(st, pr, NRW, t - st[TLW]),
-                             PR_RW0, QW)
+            st[RW] = _r_step(st, pr, st[RW], d * d > 2.0 * CHI2_MEDIAN * st[RW],
+                             _eta(st, pr, NRW, t - st[TLW]), PR_RW0, QW)
             break
     o = PBQ + 5 * h
     st[o] = t

@@ -193,8 +193,9 @@ def notices(lt: Learnt, cfg: Config) -> dict[str, str]:
     if "T_w" in lt.held and "misfit" in out:
         # (a held pipe noise unlike the board's is one such misfit, and these readings cannot say)
         out["noise_T_w"] = (f"the T_w readings' noise is not learnt from these readings (a board "
-                            "slower than 200 readings a second whose pump cycle they do not place: "
-                            f"a log coarser than the loop, or a pump that never switched); the "
+                            f"slower than {K.FAST_READINGS:g} readings a second whose pump cycle they "
+                            "do not place: a log coarser than the loop, or a pump that never "
+                            f"switched); the "
                             f"configured {lt.noise['T_w']:.3f} K is used: `thermoskin check LOG` "
                             "measures it")
     return out
