@@ -87,13 +87,13 @@ def test_a_skin_settled_off_its_command_arms_once_settled(reference: bool) -> No
 
 @pytest.mark.parametrize("reference", [False, True], ids=["kernel", "reference"])
 def test_a_warming_skin_arms_t_arm_after_its_mean_reaches_the_band(reference: bool) -> None:
-    """A ramp at 0.05 K/s from 3 K below the command (never settled: 0.1 K in 2 s), held at the
-    command from 60 s. A first-order lag of 1 s follows a ramp 0.05 K behind (once its start has
-    decayed), so the mean reaches 0.5 K below the command when the readings are 0.45 K below,
-    at 51 s; armed t_arm later, 54 s."""
-    t = np.arange(58_000) * T_S
-    T_w = np.minimum(CMD - 3.0 + 0.05 * t, CMD)
-    assert 53.95 <= _armed_at(_log(58.0, T_w), reference) <= 54.05
+    """A ramp at 0.1 K/s from 2 K below the command (never settled: 0.1 K in 1 s), held at the
+    command from 20 s. A first-order lag of 1 s follows a ramp 0.1 K behind (once its start has
+    decayed: e^-16 of it by then), so the mean reaches 0.5 K below the command when the readings
+    are 0.4 K below, at 16 s; armed t_arm later, 19 s."""
+    t = np.arange(23_000) * T_S
+    T_w = np.minimum(CMD - 2.0 + 0.1 * t, CMD)
+    assert 18.95 <= _armed_at(_log(23.0, T_w), reference) <= 19.05
 
 
 def test_a_skin_that_never_settles_is_said_once() -> None:
