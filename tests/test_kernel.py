@@ -56,6 +56,9 @@ def _case(name: str):  # type: ignore[no-untyped-def]
         log = {k: v[:50_000] for k, v in log.items()}
         log["v"] = np.where(log["v"] > 0, cfg.pump.v_on, 0.0)  # (the device's float32 speed)
         return cfg, log
+    if name == "a 0.3 s pipe bead, a release over two pump phases":  # (its touch at 13 s)
+        return cfg, simulate(SCENARIOS["one-finger"].with_duration(25.0), cfg,
+                             boards=dataclasses.replace(cfg.sensor, lag_T_w=0.3))
     if name == "1/16 K boards":  # the air's one-step CUSUM passes its threshold: no door
         return cfg, simulate(SCENARIOS["fingers"].with_duration(30.0), cfg,
                              boards=dataclasses.replace(cfg.sensor, quantum_T=1 / 16))
@@ -99,7 +102,8 @@ CASES = ["1 kHz, a NaN burst", "pump-cycle correction", "pump-cycle correction l
          "q_i alone jumps at an onset", "boards-10hz",
          "ambient-step", "a door, the air sensor's 3 s lag configured",
          "a door, the air sensor 3 s slower than configured",
-         "the emulator's 10 Hz session, two contacts withdrawn", "1/16 K boards",
+         "the emulator's 10 Hz session, two contacts withdrawn",
+         "a 0.3 s pipe bead, a release over two pump phases", "1/16 K boards",
          "1/4 K boards at 1 kHz, the tank drifting within a step",
          "cold", "setpoints", "log-100hz logged every 20 ms",
          "boards-10hz logged every 10 ms"]

@@ -290,6 +290,11 @@ class DetectorParams(_Validated):
     release_readings: float = _p(3.0, "", 0.0, 1000.0,
                                  doc="a release needs its evidence over at least this many pipe "
                                      "readings (a slow board's one reading off ends no touch)")
+    release_phases: int = _p(1, "", 0, 1,
+                             doc="where the dispersion over the pump's phases is above rho_deadband "
+                                 "(a misfit locked to the pump's cycle, rho_phases), a release needs "
+                                 "its evidence over the last whole pump phase and this one: a dip "
+                                 "at one pulse ends no touch (0: not)")
     t_air: float = _p(1.0, "s", 0.0, 600.0,
                       doc="after a sudden change of the air (a door), no onset for this long plus "
                           "the air sensor's lag (its CUSUMs gather evidence, the baseline and "

@@ -820,8 +820,14 @@ class ReferenceEstimator:
         self.run_lik = gl
         if g > d.h_off:
             unconfirmed = self.t_lik == self.detected and t - self.detected < d.t_confirm
-            if not unconfirmed and (t - self.t_below) * self.rate < d.release_readings:
-                return 1  # a release over this few readings: one reading off ends no touch
+            if not unconfirmed and (
+                    (t - self.t_below) * self.rate < d.release_readings  # one reading off ends no touch
+                    # nor one pulse's dip where the misfit is locked to the pump's cycle: the
+                    # evidence over the last whole phase and this one (kernel: _release_waits)
+                    or (d.release_phases and d.rho_phases and self.rho_p > d.rho_deadband
+                        and self.rate >= FAST_READINGS
+                        and t - self.t_below < (self.phase + self.ph_prev) * self.t_s)):
+                return 1
             if self.detected <= self.t_lik < self.t_below:
                 t_rel = self._between(self.t_lik, t)
             else:
