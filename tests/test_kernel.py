@@ -147,6 +147,7 @@ def test_kernel_equals_reference(name: str) -> None:
     for a, b in zip(est.events, ref.events, strict=True):
         assert a.onset == pytest.approx(b.onset, abs=1e-9) and a.release == pytest.approx(b.release, abs=1e-9)
         assert a.peak_dq == pytest.approx(b.peak_dq, abs=1e-9)
+        assert a.mean_dq == pytest.approx(b.mean_dq, abs=1e-9)
 
 
 def test_median_in_place_is_numpys_median() -> None:
