@@ -138,14 +138,22 @@ TOLD_NOISE = False
 """``--told-noise``: the estimator is told each log's boards' noise."""
 
 
-def one_log(m: Mismatch, sc: Scenario, seed: int) -> dict[str, Any]:
-    """One log of condition ``m``: simulated with the true boards and skin, estimated with the
-    configuration; its events against the touches and what the estimator learnt."""
-    base = load_config(CONFIG)
+def make_log(m: Mismatch, sc: Scenario, seed: int, config: str | None = None
+             ) -> tuple[Config, SensorParams, dict[str, np.ndarray]]:
+    """Condition ``m``'s log of ``sc``: the configuration given to the estimator (the default
+    one, or ``config`` over it, with the boards the lab is said to know), the true boards, and the
+    log simulated with them and the true skin."""
+    base = load_config(config)
     cfg = base.replace(sensor=m.configured) if m.configured else base
     true = cfg.replace(skin=m.skin) if m.skin else cfg
     boards = _boards(m, cfg, seed)
-    log = simulate(sc, true, boards=boards)
+    return cfg, boards, simulate(sc, true, boards=boards)
+
+
+def one_log(m: Mismatch, sc: Scenario, seed: int) -> dict[str, Any]:
+    """One log of condition ``m``: simulated with the true boards and skin, estimated with the
+    configuration; its events against the touches and what the estimator learnt."""
+    cfg, boards, log = make_log(m, sc, seed, CONFIG)
     if TOLD_NOISE:
         cfg = cfg.replace(sensor={f"noise_{ch}": boards.noise(ch) for ch in ("T_w", "T_p", "T_a")})
     fresh, _ = infer_fresh(log)

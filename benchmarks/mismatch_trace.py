@@ -29,8 +29,6 @@ from thermoskin.analysis.evaluation import match_events
 from thermoskin.estimation import kernel as K  # noqa: N812
 from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.estimation.freshness import infer_fresh
-from thermoskin.params import load_config
-from thermoskin.sim.run import simulate
 
 
 def trace(name: str, seed: int, start: float, end: float, every: float, duration: float,
@@ -41,11 +39,7 @@ def trace(name: str, seed: int, start: float, end: float, every: float, duration
         raise SystemExit(f"mismatch_trace.py: no condition matches {name!r}")
     m = found[0]
     sc = (m.scenario or M._finger_scenario)(seed, duration)
-    base = load_config(config)
-    cfg = base.replace(sensor=m.configured) if m.configured else base
-    true = cfg.replace(skin=m.skin) if m.skin else cfg
-    boards = M._boards(m, cfg, seed)
-    log = simulate(sc, true, boards=boards)
+    cfg, boards, log = M.make_log(m, sc, seed, config)
     fresh, _ = infer_fresh(log)
     est = TouchEstimator(cfg)
     st, pr = est.st, est.pr

@@ -1715,8 +1715,9 @@ def _release_waits(st, pr, t):
     evidence began, not where it is taken)."""
     if (t - st[TFB]) * st[RATE] < pr[PR_RELN]:
         return True
-    return (pr[PR_RELPH] != 0.0 and pr[PR_RHOPH] != 0.0 and st[RHOP] > pr[PR_RHODB]
-            and st[RATE] >= pr[PR_RFAST] and t - st[TFB] < (st[PHASE] + st[PHPREV]) * pr[PR_TS])
+    # (the phases' dispersion stays at 1, within the dead band, where it is not gathered)
+    return (pr[PR_RELPH] != 0.0 and st[RHOP] > pr[PR_RHODB] and st[RATE] >= pr[PR_RFAST]
+            and t - st[TFB] < (st[PHASE] + st[PHPREV]) * pr[PR_TS])
 
 
 @_inline

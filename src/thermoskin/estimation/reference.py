@@ -824,7 +824,7 @@ class ReferenceEstimator:
                     (t - self.t_below) * self.rate < d.release_readings  # one reading off ends no touch
                     # nor one pulse's dip where the misfit is locked to the pump's cycle: the
                     # evidence over the last whole phase and this one (kernel: _release_waits)
-                    or (d.release_phases and d.rho_phases and self.rho_p > d.rho_deadband
+                    or (d.release_phases and self.rho_p > d.rho_deadband
                         and self.rate >= FAST_READINGS
                         and t - self.t_below < (self.phase + self.ph_prev) * self.t_s)):
                 return 1
