@@ -72,6 +72,8 @@ B = 40         # baseline of the q_i estimate, W
 KAPPA = 41     # scale of the innovations against their predicted standard deviation
 QPRI = 42      # the q_i estimate before this sample's readings, W
 RATEH = 43     # the reading rate the onset threshold HTH is for
+BSH = 44       # the baseline's moves with the slow states, summed, W (the warm-up buffer's
+#                values are kept less it: their median then stands where the baseline does)
 SIGN = 46      # sign of the contact (+1 heat in, -1 heat out)
 ONSET = 47
 DETECTED = 48
@@ -700,6 +702,7 @@ def _update(st, pr, i, y, p, eta, slow, learning, coarse):
         # the estimate of q_i moves with them (what it had taken of their errors): so does its
         # no-touch baseline
         st[B] -= vb2 * db + vt2 * dt
+        st[BSH] -= vb2 * db + vt2 * dt
         x0 -= vb0 * db + vt0 * dt
         x1 -= vb1 * db + vt1 * dt
         x2 -= vb2 * db + vt2 * dt
@@ -1428,14 +1431,18 @@ def _detect(st, pr, t, ev, learning):
         stride = int(pr[PR_WSTRIDE])
         if n % stride == 0:
             j = n // stride
-            if j < NWB:
-                st[WBUF + j] = q
+            if j < NWB:  # (less the baseline's moves so far: see BSH)
+                st[WBUF + j] = q - st[BSH]
         n += 1
         st[NWARM] = n
         st[B] += (q - st[B]) / n
         if n >= int(pr[PR_NWARM]):
             m = min((n - 1) // stride + 1, NWB)
-            st[B] = _median_in_place(st, WBUF, m)
+            # the median of the estimates as they would stand now: the slow states learnt
+            # meanwhile moved the estimate and the running mean, not the values kept (a lag
+            # learnt from 0.10 to 0.12 s over the warm-up moved them 0.25 W: a baseline that far
+            # off, a contact of the other sign at once)
+            st[B] = _median_in_place(st, WBUF, m) + st[BSH]
             st[MODE] = IDLE
             _cusums_reset(st, t)
         st[DQ] = q - st[B]

@@ -209,6 +209,7 @@ class ReferenceEstimator:
         self.record_switches = False
         self.mode, self.n_seen, self.warm = "warm", 0, []
         self.b = 0.0
+        self.b_moved = 0.0  # the baseline's moves with the slow states, summed
         self.cusums = [_Cusum(d.dq_design), _Cusum(-d.dq_design),
                        _Cusum(d.dq_design_hi), _Cusum(-d.dq_design_hi),
                        _Cusum(d.dq_design_lo), _Cusum(-d.dq_design_lo)]
@@ -374,6 +375,7 @@ class ReferenceEstimator:
             dB[1] = tau - self.tau
             self.tau = tau
             self.b -= self.V[I_Q] @ dB  # the no-touch baseline moves with the estimate
+            self.b_moved -= self.V[I_Q] @ dB  # (the warm-up's values kept less it)
             self.x = self.x - self.V @ dB
         self.P = self.P - np.outer(K, r)
         return ge, gg
@@ -696,11 +698,12 @@ class ReferenceEstimator:
         q, sq = self.x[I_Q], math.sqrt(self.P[I_Q, I_Q])
         if self.mode == "warm":
             if self.n_seen % self.stride == 0 and len(self.warm) < 256:
-                self.warm.append(q)
+                self.warm.append(q - self.b_moved)
             self.n_seen += 1
             self.b += (q - self.b) / self.n_seen
             if self.n_seen >= self.n_warm:
-                self.b = float(np.median(self.warm))
+                # their median as they would stand now, the slow states' moves since included
+                self.b = float(np.median(self.warm)) + self.b_moved
                 self.mode = "idle"
                 self._reset_cusums(t)
             self.dq = q - self.b
