@@ -122,7 +122,7 @@ def test_the_baseline_stands_where_the_estimate_does_after_the_slow_states_moved
     """The no-touch baseline is the median of the estimate over the warm-up that follows the
     arming. The slow states (here the lag of a pipe bead at 0.1 s, learnt from its 0.05 s prior)
     move the estimate while it is taken, and the baseline with it; the values kept for the median
-    must move too. Kept as they were read, their median stood 0.29 W under the estimate (seed
+    must move too. Kept as they were read, their median stood 0.29 W over the estimate (seed
     8100, half a fingertip's touch): a baseline that far off, read as heat going out, until it
     crept back. Judged by the physics: no touch before 5.9 s, so the estimate about its baseline
     is near nought just after the warm-up, while the estimate itself moved by more than that

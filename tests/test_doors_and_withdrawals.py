@@ -91,30 +91,54 @@ def session(serial_session):  # type: ignore[no-untyped-def]
     return serial_session("emulator_10hz_lab_seed0_loaded")
 
 
-def test_a_contact_that_brings_no_heat_is_withdrawn(session) -> None:  # type: ignore[no-untyped-def]
-    """After the two-finger touch of 40.0-42.8 s the filter's estimate recovers for seconds from
-    what the touch left; with 10 Hz boards that recovery reached the threshold twice (46.1 and
-    48.2 s live), contacts of 0.01 W and -0.16 W over them. Withdrawn (no event), the session
-    has no false alarm and the same touches: the strong ones (two and three fingers) each
-    found."""
+def test_the_serial_session_s_events_each_brought_heat(session) -> None:  # type: ignore[no-untyped-def]
+    """The serial session: no false alarm and the same touches, the strong ones (two and three
+    fingers) each found. (After its two-finger touch of 40.0-42.8 s the filter's estimate
+    recovered for seconds from what the touch left, and with the pipe's noise held at its prior
+    that recovery reached the threshold at 46.1 s: a contact of 0.01 W this rule withdrew. Since
+    the warm-up's baseline stands where the estimate does, the session has no contact to
+    withdraw; the rule is shown on a door log below.) Every event reported brought at least the
+    rule's heat."""
     log, touches = session
     m = match_events(touches, observe(log, load_config()).events)
     assert m.false_alarms == 0, [(e.onset, e.detected_at, e.mean_dq) for e in m.spurious]
     lat = m.latency_by_touch()
     assert all(lat[i] is not None for i, t in enumerate(touches) if t.n_fingers >= 2), lat
-    # the rule off (only a contact of the other sign's mean withdrawn): the 46.1 s one is back,
-    # a positive contact of next to no heat, 3.3 s after the touch's end
-    # (with the pipe's noise held at its prior, 0.02 K for the board's 0.049 K, as the rule was
-    # made: with the noise learnt the recovery brings no contact to withdraw at all)
-    held = load_config().replace(estimator={"phase_tol": 0.0})
-    assert not match_events(touches, observe(log, held).events).spurious
-    m0 = match_events(touches, observe(log, held.replace(detector={"confirm_mean": 0.0})).events)
-    assert len(m0.spurious) == 1
-    (e,) = m0.spurious
-    assert e.sign > 0 and 45.5 < e.detected_at < 46.5 and abs(e.mean_dq) < 0.05
     # every event the default reports brought at least that heat (the weakest touches of the
     # detection table bring 0.18 W and more)
     d = load_config().detector
     ev = observe(log, load_config()).events
     assert min(e.sign * e.mean_dq for e in ev) >= d.confirm_mean * d.dq_design_lo
     assert np.all(np.diff([e.onset for e in ev]) > 0)
+
+
+def test_a_bead_s_tail_that_brings_nothing_is_withdrawn() -> None:
+    """`benchmarks/mismatch.py`'s door log of seed 9101 (1 K doors, an air bead lagging 3 s that
+    the configuration does not know), to 157 s: 8 s after the door of 145.7 s and 0.1 s after a
+    touch's release, the bead's tail crosses the threshold for 16 ms (153.73 s). Its heat over
+    it is below the rule's floor: withdrawn, no event; with the rule off (``confirm_mean`` 0, the
+    floor with it) it is reported. Every touch is found either way. (The two contacts of 10 and
+    25 ms after it, at 154.84 and 155.78 s, are the doors row's false alarms on 9100: the
+    detector kept them above the floor by its own dates; docs/sensors.md.)"""
+    from thermoskin.estimation.freshness import infer_fresh
+    from thermoskin.sim.conditions import ambient_step
+
+    cfg = load_config()
+    sc = ambient_step(9101, 240.0).scenario
+    assert abs(sc.ambient[4][0] - 145.7) < 0.1  # the door
+    boards = dataclasses.replace(cfg.sensor, seed=9101, lag_T_a=3.0)
+    log = simulate(sc.with_duration(157.0), cfg, boards=boards)
+    touches = [t for t in sc.touches if t.t_on + t.duration < 157.0]
+
+    def spurious(**detector):  # type: ignore[no-untyped-def]
+        est = TouchEstimator(cfg.replace(detector=detector) if detector else cfg)
+        ev = est.run(log["t"], log["T_w"], log["T_p"], log["v"], log["T_a"], T_w_cmd=log["T_w_cmd"],
+                     fresh=infer_fresh(log)[0]).events
+        m = match_events(touches, ev)
+        assert m.misses == 0, m
+        return [e for e in m.spurious if 153.5 < e.onset < 154.0]
+
+    assert spurious() == []
+    (e,) = spurious(confirm_mean=0.0)
+    d = cfg.detector
+    assert e.duration < 0.05 and e.sign > 0 and e.energy < d.confirm_mean * d.dq_design_lo * d.confirm_time

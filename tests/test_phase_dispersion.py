@@ -122,44 +122,54 @@ def test_the_misfit_notice_names_the_phases() -> None:
     assert "over each phase of the pump's cycle" in notices(lt, cfg)["misfit"]
 
 
-def _slow_bead_log():  # type: ignore[no-untyped-def]
-    """The first 12 s of `benchmarks/mismatch.py`'s touch log of seed 8100 under its "T_w lag
-    0.3 s" condition: the configured (ideal) boards but for a pipe bead lagging 0.3 s, which the
-    estimator learns from its 0.05 s prior; a one-finger touch (0.65 W) from 5.96 to 8.41 s."""
+def _slow_bead_log(seed: int, duration: float):  # type: ignore[no-untyped-def]
+    """The first ``duration`` s of `benchmarks/mismatch.py`'s touch log of ``seed`` under its
+    "T_w lag 0.3 s" condition: the configured (ideal) boards but for a pipe bead lagging 0.3 s,
+    which the estimator learns from its 0.05 s prior; and the touches that end in it."""
     import dataclasses
 
     from thermoskin.sim.conditions import touch_train
 
     cfg = load_config()
-    rng = np.random.default_rng(8100)
+    rng = np.random.default_rng(seed)
     touches = touch_train(rng, 240.0)
-    sc = Scenario(name="bead", description="", duration=12.0, T_a=20.0, touches=touches, pump="logic",
+    sc = Scenario(name="bead", description="", duration=duration, T_a=20.0, touches=touches, pump="logic",
                   T_p_drift=float(rng.uniform(0.01, 0.04)), T_p_period=float(rng.uniform(30.0, 90.0)))
-    log = simulate(sc, cfg, boards=dataclasses.replace(cfg.sensor, seed=8100, lag_T_w=0.3))
-    return log, touches[0]
+    log = simulate(sc, cfg, boards=dataclasses.replace(cfg.sensor, seed=seed, lag_T_w=0.3))
+    return log, [tc for tc in touches if tc.t_on + tc.duration < duration]
 
 
 def test_a_pulse_under_a_slow_bead_does_not_end_a_touch() -> None:
-    """Under a pipe bead lagging 0.3 s, learnt at 0.18 s by then, the estimate swings with each of
-    the pump's 50 ms pulses (the misfit the phases' dispersion measures, about 3 here), one dip
-    by as much as the touch itself. Released on that dip (``detector.release_phases = 0``), the
-    touch ends 1.2 s early and its lift is read as a contact of the other sign; with the release
-    waiting over the last whole phase and this one, the touch is one contact to within 0.6 s of
-    its end and nothing else is reported."""
-    log, touch = _slow_bead_log()
+    """Under a pipe bead lagging 0.3 s, learnt at 0.16 s by then, the estimate swings with each of
+    the pump's 50 ms pulses (the misfit the phases' dispersion measures: 2.0 at 32.3 s), one dip by as
+    much as the touch itself. Released on that dip (``detector.release_phases = 0``), the three
+    fingers' touch of 31.7-34.5 s ends 1.9 s early (``dq`` back at +0.8-1.0 W at once, with no
+    new onset: `benchmarks/mismatch_trace.py "T_w lag 0.3" 9101` with a ``--config`` that turns
+    it off), and false alarms follow; with the release waiting over the last whole phase and
+    this one, each touch of the first 40 s is one contact to within 0.3 s of its end and nothing
+    else is reported. (Seed 8100's touch at 6 s showed it first; since the warm-up's baseline
+    stands where the estimate does, that touch is whole either way.)"""
+    log, touches = _slow_bead_log(9101, 40.0)
     cfg = load_config()
     fresh, _ = infer_fresh(log)
-    end = touch.t_on + touch.duration
 
     def events(release_phases: int):  # type: ignore[no-untyped-def]
         est = TouchEstimator(cfg.replace(detector={"release_phases": release_phases}))
-        est.run(log["t"], log["T_w"], log["T_p"], log["v"], log["T_a"], T_w_cmd=log["T_w_cmd"], fresh=fresh)
-        return est.events, est.st[K.RHOP]
+        rho_p = 0.0
+        for part in (slice(0, 32_300), slice(32_300, None)):  # (the dispersion at 32.3 s)
+            est.feed(log["t"][part], log["T_w"][part], log["T_p"][part], log["v"][part], log["T_a"][part],
+                     T_w_cmd=log["T_w_cmd"][part], fresh=fresh[part])
+            rho_p = rho_p or float(est.st[K.RHOP])
+        est.finish(float(log["t"][-1]))
+        return est.events, rho_p
 
     held, rho_p = events(1)
     assert rho_p > load_config().detector.rho_deadband  # the misfit locked to the pump's cycle
-    assert [e.sign for e in held] == [1]
-    assert abs(held[0].onset - touch.t_on) < 0.3 and end - 0.6 <= held[0].release <= end + 0.3
+    m = match_events(touches, held)
+    assert m.hits == len(touches) >= 4 and m.false_alarms == 0, m
+    for tc, j in zip(touches, m.pairs, strict=True):
+        assert abs(held[j].release - (tc.t_on + tc.duration)) < 0.3, (tc, held[j])
     cut, _ = events(0)  # the failure it mends
-    assert cut[0].sign == 1 and cut[0].release < end - 1.0
-    assert any(e.sign == -1 for e in cut[1:])
+    (e,) = [e for e in cut if 31.7 < e.onset < 32.0]
+    assert e.release < 34.495 - 1.0
+    assert match_events(touches, cut).false_alarms >= 1

@@ -71,28 +71,32 @@ def test_with_the_pipe_noise_learnt_no_false_alarm_and_the_strong_touches(sessio
 
 
 def test_without_the_pairing_the_ends_of_the_missed_touches_are_contacts(session) -> None:  # type: ignore[no-untyped-def]
-    """The same log with ``t_pair = 0``: contacts of the negative sign, each within 5 s after the
-    end of a one-finger touch (the ends the pairing takes), none of them a touch. (Without the
-    withdrawal of contacts that bring nothing, ``confirm_mean`` 0, which came after the pairing
-    and takes one of them too.)"""
+    """The same log with ``t_pair = 0``: a contact of the negative sign within 5 s after the end
+    of a one-finger touch (the ends the pairing takes), not a touch. (Without the withdrawal of
+    contacts that bring nothing, ``confirm_mean`` 0, which came after the pairing and takes
+    such contacts too.) There were three, 8.4, 17.8 and 24.5 s, while the warm-up's baseline
+    stood 0.06 W over the estimate (the slow states' moves over it left out); one now."""
     log, touches = session
     neg = [e for e in _events(log, t_pair=0.0, rho_prior=WARY, confirm_mean=0.0) if e.sign < 0]
-    assert len(neg) >= 2
+    assert len(neg) >= 1
     ends = [t.t_off for t in touches if t.n_fingers == 1]
     for e in neg:
         assert any(0.0 < e.onset - t_off < 5.0 for t_off in ends), e
 
 
-def test_one_reading_off_ends_no_touch(session) -> None:  # type: ignore[no-untyped-def]
-    """Without the pairing (as before it), the two-finger touch 40.0-42.8 s: one contact with the
-    release over three readings; with a release on one reading (``release_readings = 0``) it is
-    released 1.2 s early and found again, two contacts."""
-    log, _ = session
+def test_one_reading_off_ends_no_touch(serial_session) -> None:  # type: ignore[no-untyped-def]
+    """Without the pairing (as before it), the firmware session's two-finger touch 40.0-42.8 s
+    was released 1.2 s early on one reading and found again; since the warm-up's baseline stands
+    where the estimate does it is whole either way. The emulator's session of the same boards
+    (`tests/data/emulator_10hz_lab_seed0_loaded.parquet`, the pipe's noise held as here) shows
+    it on the fingertip's touch 22.5-24.3 s: one contact to its end with the release over three
+    readings; with a release on one reading (``release_readings = 0``) it ends 0.6 s early."""
+    log, _ = serial_session("emulator_10hz_lab_seed0_loaded")
 
     def in_touch(**kw):  # type: ignore[no-untyped-def]
-        return [e for e in _events(log, t_pair=0.0, rho_prior=WARY, **kw) if 39.0 <= e.detected_at <= 43.3]
+        return [e for e in _events(log, **kw) if 22.0 <= e.detected_at <= 24.3]
 
     (whole,) = in_touch()
-    assert whole.release == pytest.approx(42.8, abs=0.2)
-    split = in_touch(release_readings=0.0)
-    assert len(split) == 2 and split[0].release < 41.6
+    assert whole.release == pytest.approx(24.5, abs=0.25)
+    (cut,) = in_touch(release_readings=0.0)
+    assert cut.release < 24.3 - 0.4
