@@ -295,6 +295,12 @@ class DetectorParams(_Validated):
                                  "(a misfit locked to the pump's cycle, rho_phases), a release needs "
                                  "its evidence over the last whole pump phase and this one: a dip "
                                  "at one pulse ends no touch (0: not)")
+    door_follow: int = _p(1, "", 0, 1,
+                          doc="armed, from a door's start (a sudden change of the air) for t_air plus "
+                              "the air sensor's lag, the estimate follows the sheet's heat as in a "
+                              "contact: an air sensor slower than configured leaves the sheet a heat "
+                              "no model has while the door lasts, which the estimate otherwise gave "
+                              "back over seconds after the hold, read as a touch (0: not)")
     t_air: float = _p(1.0, "s", 0.0, 600.0,
                       doc="after a sudden change of the air (a door), no onset for this long plus "
                           "the air sensor's lag (its CUSUMs gather evidence, the baseline and "

@@ -128,6 +128,7 @@ def kernel_params(cfg: Config, tables: ModelTables, eq8: ThermalExchangeObserver
     pr[K.PR_RHOWL] = d.rho_window_long
     pr[K.PR_RHOPH] = float(d.rho_phases)
     pr[K.PR_RELPH] = float(d.release_phases)
+    pr[K.PR_DOORQ] = float(d.door_follow)
     pr[K.PR_PBTOL] = es.phase_tol
     pr[K.PR_RHODB] = d.rho_deadband
     pr[K.PR_RHOSET] = 0.5

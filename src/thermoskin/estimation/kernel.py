@@ -74,6 +74,7 @@ QPRI = 42      # the q_i estimate before this sample's readings, W
 RATEH = 43     # the reading rate the onset threshold HTH is for
 BSH = 44       # the baseline's moves with the slow states, summed, W (the warm-up buffer's
 #                values are kept less it: their median then stands where the baseline does)
+TDOOR = 45     # the start of the last sudden change of the air (not its renewals), s
 SIGN = 46      # sign of the contact (+1 heat in, -1 heat out)
 ONSET = 47
 DETECTED = 48
@@ -401,7 +402,9 @@ PR_PBTOL = 107   # a slow board's pipe reading paired at the same point of the p
 PR_RHOPH = 108   # 1: the dispersion also over the pump's phases (_dispersion), 0: not
 PR_RELPH = 109   # 1: under a misfit locked to the pump's cycle a release spans two phases
                  # (_release_waits), 0: not
-NPARAM = 110
+PR_DOORQ = 110   # 1: armed, through the air's hold from a door's start the estimate follows the
+                 # sheet's heat as in a contact (process noise), 0: as between touches
+NPARAM = 111
 
 #: An onset CUSUM's excursion that came to no contact pairs with an onset of the other sign
 #: once it rose above this fraction of the threshold (below it, noise's own excursions, about
@@ -459,6 +462,7 @@ def new_state() -> np.ndarray:
     st[TLW] = -1e300
     st[TFW] = -1e300
     st[TAMB] = -1e300
+    st[TDOOR] = -1e300
     st[ATL] = -1e300
     st[CMD] = np.nan
     st[QIH] = np.nan
@@ -821,6 +825,8 @@ def _ambient(st, pr, t, y, fresh, idx, learning):
             # boards such a "door" withdrew a touch just detected)
             st[PA] += pr[PR_AJUMP] * pr[PR_AJUMP]
             S = st[PA + 3 * idx] + R
+            if not t - st[TAMB] < pr[PR_TAMBH]:
+                st[TDOOR] = t
             st[TAMB] = t
             st[AGP] = st[AGM] = 0.0
         k0 = st[PA + idx] / S
@@ -843,6 +849,8 @@ def _ambient(st, pr, t, y, fresh, idx, learning):
             # one step, the filter taking it in, read as the air moving)
             lim = 2.0 * st[QA] / ASL_TAU if st[QA] < 1e299 else 0.0
             if pr[PR_ASLMAX] > 0.0 and abs(st[ASL]) > max(pr[PR_ASLMAX], lim):
+                if not t - st[TAMB] < pr[PR_TAMBH]:
+                    st[TDOOR] = t
                 st[TAMB] = t
         st[AXL] = st[XA]
         st[ATL] = t
@@ -1964,7 +1972,12 @@ def step(st, pr, Phi, Gam, Qi, Qc, Phi_a, Q_a, Rw, t, T_w, T_p, T_a, T_w_cmd, iv
         st[DQ] = st[Q] - st[B]
     # predict over the coming interval
     _ambient_predict(st, Phi_a, Q_a)
-    Qd = Qc if st[MODE] == INCONTACT else Qi
+    # (and, armed, through the air's hold from a door's start, not its renewals: a sensor
+    # lagging the air more than configured leaves the sheet a heat no model has, G_a tau dT_a/dt,
+    # for as long as the door lasts; taken in slowly, as between touches, the estimate then came
+    # back over seconds after the hold, read as a touch: it follows it as in a contact)
+    door = pr[PR_DOORQ] != 0.0 and st[ARMED] != 0.0 and t - st[TDOOR] < pr[PR_TAMBH]
+    Qd = Qc if st[MODE] == INCONTACT or door else Qi
     x0 = st[X]
     slow_on = learning and pr[PR_SLOWON] != 0.0
     if slow_on:

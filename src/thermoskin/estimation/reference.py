@@ -219,6 +219,7 @@ class ReferenceEstimator:
         self.t_rel, self.last_sign = -1e300, 0.0
         self.t_xp = -1e300  # when a positive design CUSUM was last above half the threshold
         self.t_air, self.air_up, self.air_down = -1e300, 0.0, 0.0
+        self.t_door = -1e300  # the start of the last sudden change of the air (not its renewals)
         self.air_held = False
         self.air_rate, self.xa_last, self.t_air_last = 0.0, 0.0, None
         self.contact = 0
@@ -391,6 +392,8 @@ class ReferenceEstimator:
         if (self.air_up > 8.0 or self.air_down > 8.0) and not (q < 1e299 and abs(e) < 2.0 * q):
             self.Pa[0, 0] += 1.0
             S = self.Pa[idx, idx] + self.R["T_a"]
+            if not t - self.t_air < self.t_amb_hold:
+                self.t_door = t
             self.t_air = t
             self.air_up = self.air_down = 0.0
         K = self.Pa[:, idx] / S
@@ -404,6 +407,8 @@ class ReferenceEstimator:
             q = self.quantum["T_a"]
             lim = max(self.cfg.detector.air_rate, 2.0 * q / ASL_TAU if q < 1e299 else 0.0)
             if self.cfg.detector.air_rate > 0 and abs(self.air_rate) > lim:
+                if not t - self.t_air < self.t_amb_hold:
+                    self.t_door = t
                 self.t_air = t
         self.xa_last, self.t_air_last = self.xa[0], t
 
@@ -608,7 +613,10 @@ class ReferenceEstimator:
         # predict: the bead (from the pipe at the sample's start), then the model
         self.xa = tb.Phi_a @ self.xa
         self.Pa = tb.Phi_a @ self.Pa @ tb.Phi_a.T + tb.Q_a
-        Q = tb.Q[iv] if self.mode == "contact" else tb.Q_idle[iv]
+        # (and through the air's hold from a door's start, armed: the sheet takes a heat no
+        # model has, which the estimate follows as in a contact)
+        door = bool(self.cfg.detector.door_follow) and self.armed and t - self.t_door < self.t_amb_hold
+        Q = tb.Q[iv] if self.mode == "contact" or door else tb.Q_idle[iv]
         u = np.array([self.xa[0], drive if drive == drive else 0.0])
         a = self.a
         F = np.zeros((NA, NA))
