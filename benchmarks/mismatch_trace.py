@@ -7,7 +7,9 @@ largest level and the release CUSUM (``run``; it ends the contact above ``h_off`
 dispersion the detector takes and its three trackers (short windows, long windows, the pump's
 phases: ``docs/model.md``), whether the dispersion's windows are taken (``disp``: the slow
 states learnt, no contact), and the slow states (the T_p offset against T_w, the pipe bead's lag
-and its sd). The same log as `mismatch.py` makes for that condition and seed (the touch log of
+and its sd), the air (its reading, its filter's estimate, and whether the detector holds after a
+sudden change of it: ``air_held``) and the sheet (the simulator's ``T_g`` against the estimate).
+The same log as `mismatch.py` makes for that condition and seed (the touch log of
 ``--duration`` s), estimated the same way.
 
     python benchmarks/mismatch_trace.py "T_w lag 0.3" 8100 [--start 5.8] [--end 10.3]
@@ -64,7 +66,10 @@ def trace(name: str, seed: int, start: float, end: float, every: float, duration
                          "run": float(st[K.RUN]), "rho": float(st[K.RHO]), "rho_short": float(st[K.RHOS]),
                          "rho_long": float(st[K.RHOL]), "rho_phases": float(st[K.RHOP]),
                          "disp": bool(K._slow_learnt(st, pr)), "offset_p": float(st[K.BD]),
-                         "lag": float(st[K.LAGT]), "lag_sd": float(np.sqrt(max(st[K.PTT], 0.0)))})
+                         "lag": float(st[K.LAGT]), "lag_sd": float(np.sqrt(max(st[K.PTT], 0.0))),
+                         "T_a": float(log["T_a"][sl][-1]), "T_a_hat": float(st[K.XA]),
+                         "T_g": float(log["T_g"][sl][-1]), "T_g_hat": float(st[K.X + 1]),
+                         "air_held": bool(t - st[K.TAMB] < pr[K.PR_TAMBH])})
     est.finish(float(log["t"][-1]))
     match = match_events(sc.touches, est.events)
     events = [{"onset": round(e.onset, 3), "release": round(e.release, 3), "sign": e.sign,
@@ -101,7 +106,8 @@ def main() -> None:
                         for j in tc["events"])
         print(f"  touch {tc['on']:7.2f}-{tc['off']:7.2f} s, {tc['fingers']} finger(s): {got or 'missed'}")
     cols = ("t", "pump", "q_true", "contact", "dq", "level", "level_max", "sd", "run", "rho", "rho_short",
-            "rho_long", "rho_phases", "disp", "offset_p", "lag", "lag_sd")
+            "rho_long", "rho_phases", "disp", "offset_p", "lag", "lag_sd", "T_a", "T_a_hat", "T_g", "T_g_hat",
+            "air_held")
     print(" ".join(f"{c:>9s}" for c in cols))
     for r in res["rows"]:
         print(" ".join(f"{r[c]:9.3f}" if isinstance(r[c], float) else f"{r[c]!s:>9s}" for c in cols))
