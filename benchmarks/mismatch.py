@@ -49,7 +49,7 @@ from thermoskin.estimation.freshness import infer_fresh
 from thermoskin.estimation.learnt import SNR_MIN, learnt
 from thermoskin.params import Config, SensorParams, load_config
 from thermoskin.sim.boards import lab_boards
-from thermoskin.sim.conditions import ambient_ramp, ambient_step, mis_sized_skin, touch_train
+from thermoskin.sim.conditions import ambient_ramp, ambient_step, finger_train, mis_sized_skin
 from thermoskin.sim.run import simulate
 from thermoskin.sim.scenarios import Scenario
 
@@ -114,11 +114,7 @@ GRID: tuple[Mismatch, ...] = (
 
 
 def _finger_scenario(seed: int, duration: float) -> Scenario:
-    rng = np.random.default_rng(seed)
-    touches = touch_train(rng, duration)
-    return Scenario(name=f"mismatch-{seed}", description="", duration=duration, T_a=20.0,
-                    touches=touches, pump="logic", T_p_drift=float(rng.uniform(0.01, 0.04)),
-                    T_p_period=float(rng.uniform(30.0, 90.0)))
+    return finger_train(seed, duration)
 
 
 def _quiet(seed: int, duration: float) -> Scenario:

@@ -130,15 +130,11 @@ def test_the_baseline_stands_where_the_estimate_does_after_the_slow_states_moved
     import dataclasses
 
     from thermoskin.estimation.freshness import infer_fresh
-    from thermoskin.sim.conditions import touch_train
-    from thermoskin.sim.scenarios import Scenario
+    from thermoskin.sim.conditions import finger_train
 
     cfg = load_config()
-    rng = np.random.default_rng(8100)
-    touches = touch_train(rng, 240.0)
-    assert touches[0].t_on > 5.9
-    sc = Scenario(name="bead", description="", duration=5.0, T_a=20.0, touches=touches, pump="logic",
-                  T_p_drift=float(rng.uniform(0.01, 0.04)), T_p_period=float(rng.uniform(30.0, 90.0)))
+    sc = finger_train(8100, 5.0, train_s=240.0)  # (the mismatch benchmark's log of seed 8100)
+    assert sc.touches[0].t_on > 5.9
     log = simulate(sc, cfg, boards=dataclasses.replace(cfg.sensor, seed=8100, lag_T_w=0.1))
     fresh, _ = infer_fresh(log)
     est = ReferenceEstimator(cfg, T_S) if reference else TouchEstimator(cfg)

@@ -13,25 +13,19 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
-
 from thermoskin.analysis.evaluation import match_events
 from thermoskin.estimation.estimator import TouchEstimator
 from thermoskin.estimation.freshness import infer_fresh
 from thermoskin.params import load_config
-from thermoskin.sim.conditions import mis_sized_skin, touch_train
+from thermoskin.sim.conditions import finger_train, mis_sized_skin
 from thermoskin.sim.run import simulate
-from thermoskin.sim.scenarios import Scenario
 
 
 def _lighter_skin_log(seed: int, duration: float):  # type: ignore[no-untyped-def]
     """Touches of 1-3 fingers every 5-9 s, the tank drifting, on a skin 30 % lighter than the
     configuration says (the mismatch grid's recipe)."""
     cfg = load_config()
-    rng = np.random.default_rng(seed)
-    sc = Scenario(name="lighter", description="", duration=duration, T_a=20.0,
-                  touches=touch_train(rng, duration), pump="logic",
-                  T_p_drift=float(rng.uniform(0.01, 0.04)), T_p_period=float(rng.uniform(30.0, 90.0)))
+    sc = finger_train(seed, duration)
     return sc, simulate(sc, cfg.replace(skin=mis_sized_skin(cfg.skin, -0.3)),
                         boards=dataclasses.replace(cfg.sensor, seed=seed))
 

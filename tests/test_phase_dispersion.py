@@ -128,15 +128,12 @@ def _slow_bead_log(seed: int, duration: float):  # type: ignore[no-untyped-def]
     which the estimator learns from its 0.05 s prior; and the touches that end in it."""
     import dataclasses
 
-    from thermoskin.sim.conditions import touch_train
+    from thermoskin.sim.conditions import finger_train
 
     cfg = load_config()
-    rng = np.random.default_rng(seed)
-    touches = touch_train(rng, 240.0)
-    sc = Scenario(name="bead", description="", duration=duration, T_a=20.0, touches=touches, pump="logic",
-                  T_p_drift=float(rng.uniform(0.01, 0.04)), T_p_period=float(rng.uniform(30.0, 90.0)))
+    sc = finger_train(seed, duration, train_s=240.0)
     log = simulate(sc, cfg, boards=dataclasses.replace(cfg.sensor, seed=seed, lag_T_w=0.3))
-    return log, [tc for tc in touches if tc.t_on + tc.duration < duration]
+    return log, [tc for tc in sc.touches if tc.t_on + tc.duration < duration]
 
 
 def test_a_pulse_under_a_slow_bead_does_not_end_a_touch() -> None:

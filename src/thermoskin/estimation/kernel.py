@@ -801,6 +801,15 @@ def _predict(st, F, G, QQ, u, w):
 
 
 @_inline
+def _air_changed(st, pr, t):
+    """A sudden change of the air at ``t`` (``TAMB``, which the detector's hold runs from); where
+    no hold is on, the start of a door (``TDOOR``: not the renewals while the reading moves)."""
+    if not t - st[TAMB] < pr[PR_TAMBH]:
+        st[TDOOR] = t
+    st[TAMB] = t
+
+
+@_inline
 def _ambient(st, pr, t, y, fresh, idx, learning):
     """Update the ambient filter with a fresh air reading (if any), with its learnt variance.
 
@@ -825,9 +834,7 @@ def _ambient(st, pr, t, y, fresh, idx, learning):
             # boards such a "door" withdrew a touch just detected)
             st[PA] += pr[PR_AJUMP] * pr[PR_AJUMP]
             S = st[PA + 3 * idx] + R
-            if not t - st[TAMB] < pr[PR_TAMBH]:
-                st[TDOOR] = t
-            st[TAMB] = t
+            _air_changed(st, pr, t)
             st[AGP] = st[AGM] = 0.0
         k0 = st[PA + idx] / S
         k1 = st[PA + 2 + idx] / S
@@ -849,9 +856,7 @@ def _ambient(st, pr, t, y, fresh, idx, learning):
             # one step, the filter taking it in, read as the air moving)
             lim = 2.0 * st[QA] / ASL_TAU if st[QA] < 1e299 else 0.0
             if pr[PR_ASLMAX] > 0.0 and abs(st[ASL]) > max(pr[PR_ASLMAX], lim):
-                if not t - st[TAMB] < pr[PR_TAMBH]:
-                    st[TDOOR] = t
-                st[TAMB] = t
+                _air_changed(st, pr, t)
         st[AXL] = st[XA]
         st[ATL] = t
 

@@ -381,6 +381,12 @@ class ReferenceEstimator:
         self.P = self.P - np.outer(K, r)
         return ge, gg
 
+    def _air_changed(self, t: float) -> None:
+        """A sudden change of the air at ``t``; where no hold is on, a door's start."""
+        if not t - self.t_air < self.t_amb_hold:
+            self.t_door = t
+        self.t_air = t
+
     def _ambient(self, t: float, y: float) -> None:
         idx = self.tables.amb_idx
         S = self.Pa[idx, idx] + self.R["T_a"]
@@ -392,9 +398,7 @@ class ReferenceEstimator:
         if (self.air_up > 8.0 or self.air_down > 8.0) and not (q < 1e299 and abs(e) < 2.0 * q):
             self.Pa[0, 0] += 1.0
             S = self.Pa[idx, idx] + self.R["T_a"]
-            if not t - self.t_air < self.t_amb_hold:
-                self.t_door = t
-            self.t_air = t
+            self._air_changed(t)
             self.air_up = self.air_down = 0.0
         K = self.Pa[:, idx] / S
         self.xa = self.xa + K * e
@@ -407,9 +411,7 @@ class ReferenceEstimator:
             q = self.quantum["T_a"]
             lim = max(self.cfg.detector.air_rate, 2.0 * q / ASL_TAU if q < 1e299 else 0.0)
             if self.cfg.detector.air_rate > 0 and abs(self.air_rate) > lim:
-                if not t - self.t_air < self.t_amb_hold:
-                    self.t_door = t
-                self.t_air = t
+                self._air_changed(t)
         self.xa_last, self.t_air_last = self.xa[0], t
 
     def _slow_window(self) -> None:

@@ -126,6 +126,16 @@ def touch_train(rng: np.random.Generator, t_end: float, *, t_first: float = 5.0,
     return tuple(touches)
 
 
+def finger_train(seed: int, duration: float, *, train_s: float | None = None) -> Scenario:
+    """Touches of 1-3 fingers every 5-9 s (:func:`touch_train`), the tank drifting: the touch
+    logs of the mismatch benchmark. The touches are drawn for ``train_s`` s (default
+    ``duration``) before the tank's drift, so that a log shorter than ``train_s`` is the start of
+    the longer one, touch for touch."""
+    rng = np.random.default_rng(seed)
+    touches = touch_train(rng, duration if train_s is None else train_s)
+    return _scenario("fingers", seed, duration, touches, rng, "touches of 1-3 fingers every 5-9 s")
+
+
 def mis_sized_skin(skin: SkinParams, f: float) -> dict[str, float]:
     """``skin``'s network as a lab's may truly be before it calibrates (``[skin]`` changes):
     ``C_w, C_g`` by ``1 + f``, ``R_g, R_ag`` by ``1 - f`` (``f`` -0.3: 30 % lighter and less
